@@ -1,0 +1,68 @@
+"""Axis-aligned boxes -> candidate pairs, by sweep and prune on the axis of widest spread."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def candidate_pairs(
+    lower: np.ndarray,
+    upper: np.ndarray,
+    *,
+    margin: float = 0.0,
+    owner: np.ndarray | None = None,
+) -> np.ndarray:
+    """Find the box pairs that overlap once each box is grown by ``margin / 2`` on every side.
+
+    Two boxes pass when their gap along every axis is at most ``margin``, so no pair of shapes
+    closer than ``margin`` is ever pruned.
+
+    Parameters
+    ----------
+    lower, upper : (m, 3) float64
+        Box corners, world coordinates, model units.
+    margin : float
+        Largest gap, model units, that still makes a pair a candidate.
+    owner : (m,) int64, optional
+        Part index of each box; boxes of the same owner are never paired.
+
+    Returns
+    -------
+    pairs : (k, 2) int64
+        Indices ``i < j`` of candidate boxes, sorted lexicographically.
+
+    Examples
+    --------
+    >>> lo = np.array([[0.0, 0, 0], [2, 0, 0], [0.5, 0, 0]])
+    >>> candidate_pairs(lo, lo + 1.0).tolist()
+    [[0, 2], [1, 2]]
+    """
+    lower = np.asarray(lower, dtype=np.float64).reshape(-1, 3)
+    upper = np.asarray(upper, dtype=np.float64).reshape(-1, 3)
+    m = len(lower)
+    if m < 2:
+        return np.empty((0, 2), dtype=np.int64)
+    lo = lower - 0.5 * margin
+    hi = upper + 0.5 * margin
+
+    # Sweep along the axis where the boxes are most spread out, so few intervals overlap.
+    centres = 0.5 * (lo + hi)
+    axis = int(np.argmax(centres.max(axis=0) - centres.min(axis=0)))
+    order = np.argsort(lo[:, axis], kind="stable")
+    lo, hi = lo[order], hi[order]
+
+    # In sorted order, box i overlaps on the sweep axis exactly the boxes i+1 .. end[i]-1.
+    end = np.searchsorted(lo[:, axis], hi[:, axis], side="right")
+    counts = np.maximum(end - np.arange(1, m + 1), 0)
+    first = np.repeat(np.arange(m), counts)
+    offsets = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
+    second = first + 1 + offsets
+
+    keep = np.all((lo[second] <= hi[first]) & (lo[first] <= hi[second]), axis=1)
+    i, j = order[first[keep]], order[second[keep]]
+    if owner is not None:
+        owner = np.asarray(owner)
+        distinct = owner[i] != owner[j]
+        i, j = i[distinct], j[distinct]
+    pairs = np.stack([np.minimum(i, j), np.maximum(i, j)], axis=1).astype(np.int64)
+    return pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]

@@ -1,0 +1,44 @@
+"""Errors and warnings meshcheck raises on purpose.
+
+A user mistake (a missing file, a broken mesh, a bad option) is a ``MeshcheckError`` subclass: the
+command line prints it as one line, ``error: PATH: reason``, with no traceback. Anything else that
+escapes is a bug and keeps its traceback.
+"""
+
+from __future__ import annotations
+
+import enum
+
+
+class ExitStatus(enum.IntEnum):
+    """Process exit codes of the ``meshcheck`` command, the one place they are defined."""
+
+    OK = 0
+    FAILED = 1  # a finding fails the run (interference, or what --fail-on selects)
+    USAGE = 2  # bad options or arguments (click's own code for usage errors)
+    INPUT = 3  # an input cannot be checked
+
+
+class MeshcheckError(Exception):
+    """Base class of every error meshcheck reports to the user as one line."""
+
+    exit_status = ExitStatus.INPUT
+
+    def __init__(self, path: str | None, reason: str):
+        self.path = path
+        self.reason = reason
+        super().__init__(f"{path}: {reason}" if path else reason)
+
+
+class InputError(MeshcheckError):
+    """An input file or directory cannot be read as a solid or surface mesh."""
+
+
+class ConfigError(MeshcheckError):
+    """A configuration file or option value is invalid."""
+
+    exit_status = ExitStatus.USAGE
+
+
+class MeshcheckWarning(UserWarning):
+    """Something about an input deserves the user's attention but does not stop the check."""

@@ -1,0 +1,177 @@
+"""The check, stage by stage: load -> hulls -> pieces -> GJK filter -> exact verdicts -> findings.
+
+Each stage narrows the part pairs the next one looks at:
+
+1. broad phase on the parts' boxes, grown by the reach (clearance + tolerance);
+2. GJK on whole-part convex hulls: a part's mesh lies inside its hull, so pairs whose hulls stay
+   beyond the reach are clear, and parts that meet nobody are never decomposed;
+3. GJK on the convex pieces of the remaining parts; the pieces cover every triangle of their part,
+   so pairs whose pieces stay beyond the reach have surfaces beyond the reach: they are clear
+   unless one part is buried inside the other, which the verify stage decides with one point;
+4. the verify stage decides the rest on the real meshes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from . import verify
+from .broadphase import candidate_pairs
+from .config import Approval, Groups, approval_reason, default_tolerance
+from .decompose import DEFAULT_THRESHOLD, decompose_bodies
+from .geometry import Status, pack_convex, query_pairs
+from .load import Body, load_bodies
+from .results import CheckResult, Finding, Part, finding_id
+
+
+def check(
+    paths: Sequence[str],
+    *,
+    clearance: float | None = None,
+    tolerance: float | None = None,
+    threshold: float = DEFAULT_THRESHOLD,
+    cache_dir: str | None = None,
+    jobs: int | None = None,
+    approvals: Sequence[Approval] = (),
+    groups: Groups | None = None,
+    export: str | None = None,
+) -> CheckResult:
+    """Check the parts in ``paths`` for interference, contact and (optionally) clearance.
+
+    Parameters
+    ----------
+    paths : sequence of str
+        Mesh files; each body becomes a part named by its path (``PATH#NODE`` inside multi-body
+        files).
+    clearance : float, optional
+        Also report part pairs whose true distance is below this, model units.
+    tolerance : float, optional
+        Overlaps and gaps below this count as touching, model units. Default: 1e-5 of the
+        assembly's bounding-box diagonal.
+    threshold : float
+        CoACD concavity threshold.
+    cache_dir : str, optional
+        Directory for cached decompositions; None disables the cache.
+    jobs : int, optional
+        Worker processes for decomposition; default all cores.
+    approvals : sequence of Approval
+        Findings on matching pairs are reported as approved and do not fail the run.
+    groups : Groups, optional
+        Check only pairs across the two groups.
+    export : str, optional
+        Write the assembly with the clashes marked to this glTF binary (.glb) file.
+
+    Returns
+    -------
+    CheckResult
+    """
+    bodies = load_bodies(paths)
+    return check_bodies(
+        bodies,
+        clearance=clearance,
+        tolerance=tolerance,
+        threshold=threshold,
+        cache_dir=cache_dir,
+        jobs=jobs,
+        approvals=approvals,
+        groups=groups,
+        export=export,
+    )
+
+
+def check_bodies(
+    bodies: Sequence[Body],
+    *,
+    clearance: float | None = None,
+    tolerance: float | None = None,
+    threshold: float = DEFAULT_THRESHOLD,
+    cache_dir: str | None = None,
+    jobs: int | None = None,
+    approvals: Sequence[Approval] = (),
+    groups: Groups | None = None,
+    export: str | None = None,
+) -> CheckResult:
+    """Run the check on bodies already loaded; see ``check``."""
+    n = len(bodies)
+    hulls = pack_convex([b.world.vertices for b in bodies])
+    if tolerance is None:
+        tolerance = default_tolerance(hulls.lower.min(axis=0), hulls.upper.max(axis=0))
+    reach = tolerance + (clearance or 0.0)
+
+    # Whole-part hulls: a mesh lies inside its hull, so a pair of hulls beyond reach is clear.
+    pairs = candidate_pairs(hulls.lower, hulls.upper, margin=reach)
+    if groups is not None:
+        allowed = [groups.allows(bodies[i].name, bodies[j].name) for i, j in pairs]
+        pairs = pairs[np.asarray(allowed, dtype=bool)]
+    near = pairs[_within(query_pairs(hulls, pairs, tolerance=tolerance, depth=False), reach)]
+
+    # Convex pieces, only for parts whose hull comes within reach of another part.
+    needed = np.unique(near)
+    piece_lists = decompose_bodies(
+        [bodies[i] for i in needed], threshold=threshold, cache_dir=cache_dir, jobs=jobs
+    )
+    piece_count = np.zeros(n, dtype=np.int64)
+    piece_count[needed] = [len(p) for p in piece_lists]
+    owner = np.repeat(needed, piece_count[needed]).astype(np.int64)
+    pieces = pack_convex([p for plist in piece_lists for p in plist])
+
+    # Piece pairs of two different parts whose hulls are near; a part pair with a piece pair within
+    # reach (or undecided) may have surfaces within reach.
+    piece_pairs = candidate_pairs(pieces.lower, pieces.upper, margin=reach, owner=owner)
+    owners = np.sort(owner[piece_pairs], axis=1)
+    keys = owners[:, 0] * n + owners[:, 1]
+    near_keys = near[:, 0] * n + near[:, 1]
+    piece_pairs, keys = piece_pairs[np.isin(keys, near_keys)], keys[np.isin(keys, near_keys)]
+    hit = _within(query_pairs(pieces, piece_pairs, tolerance=tolerance, depth=False), reach)
+    surfaces_near = set(np.unique(keys[hit]).tolist())
+
+    findings = []
+    for i, j in near:
+        a, b = bodies[i], bodies[j]
+        verdict = verify.verify_pair(
+            a.world,
+            b.world,
+            tolerance=tolerance,
+            clearance=clearance,
+            surfaces_apart=int(i * n + j) not in surfaces_near,
+        )
+        if verdict.status == verify.CLEAR:
+            continue
+        (name_a, digest_a), (name_b, digest_b) = sorted([(a.name, a.digest), (b.name, b.digest)])
+        findings.append(
+            Finding(
+                a=name_a,
+                b=name_b,
+                status=verdict.status,
+                distance=verdict.distance,
+                depth=verdict.depth,
+                volume=verdict.volume,
+                location=verdict.location,
+                id=finding_id(name_a, digest_a, name_b, digest_b),
+                is_surface_only=verdict.is_surface_only,
+                approved=approval_reason(approvals, name_a, name_b),
+            )
+        )
+    findings.sort(key=lambda f: (f.a, f.b))
+    parts = [
+        Part(b.name, b.path, len(b.mesh.faces), b.is_closed, int(piece_count[k]))
+        for k, b in enumerate(bodies)
+    ]
+    if export is not None:
+        from .export import export_clashes
+
+        export_clashes(export, bodies, findings)
+    return CheckResult(
+        findings=findings,
+        parts=parts,
+        tolerance=tolerance,
+        clearance=clearance,
+        pairs_checked=len(pairs),
+    )
+
+
+def _within(result, reach: float) -> np.ndarray:
+    """Mask of pairs that may come within ``reach``: not proven separated beyond it."""
+    return (result.status != Status.SEPARATED) | (result.distance <= reach)
