@@ -13,14 +13,18 @@ Each stage narrows the part pairs the next one looks at:
 
 from __future__ import annotations
 
+import dataclasses
+import os
+import warnings
 from collections.abc import Sequence
 
 import numpy as np
 
 from . import verify
 from .broadphase import candidate_pairs
-from .config import Approval, Groups, approval_reason, default_tolerance
+from .config import Approval, Config, Groups, approval_reason, default_tolerance, load_config
 from .decompose import DEFAULT_THRESHOLD, decompose_bodies
+from .errors import MeshcheckWarning
 from .geometry import Status, pack_convex, query_pairs
 from .load import Body, load_bodies
 from .results import CheckResult, Finding, Part, finding_id
@@ -31,54 +35,91 @@ def check(
     *,
     clearance: float | None = None,
     tolerance: float | None = None,
-    threshold: float = DEFAULT_THRESHOLD,
+    threshold: float | None = None,
     cache_dir: str | None = None,
     jobs: int | None = None,
     approvals: Sequence[Approval] = (),
     groups: Groups | None = None,
     export: str | None = None,
+    split: bool = False,
+    config: Config | str | os.PathLike | None = None,
 ) -> CheckResult:
     """Check the parts in ``paths`` for interference, contact and (optionally) clearance.
 
     Parameters
     ----------
     paths : sequence of str
-        Mesh files; each body becomes a part named by its path (``PATH#NODE`` inside multi-body
-        files).
+        Mesh files and directories (every supported mesh file below them). Each body becomes a
+        part named by its path, ``PATH#NODE`` inside multi-body files.
     clearance : float, optional
         Also report part pairs whose true distance is below this, model units.
     tolerance : float, optional
         Overlaps and gaps below this count as touching, model units. Default: 1e-5 of the
         assembly's bounding-box diagonal.
-    threshold : float
-        CoACD concavity threshold.
+    threshold : float, optional
+        CoACD concavity threshold; default ``decompose.DEFAULT_THRESHOLD``.
     cache_dir : str, optional
         Directory for cached decompositions; None disables the cache.
     jobs : int, optional
         Worker processes for decomposition; default all cores.
     approvals : sequence of Approval
-        Findings on matching pairs are reported as approved and do not fail the run.
+        Findings on matching pairs are reported as approved and do not fail the run; added to
+        the configuration's ``ignore`` rules.
     groups : Groups, optional
-        Check only pairs across the two groups.
+        Check only pairs across the two groups; replaces the configuration's ``groups``.
     export : str, optional
         Write the assembly with the clashes marked to this glTF binary (.glb) file.
+    split : bool
+        Make each disconnected shell of a body its own part (``NAME#1``, ``NAME#2``...).
+    config : Config or path, optional
+        Settings from a configuration file (``config.load_config``); an option passed here
+        wins over the file. Not searched for: the command line does that (``find_config``).
 
     Returns
     -------
     CheckResult
+        Its ``warnings`` list the MeshcheckWarnings raised on the way, which are also re-issued.
+
+    Raises
+    ------
+    InputError
+        An input cannot be checked.
+    ConfigError
+        The configuration file is invalid.
     """
-    bodies = load_bodies(paths)
-    return check_bodies(
-        bodies,
-        clearance=clearance,
-        tolerance=tolerance,
-        threshold=threshold,
-        cache_dir=cache_dir,
-        jobs=jobs,
-        approvals=approvals,
-        groups=groups,
-        export=export,
-    )
+    if config is not None and not isinstance(config, Config):
+        config = load_config(config)
+    if config is not None:
+        clearance = config.clearance if clearance is None else clearance
+        tolerance = config.tolerance if tolerance is None else tolerance
+        threshold = config.threshold if threshold is None else threshold
+        approvals = (*approvals, *config.ignore)
+        groups = config.groups if groups is None else groups
+    if threshold is None:
+        threshold = DEFAULT_THRESHOLD
+
+    caught: list[warnings.WarningMessage] = []
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", MeshcheckWarning)
+            bodies = load_bodies(paths, split=split)
+            result = check_bodies(
+                bodies,
+                clearance=clearance,
+                tolerance=tolerance,
+                threshold=threshold,
+                cache_dir=cache_dir,
+                jobs=jobs,
+                approvals=approvals,
+                groups=groups,
+                export=export,
+            )
+    finally:
+        # re-issue outside the recorder, so callers' filters (and the CLI) see them as usual
+        for w in caught:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
+    messages = [str(w.message) for w in caught if issubclass(w.category, MeshcheckWarning)]
+    return dataclasses.replace(result, warnings=[*result.warnings, *messages])
 
 
 def check_bodies(

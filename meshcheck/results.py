@@ -111,7 +111,12 @@ class Part:
 
 @dataclass(frozen=True)
 class CheckResult:
-    """Everything one check found, plus the settings it ran with."""
+    """Everything one check found, plus the settings it ran with.
+
+    ``pairs_checked`` counts the candidate part pairs after the broad phase; ``checked_pairs``
+    names them (sorted names ``(a, b)``) when the pipeline records them, for reports that list
+    every pair checked. ``warnings`` holds the messages of the MeshcheckWarnings of the run.
+    """
 
     findings: list[Finding]
     parts: list[Part]
@@ -119,6 +124,7 @@ class CheckResult:
     clearance: float | None
     pairs_checked: int = 0
     warnings: list[str] = field(default_factory=list)
+    checked_pairs: list[tuple[str, str]] = field(default_factory=list)
 
     def count(self, status: str) -> int:
         """Number of unapproved findings with this status."""
