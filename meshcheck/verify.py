@@ -1,0 +1,379 @@
+"""Candidate part pairs -> exact verdicts on the real meshes.
+
+The convex filter before this stage only says which part pairs *may* come within reach
+(tolerance + clearance). Here the real triangles decide:
+
+1. the triangles of each mesh whose boxes come within reach of the other mesh are paired through a
+   bounding-volume hierarchy, and every pair's exact distance is computed (numba, float64, both
+   meshes re-centred on a common point so coordinates far from the origin keep their digits);
+2. surfaces within the tolerance meet: when both meshes are closed, the shared solid is computed
+   with manifold3d and its thickness (``depth``) tells interference (thicker than the tolerance)
+   from touching (faces resting on faces leave a sliver at most);
+3. surfaces farther apart may still belong to one part buried inside the other: one point of every
+   connected shell is tested with the winding number of the other mesh;
+4. otherwise the pair is a clearance finding when the true distance is below the clearance, and
+   clear when not.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import trimesh
+
+from . import results
+from .geometry.triangles import (
+    box_pairs,
+    inscribed_ball,
+    pair_distances,
+    triangle_boxes,
+    winding_numbers,
+)
+
+CLEAR = "clear"
+
+# Faces cast inward to seed the inscribed-ball search; caps the cost on large overlaps.
+_MAX_SEEDS = 1024
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """What the real meshes of one part pair say.
+
+    Attributes
+    ----------
+    status : str
+        ``results.INTERFERENCE``, ``results.TOUCHING``, ``results.CLEARANCE`` or ``CLEAR``.
+    distance : float
+        True minimum distance between the two meshes, model units; 0 when they interfere or their
+        surfaces cross. For a ``CLEAR`` verdict it is the exact distance when the surfaces come
+        within reach, else ``inf`` (only known to exceed the reach).
+    depth : float or None
+        Interference depth, model units: the thickness of the shared solid, i.e. the diameter of
+        the largest ball that fits inside it. None unless interfering, or when a mesh is not
+        closed (there is no shared solid to measure).
+    volume : float or None
+        Volume of the shared solid (manifold3d boolean intersection), model units cubed, when both
+        meshes are closed and the pair interferes.
+    location : results.Location or None
+        Interference: centroid and box of the shared solid. Touching: the contact region (boxes
+        of the triangle pairs within the tolerance). Clearance: the two closest points.
+    is_surface_only : bool
+        True when a mesh is not closed (or the boolean failed), so the verdict rests on the
+        surfaces alone.
+    """
+
+    status: str
+    distance: float
+    depth: float | None = None
+    volume: float | None = None
+    location: results.Location | None = None
+    is_surface_only: bool = False
+
+
+def verify_pair(
+    a: trimesh.Trimesh,
+    b: trimesh.Trimesh,
+    *,
+    tolerance: float,
+    clearance: float | None,
+    surfaces_apart: bool = False,
+) -> Verdict:
+    """Decide whether two meshes interfere, touch, come closer than ``clearance``, or are clear.
+
+    Parameters
+    ----------
+    a, b : trimesh.Trimesh
+        The two parts, world coordinates, model units.
+    tolerance : float
+        Overlaps thinner than this and gaps narrower than this count as touching, model units.
+    clearance : float or None
+        Report a clearance finding when the true distance is below this, model units.
+    surfaces_apart : bool
+        The caller has proven that the surfaces stay farther apart than the reach
+        (``tolerance + clearance``); only a part buried inside the other remains to be checked.
+
+    Returns
+    -------
+    Verdict
+        ``interference`` when the parts share a solid thicker than ``tolerance`` (including a part
+        buried inside the other with no surfaces crossing), or, for a mesh that is not closed, when
+        the surfaces cross by more than ``tolerance``; ``touching`` when they meet within
+        ``tolerance`` otherwise; ``clearance`` when ``tolerance < distance < clearance``;
+        ``clear`` otherwise.
+
+    Examples
+    --------
+    >>> a = trimesh.creation.box(extents=[1, 1, 1])
+    >>> b = trimesh.creation.box(extents=[1, 1, 1]).apply_translation([0.7, 0, 0])
+    >>> v = verify_pair(a, b, tolerance=1e-6, clearance=None)
+    >>> v.status, round(v.depth, 6), round(v.volume, 6)
+    ('interference', 0.3, 0.3)
+    """
+    tolerance = float(tolerance)
+    reach = tolerance + (float(clearance) if clearance else 0.0)
+    is_closed = _is_closed(a) and _is_closed(b)
+    va, fa = np.asarray(a.vertices, dtype=np.float64), np.asarray(a.faces, dtype=np.int64)
+    vb, fb = np.asarray(b.vertices, dtype=np.float64), np.asarray(b.faces, dtype=np.int64)
+    origin = _common_origin(va, vb)
+    va, vb = va - origin, vb - origin
+    meshes = _Pair(va, fa, vb, fb, origin)
+
+    if surfaces_apart:
+        if _is_buried(meshes):
+            return _interference(
+                meshes, tolerance=tolerance, is_closed=is_closed, distance=0.0, near=None
+            )
+        return Verdict(CLEAR, math.inf, is_surface_only=not is_closed)
+
+    near = _near_pairs(meshes, reach)
+    distance = float(near.distance.min()) if len(near.distance) else math.inf
+
+    if distance <= tolerance:
+        return _interference(
+            meshes, tolerance=tolerance, is_closed=is_closed, distance=distance, near=near
+        )
+    if _is_buried(meshes):
+        return _interference(
+            meshes, tolerance=tolerance, is_closed=is_closed, distance=0.0, near=near
+        )
+    if clearance is not None and distance < clearance:
+        k = int(np.argmin(near.distance))
+        p, q = near.point_a[k] + origin, near.point_b[k] + origin
+        where = results.Location(0.5 * (p + q), np.minimum(p, q), np.maximum(p, q))
+        return Verdict(results.CLEARANCE, distance, location=where, is_surface_only=not is_closed)
+    return Verdict(CLEAR, distance, is_surface_only=not is_closed)
+
+
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _Pair:
+    """Both meshes, re-centred on ``origin`` (world = local + origin)."""
+
+    va: np.ndarray
+    fa: np.ndarray
+    vb: np.ndarray
+    fb: np.ndarray
+    origin: np.ndarray
+
+
+@dataclass(frozen=True)
+class _Near:
+    """Triangle pairs within reach and their exact distances (local frame)."""
+
+    pairs: np.ndarray  # (k, 2) int64: face of a, face of b
+    distance: np.ndarray  # (k,) float64
+    point_a: np.ndarray  # (k, 3) float64
+    point_b: np.ndarray  # (k, 3) float64
+    strength: np.ndarray  # (k,) float64: how far crossing triangles pass through each other
+
+
+def _is_closed(mesh: trimesh.Trimesh) -> bool:
+    return bool(mesh.is_watertight and mesh.is_winding_consistent)
+
+
+def _common_origin(va: np.ndarray, vb: np.ndarray) -> np.ndarray:
+    """A point between the two meshes: the centre of their boxes' overlap (or of the gap)."""
+    lo = np.maximum(va.min(axis=0), vb.min(axis=0))
+    hi = np.minimum(va.max(axis=0), vb.max(axis=0))
+    return 0.5 * (lo + hi)
+
+
+def _near_pairs(m: _Pair, reach: float) -> _Near:
+    """Exact distances of the triangle pairs whose boxes come within ``reach`` of each other."""
+    alo, ahi = triangle_boxes(m.va, m.fa)
+    blo, bhi = triangle_boxes(m.vb, m.fb)
+    # Only triangles near the other mesh's box enter the hierarchy.
+    ia = np.flatnonzero(
+        np.all((alo <= bhi.max(axis=0) + reach) & (ahi >= blo.min(axis=0) - reach), axis=1)
+    )
+    ib = np.flatnonzero(
+        np.all((blo <= ahi.max(axis=0) + reach) & (bhi >= alo.min(axis=0) - reach), axis=1)
+    )
+    local = box_pairs(alo[ia], ahi[ia], blo[ib], bhi[ib], reach)
+    pairs = np.stack([ia[local[:, 0]], ib[local[:, 1]]], axis=1).astype(np.int64)
+    dist, pa, pb, strength = pair_distances(m.va, m.fa, m.vb, m.fb, pairs)
+    return _Near(pairs, dist, pa, pb, strength)
+
+
+def _shell_points(v: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """One vertex of every connected shell of a mesh, ``(s, 3)``."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    used = np.unique(f)
+    edges = np.concatenate([f[:, [0, 1]], f[:, [1, 2]]])
+    graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(len(v), len(v)))
+    _, labels = connected_components(graph, directed=False)
+    _, first = np.unique(labels[used], return_index=True)
+    return v[used[first]]
+
+
+def _is_buried(m: _Pair) -> bool:
+    """True when a shell of one mesh lies inside the other (winding number above one half)."""
+    for v, f, ov, of in ((m.va, m.fa, m.vb, m.fb), (m.vb, m.fb, m.va, m.fa)):
+        points = _shell_points(v, f)
+        lo, hi = ov.min(axis=0), ov.max(axis=0)
+        inside_box = np.all((points >= lo) & (points <= hi), axis=1)
+        if inside_box.any() and np.any(winding_numbers(points[inside_box], ov, of) > 0.5):
+            return True
+    return False
+
+
+def _manifold(v: np.ndarray, f: np.ndarray):
+    import manifold3d
+
+    solid = manifold3d.Manifold(
+        manifold3d.Mesh64(
+            vert_properties=np.ascontiguousarray(v, dtype=np.float64),
+            tri_verts=np.ascontiguousarray(f, dtype=np.uint64),
+        )
+    )
+    if solid.status() != manifold3d.Error.NoError:
+        return None
+    return solid
+
+
+def shared_solid(
+    va: np.ndarray, fa: np.ndarray, vb: np.ndarray, fb: np.ndarray
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """Boolean intersection of two closed meshes with manifold3d.
+
+    Parameters
+    ----------
+    va, vb : (n, 3) float64
+        Vertices, any common frame.
+    fa, fb : (m, 3) int64
+        Faces, outward wound.
+
+    Returns
+    -------
+    (vertices (p, 3) float64, faces (q, 3) int64), or None when manifold3d rejects a mesh.
+    """
+    sa, sb = _manifold(va, fa), _manifold(vb, fb)
+    if sa is None or sb is None:
+        return None
+    out = (sa ^ sb).to_mesh64()
+    v = np.asarray(out.vert_properties, dtype=np.float64)[:, :3].reshape(-1, 3)
+    f = np.asarray(out.tri_verts, dtype=np.int64).reshape(-1, 3)
+    return v, f
+
+
+def _volume_centroid(v: np.ndarray, f: np.ndarray) -> tuple[float, np.ndarray]:
+    """Volume and centroid of a closed outward mesh (signed tetrahedra from its first vertex)."""
+    base = v[0]
+    a, b, c = v[f[:, 0]] - base, v[f[:, 1]] - base, v[f[:, 2]] - base
+    vol6 = np.einsum("ij,ij->i", a, np.cross(b, c))
+    total = vol6.sum()
+    if total <= 0.0:
+        return 0.0, v.mean(axis=0)
+    centroid = base + (vol6[:, None] * (a + b + c)).sum(axis=0) / (4.0 * total)
+    return float(total / 6.0), centroid
+
+
+def solid_depth(v: np.ndarray, f: np.ndarray, *, upper_bound: float = math.inf) -> float:
+    """Thickness of a closed solid: the diameter of the largest ball inside it, model units.
+
+    Two boxes overlapping by 0.3 share a slab 0.3 thick; a bolt 0.2 too big radially shares a
+    tube whose wall is 0.2 thick: both give exactly that. ``upper_bound`` short-circuits the
+    search when a cheap bound (box extent, volume) already says the solid is thin.
+    """
+    if len(f) == 0:
+        return 0.0
+    extent = float((v.max(axis=0) - v.min(axis=0)).min())
+    volume, _ = _volume_centroid(v, f)
+    # A ball of diameter D fits in the box and has volume pi D^3 / 6 <= volume.
+    bound = min(extent, (6.0 * max(volume, 0.0) / math.pi) ** (1.0 / 3.0))
+    if bound <= upper_bound:
+        return bound
+    radius, _ = inscribed_ball(v, f, _MAX_SEEDS)
+    return min(2.0 * radius, bound)
+
+
+def _interference(
+    m: _Pair, *, tolerance: float, is_closed: bool, distance: float, near: _Near | None
+) -> Verdict:
+    """Interference or touching, for meshes that meet or where one may be buried in the other."""
+    if is_closed:
+        solid = shared_solid(m.va, m.fa, m.vb, m.fb)
+        if solid is not None:
+            return _solid_verdict(m, solid, tolerance=tolerance, distance=distance, near=near)
+    return _surface_verdict(m, tolerance=tolerance, distance=distance, near=near)
+
+
+def _solid_verdict(m: _Pair, solid, *, tolerance: float, distance: float, near) -> Verdict:
+    v, f = solid
+    depth = solid_depth(v, f, upper_bound=tolerance)
+    if depth > tolerance:
+        volume, centroid = _volume_centroid(v, f)
+        where = results.Location(
+            centroid + m.origin, v.min(axis=0) + m.origin, v.max(axis=0) + m.origin
+        )
+        return Verdict(results.INTERFERENCE, 0.0, depth=depth, volume=volume, location=where)
+    return Verdict(results.TOUCHING, distance, location=_contact_region(m, near, tolerance))
+
+
+def _surface_verdict(m: _Pair, *, tolerance: float, distance: float, near) -> Verdict:
+    """Verdict from surfaces alone: they interfere when they pass through each other by more
+    than the tolerance, or when a surface lies deeper than that inside the other mesh."""
+    if near is None:  # surfaces apart: only a buried shell brings us here
+        lo = np.maximum(m.va.min(axis=0), m.vb.min(axis=0)) + m.origin
+        hi = np.minimum(m.va.max(axis=0), m.vb.max(axis=0)) + m.origin
+        where = results.Location(0.5 * (lo + hi), lo, hi)
+        return Verdict(results.INTERFERENCE, 0.0, location=where, is_surface_only=True)
+    crossing = near.strength > tolerance
+    if crossing.any():
+        points = np.concatenate([near.point_a[crossing], near.point_b[crossing]]) + m.origin
+        where = results.Location(points.mean(axis=0), points.min(axis=0), points.max(axis=0))
+        return Verdict(results.INTERFERENCE, 0.0, location=where, is_surface_only=True)
+    deep = _deep_points(m, near, tolerance)
+    if len(deep) or _is_buried(m):
+        where = None
+        if len(deep):
+            deep = deep + m.origin
+            where = results.Location(deep.mean(axis=0), deep.min(axis=0), deep.max(axis=0))
+        return Verdict(results.INTERFERENCE, 0.0, location=where, is_surface_only=True)
+    return Verdict(
+        results.TOUCHING,
+        distance,
+        location=_contact_region(m, near, tolerance),
+        is_surface_only=True,
+    )
+
+
+def _deep_points(m: _Pair, near: _Near, tolerance: float) -> np.ndarray:
+    """Vertices and centroids of the triangles near the other mesh that lie inside it (winding
+    number above one half) by more than the tolerance, local frame, ``(p, 3)``."""
+    from .geometry.triangles import point_distances
+
+    found = []
+    for col, (v, f, ov, of) in enumerate(((m.va, m.fa, m.vb, m.fb), (m.vb, m.fb, m.va, m.fa))):
+        faces = np.unique(near.pairs[:, col])
+        tri = v[f[faces]]
+        points = np.concatenate([tri.mean(axis=1), v[np.unique(f[faces])]])
+        inside = points[winding_numbers(points, ov, of) > 0.5]
+        if len(inside):
+            found.append(inside[point_distances(inside, ov, of) > tolerance])
+    return np.concatenate(found) if found else np.empty((0, 3))
+
+
+def _contact_region(m: _Pair, near: _Near | None, tolerance: float) -> results.Location | None:
+    """Where two meshes touch: the union of the overlaps of the boxes of the triangle pairs
+    within the tolerance; the centroid is the mean of those overlaps' centres."""
+    if near is None:
+        return None
+    touching = near.pairs[near.distance <= tolerance]
+    if len(touching) == 0:
+        return None
+    ta, tb = m.va[m.fa[touching[:, 0]]], m.vb[m.fb[touching[:, 1]]]
+    lo = np.maximum(ta.min(axis=1), tb.min(axis=1)) - tolerance
+    hi = np.minimum(ta.max(axis=1), tb.max(axis=1)) + tolerance
+    hi = np.maximum(lo, hi)
+    centres = 0.5 * (lo + hi)
+    return results.Location(
+        centres.mean(axis=0) + m.origin, lo.min(axis=0) + m.origin, hi.max(axis=0) + m.origin
+    )
