@@ -1,0 +1,98 @@
+"""Findings -> a glTF binary (.glb) a person opens in any viewer to see the clashes.
+
+Every part becomes a node named after it: parts in an interference in orange, the others in
+translucent grey. Every interference becomes its own red node, named after the finding, holding
+the shared solid (manifold3d intersection of the two closed meshes) or, when a mesh is not closed,
+the box of the finding's location.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+
+import numpy as np
+import trimesh
+
+from . import results
+from .errors import InputError
+from .load import Body
+from .verify import shared_solid
+
+# RGBA, 0-255.
+PART_COLOR = (160, 160, 160, 90)
+CLASHING_PART_COLOR = (255, 140, 0, 200)
+CLASH_COLOR = (230, 0, 0, 255)
+
+
+def _painted(mesh: trimesh.Trimesh, rgba: tuple[int, int, int, int]) -> trimesh.Trimesh:
+    out = trimesh.Trimesh(vertices=mesh.vertices.copy(), faces=mesh.faces.copy(), process=False)
+    material = trimesh.visual.material.PBRMaterial(
+        baseColorFactor=list(rgba),
+        alphaMode="BLEND" if rgba[3] < 255 else "OPAQUE",
+        metallicFactor=0.0,
+        roughnessFactor=0.8,
+        doubleSided=True,
+    )
+    out.visual = trimesh.visual.TextureVisuals(material=material)
+    return out
+
+
+def clash_mesh(a: Body, b: Body, finding: results.Finding) -> trimesh.Trimesh | None:
+    """The shared solid of an interference, world coordinates; the location's box when a mesh is
+    not closed or the boolean fails; None when there is neither."""
+    if a.is_closed and b.is_closed:
+        va, vb = np.asarray(a.world.vertices, float), np.asarray(b.world.vertices, float)
+        origin = 0.5 * (va.mean(axis=0) + vb.mean(axis=0))
+        solid = shared_solid(va - origin, a.world.faces, vb - origin, b.world.faces)
+        if solid is not None and len(solid[1]):
+            return trimesh.Trimesh(vertices=solid[0] + origin, faces=solid[1], process=False)
+    loc = finding.location
+    if loc is None:
+        return None
+    extent = np.maximum(np.asarray(loc.upper) - np.asarray(loc.lower), 1e-9)
+    box = trimesh.creation.box(extents=extent)
+    box.apply_translation(0.5 * (np.asarray(loc.lower) + np.asarray(loc.upper)))
+    return box
+
+
+def export_clashes(path: str, bodies: Sequence[Body], findings: Sequence[results.Finding]) -> None:
+    """Write the assembly with its interferences marked to a glTF binary file.
+
+    Parameters
+    ----------
+    path : str
+        Output file, ``.glb``.
+    bodies : sequence of Body
+        Every part of the assembly.
+    findings : sequence of results.Finding
+        The check's findings; interference ones are drawn.
+
+    Raises
+    ------
+    InputError
+        The file cannot be written.
+    """
+    by_name = {b.name: b for b in bodies}
+    clashes = [f for f in findings if f.status == results.INTERFERENCE]
+    clashing = {name for f in clashes for name in (f.a, f.b)}
+    scene = trimesh.Scene()
+    for body in bodies:
+        color = CLASHING_PART_COLOR if body.name in clashing else PART_COLOR
+        scene.add_geometry(_painted(body.world, color), node_name=body.name, geom_name=body.name)
+    for f in clashes:
+        if f.a not in by_name or f.b not in by_name:
+            continue
+        mesh = clash_mesh(by_name[f.a], by_name[f.b], f)
+        if mesh is None:
+            continue
+        name = f"interference {f.a} x {f.b}" + (f" [{f.id}]" if f.id else "")
+        scene.add_geometry(_painted(mesh, CLASH_COLOR), node_name=name, geom_name=name)
+    try:
+        data = scene.export(file_type="glb")
+        tmp = f"{path}.tmp{os.getpid()}"
+        with open(tmp, "wb") as fh:
+            fh.write(data)
+        os.replace(tmp, path)
+    except OSError as exc:
+        raise InputError(path, f"cannot write the export ({exc.strerror or exc})") from None
