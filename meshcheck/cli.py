@@ -1,14 +1,19 @@
-"""The ``meshcheck`` command: parse options, call ``check``, render, exit. No geometry here."""
+"""The ``meshcheck`` command: parse options, call ``check``, render, exit. No geometry here.
+
+Heavy modules (trimesh, numba, CoACD) are imported inside ``main`` only, so ``--help`` and usage
+errors stay quick.
+"""
 
 from __future__ import annotations
 
 import sys
+import warnings
 
 import click
 
-from .decompose import DEFAULT_THRESHOLD
-from .errors import ExitStatus, MeshcheckError
-from .report import FORMATS, exit_status, render
+from .config import FAIL_ON_CHOICES, find_config, load_config, parse_fail_on
+from .errors import ConfigError, ExitStatus, MeshcheckError, MeshcheckWarning
+from .report import FORMATS, exit_status, render, summary_line
 
 
 def default_cache_dir() -> str:
@@ -18,11 +23,25 @@ def default_cache_dir() -> str:
     return platformdirs.user_cache_dir("meshcheck")
 
 
+def _fail_on_option(ctx, param, values):
+    """``--fail-on`` values (repeated or comma lists) -> list of statuses, or None when absent."""
+    if not values:
+        return None
+    try:
+        return parse_fail_on(values)
+    except ConfigError as exc:
+        raise click.BadParameter(exc.reason) from None
+
+
 @click.command(context_settings={"help_option_names": ["-h", "--help"]})
 @click.argument("files", nargs=-1, required=True)
 @click.option(
     "--format", "fmt", type=click.Choice(FORMATS), default="text", show_default=True,
-    help="Report format on stdout.",
+    help="Report format: a table and a summary line, JSON, JUnit XML, or GitHub annotations.",
+)
+@click.option(
+    "--output", "-o", "output", type=click.Path(dir_okay=False, writable=True), default=None,
+    help="Write the report to this file instead of stdout (the summary line goes to stderr).",
 )
 @click.option(
     "--clearance", type=click.FloatRange(min=0.0), default=None,
@@ -34,9 +53,24 @@ def default_cache_dir() -> str:
     "Default: 1e-5 of the assembly's bounding-box diagonal.",
 )
 @click.option(
-    "--threshold", type=click.FloatRange(min=0.01, max=1.0), default=DEFAULT_THRESHOLD,
-    show_default=True, help="CoACD concavity threshold for the convex pieces.",
+    "--threshold", type=click.FloatRange(min=0.01, max=1.0), default=None,
+    help="CoACD concavity threshold for the convex pieces. Default: 0.1.",
 )
+@click.option(
+    "--fail-on", "fail_on", multiple=True, callback=_fail_on_option, metavar="STATUSES",
+    help=f"Statuses that fail the run: comma list or repeated, from {', '.join(FAIL_ON_CHOICES)}, "
+    "none. Default: interference, plus clearance when a clearance is set.",
+)
+@click.option(
+    "--split", is_flag=True,
+    help="Make each disconnected shell of a mesh its own part (NAME#1, NAME#2... in file order).",
+)
+@click.option(
+    "--config", "config_path", type=click.Path(dir_okay=False), default=None,
+    help="Read settings from this file instead of the meshcheck.toml or pyproject.toml "
+    "[tool.meshcheck] found from the working directory upward.",
+)
+@click.option("--no-config", is_flag=True, help="Ignore configuration files.")
 @click.option(
     "--cache-dir", type=click.Path(file_okay=False), default=None,
     help="Where decompositions are kept. Default: the user's cache directory.",
@@ -51,33 +85,82 @@ def default_cache_dir() -> str:
     help="Write the assembly with clashes marked in red to this .glb file.",
 )
 @click.version_option(package_name="meshcheck")
-def main(fmt, files, clearance, tolerance, threshold, cache_dir, no_cache, jobs, export_path):
+def main(
+    fmt, files, output, clearance, tolerance, threshold, fail_on, split, config_path, no_config,
+    cache_dir, no_cache, jobs, export_path,
+):
     """Check the parts in FILES for interference, contact and clearance.
 
-    Exit status: 0 when nothing fails, 1 when a part pair interferes (or violates --clearance),
-    2 for a usage error, 3 when an input cannot be checked.
+    FILES are mesh files (STL, OBJ, PLY, OFF, GLB/GLTF, 3MF) or directories (every mesh file
+    below them). A part is named by its path as given; a body inside a file holding several is
+    PATH#NODE.
+
+    Exit status: 0 when nothing fails, 1 when a finding fails the run (interference by default,
+    and clearance violations when --clearance is given), 2 for a usage or configuration error,
+    3 when an input cannot be checked.
     """
-    from .pipeline import check
+    try:
+        if config_path is not None:
+            config = load_config(config_path)
+        elif not no_config and (found := find_config()) is not None:
+            config = load_config(found)
+        else:
+            config = None
+    except MeshcheckError as exc:
+        _fail(exc)
+    if fail_on is None and config is not None:
+        fail_on = config.fail_on
 
     if no_cache:
         cache_dir = None
     elif cache_dir is None:
         cache_dir = default_cache_dir()
-    try:
-        result = check(
-            files,
-            clearance=clearance,
-            tolerance=tolerance,
-            threshold=threshold,
-            cache_dir=cache_dir,
-            jobs=jobs,
-            export=export_path,
-        )
-    except MeshcheckError as exc:
-        click.echo(f"error: {exc}", err=True)
-        sys.exit(int(exc.exit_status))
-    click.echo(render(result, fmt), nl=False)
-    sys.exit(int(exit_status(result)))
+
+    from .pipeline import check
+
+    error = None
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", MeshcheckWarning)
+        try:
+            result = check(
+                files,
+                clearance=clearance,
+                tolerance=tolerance,
+                threshold=threshold,
+                cache_dir=cache_dir,
+                jobs=jobs,
+                export=export_path,
+                split=split,
+                config=config,
+            )
+        except MeshcheckError as exc:
+            error = exc
+    for w in caught:
+        if issubclass(w.category, MeshcheckWarning):
+            click.echo(f"warning: {w.message}", err=True)
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
+    if error is not None:
+        _fail(error)
+
+    text = render(result, fmt, fail_on=fail_on)
+    if output is None:
+        click.echo(text, nl=False)
+    else:
+        try:
+            with open(output, "w", encoding="utf-8") as f:
+                f.write(text)
+        except OSError as exc:
+            click.echo(f"error: {output}: cannot write the report ({exc.strerror})", err=True)
+            sys.exit(int(ExitStatus.USAGE))
+        click.echo(f"{summary_line(result, fail_on=fail_on)}; report written to {output}", err=True)
+    sys.exit(int(exit_status(result, fail_on=fail_on)))
+
+
+def _fail(exc: MeshcheckError):
+    """Print ``error: PATH: reason`` on stderr and exit with the error's status."""
+    click.echo(f"error: {exc}", err=True)
+    sys.exit(int(exc.exit_status))
 
 
 if __name__ == "__main__":  # pragma: no cover

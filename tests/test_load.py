@@ -1,0 +1,303 @@
+"""Loading: part names, multi-body files, --split, directories, and one-line input errors."""
+
+from __future__ import annotations
+
+import base64
+import json
+import os
+import struct
+import zipfile
+
+import numpy as np
+import pytest
+import trimesh
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from meshcheck.errors import InputError, MeshcheckWarning
+from meshcheck.load import expand_paths, load_bodies, split_shells
+
+HYPOTHESIS = settings(derandomize=True, deadline=None, max_examples=40)
+
+
+def box(extents=(1.0, 1.0, 1.0), at=(0.0, 0.0, 0.0)) -> trimesh.Trimesh:
+    return trimesh.creation.box(extents=extents).apply_translation(at)
+
+
+def write_stl(path, mesh) -> str:
+    mesh.export(str(path))
+    return str(path)
+
+
+def write_gltf(path, nodes) -> str:
+    """A .gltf with one unit-cube mesh used by every node in ``nodes`` (name, translation)."""
+    cube = box()
+    v = np.asarray(cube.vertices, dtype=np.float32)
+    f = np.asarray(cube.faces, dtype=np.uint32)
+    data = v.tobytes() + f.tobytes()
+    doc = {
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": list(range(len(nodes)))}],
+        "nodes": [{"name": n, "mesh": 0, "translation": list(t)} for n, t in nodes],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+        "buffers": [{
+            "byteLength": len(data),
+            "uri": "data:application/octet-stream;base64," + base64.b64encode(data).decode(),
+        }],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": v.nbytes},
+            {"buffer": 0, "byteOffset": v.nbytes, "byteLength": f.nbytes},
+        ],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": len(v), "type": "VEC3",
+             "min": v.min(axis=0).tolist(), "max": v.max(axis=0).tolist()},
+            {"bufferView": 1, "componentType": 5125, "count": f.size, "type": "SCALAR"},
+        ],
+    }
+    path.write_text(json.dumps(doc))
+    return str(path)
+
+
+def write_3mf(path, items) -> str:
+    """A .3mf with one unit cube object placed by each build item (name, translation)."""
+    cube = box()
+    verts = "".join(f'<vertex x="{x}" y="{y}" z="{z}"/>' for x, y, z in cube.vertices)
+    tris = "".join(f'<triangle v1="{a}" v2="{b}" v3="{c}"/>' for a, b, c in cube.faces)
+    objects, build = [], []
+    for k, (name, (x, y, z)) in enumerate(items, start=1):
+        objects.append(f'<object id="{k}" name="{name}" type="model"><components>'
+                       f'<component objectid="100"/></components></object>')
+        build.append(f'<item objectid="{k}" transform="1 0 0 0 1 0 0 0 1 {x} {y} {z}"/>')
+    model = (
+        '<?xml version="1.0" encoding="UTF-8"?>'
+        '<model unit="millimeter" xmlns="http://schemas.microsoft.com/3dmanufacturing/core/2015/02">'
+        f'<resources><object id="100" name="cube" type="model"><mesh><vertices>{verts}</vertices>'
+        f'<triangles>{tris}</triangles></mesh></object>{"".join(objects)}</resources>'
+        f'<build>{"".join(build)}</build></model>'
+    )
+    rels = (
+        '<?xml version="1.0" encoding="UTF-8"?>'
+        '<Relationships xmlns="http://schemas.openxmlformats.org/package/2006/relationships">'
+        '<Relationship Target="/3D/3dmodel.model" Id="rel0" '
+        'Type="http://schemas.microsoft.com/3dmanufacturing/2013/01/3dmodel"/></Relationships>'
+    )
+    with zipfile.ZipFile(path, "w") as z:
+        z.writestr("_rels/.rels", rels)
+        z.writestr("3D/3dmodel.model", model)
+    return str(path)
+
+
+# ------------------------------------------------------------------------------------------
+# Known answers
+
+
+def test_single_body_file_is_named_by_its_path(tmp_path):
+    path = write_stl(tmp_path / "cube.stl", box())
+    (body,) = load_bodies([path])
+    assert body.name == path
+    assert body.path == path
+    assert len(body.mesh.faces) == 12
+    assert body.is_closed
+    np.testing.assert_array_equal(body.transform, np.eye(4))
+
+
+def test_gltf_instances_share_the_mesh_and_keep_their_placement(tmp_path):
+    path = write_gltf(tmp_path / "assy.gltf", [("right", (5, 0, 0)), ("left", (0, 0, 0))])
+    bodies = load_bodies([path])
+    assert [b.name for b in bodies] == [f"{path}#left", f"{path}#right"]
+    left, right = bodies
+    assert left.mesh is right.mesh  # one decomposition serves both instances
+    assert left.digest == right.digest
+    np.testing.assert_allclose(right.transform[:3, 3], [5, 0, 0])
+    np.testing.assert_allclose(right.world.bounds, [[4.5, -0.5, -0.5], [5.5, 0.5, 0.5]])
+
+
+def test_glb_bodies_are_named_by_node(tmp_path):
+    scene = trimesh.Scene()
+    scene.add_geometry(box(), node_name="frame", geom_name="frame")
+    scene.add_geometry(box(at=(3, 0, 0)), node_name="pin", geom_name="pin")
+    path = str(tmp_path / "assy.glb")
+    scene.export(path)
+    assert [b.name for b in load_bodies([path])] == [f"{path}#frame", f"{path}#pin"]
+
+
+@pytest.mark.parametrize("keyword", ["o", "g"])
+def test_obj_objects_and_groups_are_bodies(tmp_path, keyword):
+    lines = []
+    for k, name in enumerate(["housing", "lid"]):
+        lines.append(f"{keyword} {name}")
+        cube = box(at=(3 * k, 0, 0))
+        lines += [f"v {x} {y} {z}" for x, y, z in cube.vertices]
+        lines += [f"f {a + 1 + 8 * k} {b + 1 + 8 * k} {c + 1 + 8 * k}" for a, b, c in cube.faces]
+    path = tmp_path / "assy.obj"
+    path.write_text("\n".join(lines) + "\n")
+    bodies = load_bodies([str(path)])
+    assert [b.name for b in bodies] == [f"{path}#housing", f"{path}#lid"]
+    assert all(b.is_closed and len(b.mesh.faces) == 12 for b in bodies)
+
+
+def test_3mf_build_items_are_placed_bodies(tmp_path):
+    path = write_3mf(tmp_path / "assy.3mf", [("base", (0, 0, 0)), ("top", (0, 0, 2))])
+    bodies = load_bodies([path])
+    assert [b.name for b in bodies] == [f"{path}#base/cube", f"{path}#top/cube"]
+    assert bodies[0].mesh is bodies[1].mesh
+    np.testing.assert_allclose(bodies[1].world.bounds, [[-0.5, -0.5, 1.5], [0.5, 0.5, 2.5]])
+
+
+def test_directory_expands_to_sorted_mesh_files(tmp_path):
+    root = tmp_path / "assy"
+    (root / "sub").mkdir(parents=True)
+    (root / ".hidden").mkdir()
+    write_stl(root / "b.stl", box())
+    write_stl(root / "sub" / "a.stl", box(at=(3, 0, 0)))
+    write_stl(root / "A.STL", box(at=(6, 0, 0)))
+    write_stl(root / ".hidden" / "c.stl", box())
+    (root / "notes.txt").write_text("not a mesh")
+    arg = str(root)
+    assert expand_paths([arg]) == [
+        os.path.join(arg, "A.STL"), os.path.join(arg, "b.stl"), os.path.join(arg, "sub", "a.stl"),
+    ]
+    assert [b.name for b in load_bodies([arg])] == expand_paths([arg])
+
+
+def test_split_gives_a_part_per_shell_and_keeps_cavities(tmp_path):
+    hollow, cavity = box((4, 4, 4)), box((2, 2, 2))
+    cavity.invert()  # inward-facing lining of the hollow's cavity
+    cube = box(at=(10, 0, 0))
+    path = write_stl(tmp_path / "shells.stl", trimesh.util.concatenate([cube, hollow, cavity]))
+    (whole,) = load_bodies([path])
+    parts = load_bodies([path], split=True)
+    assert [p.name for p in parts] == [f"{path}#1", f"{path}#2"]
+    assert [len(p.mesh.faces) for p in parts] == [12, 24]
+    assert parts[0].world.bounds[0][0] == pytest.approx(9.5)
+    assert parts[1].mesh.volume == pytest.approx(64 - 8)
+    assert len(whole.mesh.faces) == 36
+
+
+def test_split_keeps_a_single_shell_whole(tmp_path):
+    path = write_stl(tmp_path / "one.stl", box())
+    assert [b.name for b in load_bodies([path], split=True)] == [path]
+
+
+def test_split_leaves_a_solid_inside_a_cavity_its_own_part():
+    hollow, cavity, ball = box((6, 6, 6)), box((4, 4, 4)), box((1, 1, 1))
+    cavity.invert()
+    shells = split_shells(trimesh.util.concatenate([ball, hollow, cavity]))
+    assert [round(float(s.volume), 6) for s in shells] == [1.0, 216.0 - 64.0]
+
+
+def test_degenerate_triangles_are_dropped_with_a_warning(tmp_path):
+    cube = box()
+    faces = np.vstack([cube.faces, [[0, 0, 1], [0, 1, 1]]])
+    path = str(tmp_path / "degenerate.ply")
+    trimesh.Trimesh(cube.vertices, faces, process=False).export(path)
+    with pytest.warns(MeshcheckWarning, match=r"degenerate\.ply: dropped 2 degenerate"):
+        (body,) = load_bodies([path])
+    assert len(body.mesh.faces) == 12
+    assert body.is_closed
+
+
+def test_open_mesh_loads_with_a_warning(tmp_path):
+    cube = box()
+    path = str(tmp_path / "open.stl")
+    trimesh.Trimesh(cube.vertices, cube.faces[:-1], process=False).export(path)
+    with pytest.warns(MeshcheckWarning, match=r"open\.stl: mesh is not closed"):
+        (body,) = load_bodies([path])
+    assert not body.is_closed
+
+
+# ------------------------------------------------------------------------------------------
+# Broken inputs: one InputError naming the path
+
+
+def _binary_stl(count: int, triangles: int | None = None) -> bytes:
+    triangles = count if triangles is None else triangles
+    return b"\0" * 80 + struct.pack("<I", count) + b"\0" * (50 * triangles)
+
+
+BROKEN = {
+    "missing.stl": (None, "no such file"),
+    "empty.stl": (b"", "empty file"),
+    "short.stl": (b"abc", "84-byte header"),
+    "truncated.stl": (_binary_stl(12)[:-20], "header says 12 triangles"),
+    "huge.stl": (_binary_stl(4_000_000_000, 2), "header says 4000000000 triangles"),
+    "garbage.stl": (bytes(range(256)) * 7, "binary STL"),
+    "ascii_garbage.stl": (b"solid x\n this is not a facet\nendsolid x\n", "no triangles"),
+    "zero.stl": (_binary_stl(0), "no triangles"),
+    "notes.xyz": (b"1 2 3\n", "unsupported file type .xyz"),
+    "noext": (b"1 2 3\n", "unsupported file type"),
+    "cloud.ply": (
+        b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+        b"property float z\nend_header\n0 0 0\n1 0 0\n0 1 0\n",
+        "point cloud",
+    ),
+    "nan.obj": (b"v 0 0 0\nv 1 0 0\nv nan 1 0\nf 1 2 3\n", "NaN or infinite"),
+    "inf.obj": (b"v 0 0 0\nv 1 0 0\nv 0 inf 0\nf 1 2 3\n", "NaN or infinite"),
+    "garbage.glb": (b"glTF" + bytes(range(200)), "cannot be read"),
+    "garbage.3mf": (b"PK not really a zip", "cannot be read as 3MF"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(BROKEN))
+def test_broken_input_is_one_input_error_naming_the_file(tmp_path, name):
+    content, reason = BROKEN[name]
+    path = tmp_path / name
+    if content is not None:
+        path.write_bytes(content)
+    with pytest.raises(InputError) as info:
+        load_bodies([str(path)])
+    assert info.value.path == str(path)
+    assert reason in info.value.reason
+    assert "\n" not in str(info.value)
+
+
+def test_nan_in_binary_stl_is_an_input_error(tmp_path):
+    cube = box()
+    v = cube.vertices.copy()
+    v[3] = [np.nan, 0, 0]
+    path = write_stl(tmp_path / "nan.stl", trimesh.Trimesh(v, cube.faces, process=False))
+    with pytest.raises(InputError, match="NaN or infinite"):
+        load_bodies([path])
+
+
+def test_directory_without_meshes_is_an_input_error(tmp_path):
+    (tmp_path / "readme.txt").write_text("nothing here")
+    with pytest.raises(InputError, match="holds no mesh files") as info:
+        load_bodies([str(tmp_path)])
+    assert info.value.path == str(tmp_path)
+
+
+def test_the_same_part_twice_is_an_input_error(tmp_path):
+    path = write_stl(tmp_path / "cube.stl", box())
+    with pytest.raises(InputError, match="given more than once"):
+        load_bodies([path, path])
+
+
+# ------------------------------------------------------------------------------------------
+# Properties
+
+
+@HYPOTHESIS
+@given(cut=st.integers(min_value=1, max_value=12 * 50 + 83))
+def test_any_truncated_binary_stl_is_an_input_error(tmp_path_factory, cut):
+    data = box().export(file_type="stl")
+    path = tmp_path_factory.mktemp("cut") / "cut.stl"
+    path.write_bytes(data[:-cut])
+    with pytest.raises(InputError, match=r"cut\.stl"):
+        load_bodies([str(path)])
+
+
+@HYPOTHESIS
+@given(
+    order=st.permutations(range(4)),
+    gaps=st.lists(st.floats(0.1, 5.0), min_size=4, max_size=4),
+)
+def test_split_finds_every_disjoint_shell_in_file_order(order, gaps):
+    xs = np.cumsum([1.0 + g for g in gaps])
+    sizes = [1.0, 0.5, 0.8, 0.3]
+    cubes = [box((sizes[k],) * 3, at=(xs[k], 0, 0)) for k in order]
+    shells = split_shells(trimesh.util.concatenate(cubes))
+    assert len(shells) == 4
+    got = [float(s.volume) for s in shells]
+    np.testing.assert_allclose(got, [sizes[k] ** 3 for k in order], rtol=1e-9)
