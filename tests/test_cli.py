@@ -1,0 +1,325 @@
+"""The command line through CliRunner: stdout, stderr, exit status, and never a traceback."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+from xml.etree import ElementTree
+
+import pytest
+import trimesh
+from click.testing import CliRunner
+
+from meshcheck.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+SAMPLES = sorted(str(p.relative_to(ROOT)) for p in (ROOT / "sample_meshes").glob("*.stl"))
+OVERSIZED = "sample_meshes/bolt_m8_oversized.stl"
+PLATE = "sample_meshes/plate.stl"
+
+
+def run(args, **kwargs):
+    """Invoke the command; check the invariants every run must keep."""
+    result = CliRunner().invoke(main, [str(a) for a in args], **kwargs)
+    assert "Traceback" not in result.stderr
+    assert result.exception is None or isinstance(result.exception, SystemExit), result.exception
+    return result
+
+
+@pytest.fixture(scope="module")
+def cache_dir(tmp_path_factory):
+    """One decomposition cache for the module, so CoACD runs once per part."""
+    return str(tmp_path_factory.mktemp("cache"))
+
+
+@pytest.fixture
+def in_root(monkeypatch):
+    monkeypatch.chdir(ROOT)
+
+
+def box(extents=(1.0, 1.0, 1.0), at=(0.0, 0.0, 0.0)) -> trimesh.Trimesh:
+    return trimesh.creation.box(extents=extents).apply_translation(at)
+
+
+# ------------------------------------------------------------------------------------------
+# Usage, broken inputs, configuration errors: no geometry needed
+
+
+def test_python_m_meshcheck_help():
+    proc = subprocess.run(
+        [sys.executable, "-m", "meshcheck", "--help"], capture_output=True, text=True,
+        timeout=120, check=False, cwd=ROOT,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.startswith("Usage: meshcheck [OPTIONS] FILES...")
+    for option in ("--format", "--clearance", "--tolerance", "--threshold", "--cache-dir",
+                   "--no-cache", "--output", "--fail-on", "--split", "--config"):
+        assert option in proc.stdout
+
+
+def test_no_files_is_a_usage_error():
+    result = run([])
+    assert result.exit_code == 2
+    assert "Missing argument" in result.stderr
+
+
+@pytest.mark.parametrize(
+    ("option", "value"),
+    [("--format", "yaml"), ("--fail-on", "interference,overlap"), ("--clearance", "-1")],
+)
+def test_bad_option_is_a_usage_error(tmp_path, option, value):
+    result = run([option, value, tmp_path / "a.stl"])
+    assert result.exit_code == 2
+    assert result.stdout == ""
+
+
+BROKEN = {
+    "missing.stl": (None, "no such file or directory"),
+    "empty.stl": (b"", "empty file"),
+    "truncated.stl": (b"\0" * 80 + (12).to_bytes(4, "little") + b"\0" * 500, "truncated"),
+    "huge.stl": (b"\0" * 80 + (4_000_000_000).to_bytes(4, "little") + b"\0" * 100, "4000000000"),
+    "garbage.stl": (bytes(range(256)) * 5, "binary STL"),
+    "cloud.ply": (
+        b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+        b"property float z\nend_header\n0 0 0\n1 0 0\n0 1 0\n",
+        "point cloud",
+    ),
+    "nan.obj": (b"v 0 0 0\nv 1 0 0\nv nan 1 0\nf 1 2 3\n", "NaN or infinite"),
+    "inf.obj": (b"v 0 0 0\nv 1 0 0\nv 0 -inf 0\nf 1 2 3\n", "NaN or infinite"),
+    "part.step": (b"ISO-10303-21;\n", "unsupported file type .step"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(BROKEN))
+def test_broken_input_is_one_error_line_and_exit_3(tmp_path, name):
+    content, reason = BROKEN[name]
+    path = tmp_path / name
+    if content is not None:
+        path.write_bytes(content)
+    good = tmp_path / "good.stl"
+    box(at=(5, 0, 0)).export(str(good))
+    result = run([good, path, "--no-cache"])
+    assert result.exit_code == 3
+    assert result.stdout == ""
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1
+    assert lines[0].startswith(f"error: {path}: ")
+    assert reason in lines[0]
+
+
+def test_directory_without_meshes_is_exit_3(tmp_path):
+    (tmp_path / "notes.txt").write_text("no meshes here")
+    result = run([tmp_path, "--no-cache"])
+    assert result.exit_code == 3
+    assert result.stderr.startswith(f"error: {tmp_path}: directory holds no mesh files")
+
+
+def test_warnings_are_one_line_each_before_the_error(tmp_path):
+    cube = box()
+    open_mesh = tmp_path / "open.stl"
+    trimesh.Trimesh(cube.vertices, cube.faces[:-2], process=False).export(str(open_mesh))
+    empty = tmp_path / "empty.stl"
+    empty.write_bytes(b"")
+    result = run([open_mesh, empty, "--no-cache"])
+    assert result.exit_code == 3
+    assert result.stderr.splitlines() == [
+        f"warning: {open_mesh}: mesh is not closed (not watertight); "
+        "its findings rest on surfaces only",
+        f"error: {empty}: empty file",
+    ]
+
+
+def test_invalid_config_is_exit_2_naming_the_file(tmp_path, monkeypatch):
+    (tmp_path / "meshcheck.toml").write_text('[[ignore]]\na = "x"\nb = "y"\n')
+    monkeypatch.chdir(tmp_path)
+    result = run(["a.stl"])
+    assert result.exit_code == 2
+    config = tmp_path / "meshcheck.toml"
+    assert result.stderr == f"error: {config}: ignore entry 1 has no 'reason': " \
+        "say why the finding is approved\n"
+
+
+def test_explicit_config_file_that_is_missing_is_exit_2(tmp_path):
+    result = run(["--config", tmp_path / "nope.toml", "a.stl"])
+    assert result.exit_code == 2
+    assert result.stderr.startswith(f"error: {tmp_path / 'nope.toml'}: cannot be read")
+
+
+# ------------------------------------------------------------------------------------------
+# Whole runs on the sample assembly (the full pipeline)
+
+
+@pytest.fixture(scope="module")
+def sample_json(cache_dir):
+    cwd = os.getcwd()
+    os.chdir(ROOT)
+    try:
+        result = run([*SAMPLES, "--format", "json", "--cache-dir", cache_dir, "--no-config"])
+    finally:
+        os.chdir(cwd)
+    return result
+
+
+def test_sample_assembly_fails_on_the_oversized_bolt(sample_json):
+    assert sample_json.exit_code == 1, sample_json.stderr
+    doc = json.loads(sample_json.stdout)
+    assert set(doc) == {"results", "parts", "summary"}
+    assert [p["name"] for p in doc["parts"]] == SAMPLES
+    clashes = [r for r in doc["results"] if r["status"] == "interference"]
+    assert [(r["a"], r["b"]) for r in clashes] == [(OVERSIZED, PLATE)]
+    (clash,) = clashes
+    assert clash["distance"] == 0
+    assert clash["depth"] > 0 and clash["volume"] > 0
+    assert len(clash["id"]) == 12
+    for r in doc["results"]:
+        assert {"a", "b", "status", "distance", "depth", "volume", "id"} <= set(r)
+        assert r["a"] < r["b"]
+        assert r["status"] in ("interference", "touching", "clearance")
+    assert doc["summary"]["interference"] == 1
+    assert doc["summary"]["passed"] is False
+
+
+def test_sample_text_report(in_root, cache_dir):
+    result = run([*SAMPLES, "--cache-dir", cache_dir, "--no-config"])
+    assert result.exit_code == 1
+    lines = result.stdout.splitlines()
+    assert any("interference" in line and OVERSIZED in line for line in lines)
+    assert lines[-1].startswith("FAIL: 6 parts, 1 interference")
+
+
+def test_sample_without_the_oversized_bolt_passes(in_root, cache_dir):
+    parts = [p for p in SAMPLES if p != OVERSIZED]
+    result = run([*parts, "--cache-dir", cache_dir, "--no-config"])
+    assert result.exit_code == 0, result.stdout + result.stderr
+    assert result.stdout.splitlines()[-1].startswith("PASS: 5 parts, 0 interference")
+
+
+def test_directory_argument_matches_the_file_list(in_root, cache_dir, sample_json):
+    result = run(["sample_meshes", "--format", "json", "--cache-dir", cache_dir, "--no-config"])
+    assert result.exit_code == 1
+    doc = json.loads(result.stdout)
+    assert [p["name"] for p in doc["parts"]] == [
+        os.path.join("sample_meshes", Path(p).name) for p in SAMPLES
+    ]
+    assert doc["results"] == json.loads(sample_json.stdout)["results"]
+
+
+def test_fail_on_touching_fails_the_clean_assembly(in_root, cache_dir):
+    parts = [p for p in SAMPLES if p != OVERSIZED]
+    result = run([*parts, "--cache-dir", cache_dir, "--no-config", "--fail-on", "touching"])
+    assert result.exit_code == 1
+    assert result.stdout.splitlines()[-1].startswith("FAIL")
+    none = run([*SAMPLES, "--cache-dir", cache_dir, "--no-config", "--fail-on", "none"])
+    assert none.exit_code == 0
+
+
+def test_approved_interference_passes(tmp_path, monkeypatch, cache_dir):
+    (tmp_path / "meshcheck.toml").write_text(
+        '[[ignore]]\na = "*plate.stl"\nb = "*bolt_m8_*"\nreason = "bolt to be reamed"\n'
+    )
+    monkeypatch.chdir(tmp_path)
+    files = [str(ROOT / p) for p in SAMPLES]
+    result = run([*files, "--cache-dir", cache_dir])
+    assert result.exit_code == 0, result.stdout + result.stderr
+    assert "approved" in result.stdout
+    assert "bolt to be reamed" in result.stdout
+    junit = run([*files, "--cache-dir", cache_dir, "--format", "junit"])
+    root = ElementTree.fromstring(junit.stdout)
+    assert (root.get("failures"), root.get("skipped")) == ("0", "1")
+    # the command line wins over the file
+    strict = run([*files, "--cache-dir", cache_dir, "--no-config"])
+    assert strict.exit_code == 1
+
+
+def test_groups_restrict_the_pairs(tmp_path, monkeypatch, cache_dir):
+    config = tmp_path / "pyproject.toml"
+    config.write_text('[tool.meshcheck.groups]\na = ["*bracket.stl"]\nb = ["*plate.stl"]\n')
+    files = [str(ROOT / p) for p in SAMPLES]
+    result = run([*files, "--cache-dir", cache_dir, "--config", config, "--format", "json"])
+    assert result.exit_code == 0, result.stderr
+    doc = json.loads(result.stdout)
+    assert [(Path(r["a"]).name, Path(r["b"]).name) for r in doc["results"]] == [
+        ("bracket.stl", "plate.stl"),
+    ]
+
+
+def test_junit_report(in_root, cache_dir):
+    result = run([*SAMPLES, "--cache-dir", cache_dir, "--no-config", "--format", "junit"])
+    assert result.exit_code == 1
+    root = ElementTree.fromstring(result.stdout)
+    suite = root.find("testsuite")
+    cases = suite.findall("testcase")
+    failures = [c for c in cases if c.find("failure") is not None]
+    assert len(failures) == 1
+    assert OVERSIZED in failures[0].get("name") and PLATE in failures[0].get("name")
+    assert suite.get("failures") == "1"
+    assert suite.get("tests") == str(len(cases))
+
+
+def test_github_report(in_root, cache_dir):
+    result = run([*SAMPLES, "--cache-dir", cache_dir, "--no-config", "--format", "github"])
+    assert result.exit_code == 1
+    errors = [line for line in result.stdout.splitlines() if line.startswith("::error ")]
+    assert len(errors) == 1
+    assert errors[0].startswith(f"::error file={OVERSIZED},title=meshcheck interference [")
+    assert all(
+        line.startswith(("::warning ", "::notice ", "::error ", "FAIL", "PASS"))
+        for line in result.stdout.splitlines()
+    )
+
+
+def test_output_file(in_root, cache_dir, tmp_path):
+    out = tmp_path / "report.json"
+    result = run([*SAMPLES, "--cache-dir", cache_dir, "--no-config", "--format", "json",
+                  "--output", out])
+    assert result.exit_code == 1
+    assert result.stdout == ""
+    assert f"report written to {out}" in result.stderr
+    assert json.loads(out.read_text())["summary"]["interference"] == 1
+
+
+def test_clearance_violation_fails(in_root, cache_dir):
+    # the M6 shanks sit 0.3 mm from the walls of their holes
+    result = run([PLATE, "sample_meshes/bolt_m6_a.stl", "--cache-dir", cache_dir, "--no-config",
+                  "--clearance", "0.5", "--format", "json"])
+    assert result.exit_code == 1
+    doc = json.loads(result.stdout)
+    assert doc["summary"]["clearance"] + doc["summary"]["touching"] >= 1
+    assert doc["summary"]["passed"] is False
+
+
+# ------------------------------------------------------------------------------------------
+# Multi-body files and --split through the command line
+
+
+def test_multi_body_glb_names_parts_by_node(tmp_path):
+    scene = trimesh.Scene()
+    scene.add_geometry(box((2, 2, 2)), node_name="housing", geom_name="housing")
+    scene.add_geometry(box(at=(1.2, 0, 0)), node_name="pin", geom_name="pin")
+    scene.add_geometry(box(at=(5, 0, 0)), node_name="far", geom_name="far")
+    path = tmp_path / "assy.glb"
+    scene.export(str(path))
+    result = run([path, "--no-cache", "--no-config", "--format", "json"])
+    assert result.exit_code == 1, result.stderr
+    doc = json.loads(result.stdout)
+    assert [p["name"] for p in doc["parts"]] == [f"{path}#far", f"{path}#housing", f"{path}#pin"]
+    assert [(r["a"], r["b"], r["status"]) for r in doc["results"]] == [
+        (f"{path}#housing", f"{path}#pin", "interference"),
+    ]
+    assert doc["results"][0]["depth"] == pytest.approx(0.3, abs=1e-6)
+
+
+def test_split_checks_shells_against_each_other(tmp_path):
+    path = tmp_path / "shells.stl"
+    trimesh.util.concatenate([box(at=(0, 0, 0)), box(at=(0.5, 0, 0))]).export(str(path))
+    whole = run([path, "--no-cache", "--no-config"])
+    assert whole.exit_code == 0, whole.stderr  # one part cannot clash with itself
+    split = run([path, "--no-cache", "--no-config", "--split", "--format", "json"])
+    assert split.exit_code == 1, split.stderr
+    doc = json.loads(split.stdout)
+    assert [(r["a"], r["b"], r["status"]) for r in doc["results"]] == [
+        (f"{path}#1", f"{path}#2", "interference"),
+    ]
