@@ -1,0 +1,161 @@
+"""The decomposition cache: bit-exact round trips, corrupt entries are misses, concurrency."""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
+
+from meshcheck import cache as cache_module
+from meshcheck.cache import DecompositionCache, cache_key
+
+KEY = "0f" * 32
+PIECES = [np.arange(12.0).reshape(4, 3) / 7.0, np.array([[1e5, -1e-300, np.pi]])]
+
+
+def same(a, b) -> bool:
+    return len(a) == len(b) and all(
+        x.dtype == y.dtype and x.shape == y.shape and x.tobytes() == y.tobytes()
+        for x, y in zip(a, b, strict=True)
+    )
+
+
+def test_round_trip_is_bit_exact(tmp_path):
+    cache = DecompositionCache(str(tmp_path))
+    assert cache.get(KEY) is None
+    cache.put(KEY, PIECES)
+    assert same(cache.get(KEY), PIECES)
+    assert cache.get("1" * 64) is None
+
+
+@settings(derandomize=True, deadline=None, max_examples=30)
+@given(
+    st.lists(
+        hnp.arrays(
+            np.float64,
+            st.tuples(st.integers(1, 6), st.just(3)),
+            elements=st.floats(allow_nan=False, allow_infinity=False, width=64),
+        ),
+        min_size=0,
+        max_size=4,
+    )
+)
+def test_round_trip_property(tmp_path_factory, pieces):
+    cache = DecompositionCache(str(tmp_path_factory.mktemp("c")))
+    cache.put(KEY, pieces)
+    assert same(cache.get(KEY), pieces)
+
+
+def test_key_covers_digest_options_versions(monkeypatch):
+    base = cache_key("a" * 64, {"threshold": 0.1})
+    assert base == cache_key("a" * 64, {"threshold": 0.1})
+    assert base != cache_key("b" * 64, {"threshold": 0.1})
+    assert base != cache_key("a" * 64, {"threshold": 0.2})
+    monkeypatch.setattr(cache_module, "coacd_version", lambda: "0.0.1")
+    assert base != cache_key("a" * 64, {"threshold": 0.1})
+    monkeypatch.undo()
+    monkeypatch.setattr(cache_module, "FORMAT_VERSION", cache_module.FORMAT_VERSION + 1)
+    assert base != cache_key("a" * 64, {"threshold": 0.1})
+
+
+def _truncate(path):
+    data = open(path, "rb").read()
+    open(path, "wb").write(data[: len(data) // 2])
+
+
+def _garbage(path):
+    open(path, "wb").write(b"\x00garbage" * 100)
+
+
+def _empty(path):
+    open(path, "wb").close()
+
+
+def _wrong_shapes(path):
+    with open(path, "wb") as f:
+        np.savez(f, points=np.zeros((4, 2)), starts=np.array([0, 4]), checksum=np.zeros(32, "u1"))
+
+
+def _bad_starts(path):
+    with open(path, "wb") as f:
+        np.savez(f, points=np.zeros((4, 3)), starts=np.array([0, 9]), checksum=np.zeros(32, "u1"))
+
+
+def _flipped_value(path):
+    with np.load(path) as data:
+        points, starts, checksum = data["points"].copy(), data["starts"], data["checksum"]
+    points[0, 0] += 1.0
+    with open(path, "wb") as f:
+        np.savez(f, points=points, starts=starts, checksum=checksum)
+
+
+def _pickled(path):
+    with open(path, "wb") as f:
+        np.savez(f, points=np.array([object()], dtype=object), starts=[0], checksum=[0])
+
+
+def _extra_array(path):
+    with np.load(path) as data:
+        arrays = {k: data[k] for k in data.files}
+    with open(path, "wb") as f:
+        np.savez(f, extra=np.zeros(1), **arrays)
+
+
+@pytest.mark.parametrize(
+    "damage",
+    [_truncate, _garbage, _empty, _wrong_shapes, _bad_starts, _flipped_value, _pickled,
+     _extra_array],
+)
+def test_corrupt_entry_is_a_miss_and_is_rewritten(tmp_path, damage):
+    cache = DecompositionCache(str(tmp_path))
+    cache.put(KEY, PIECES)
+    damage(cache.path(KEY))
+    assert cache.get(KEY) is None
+    cache.put(KEY, PIECES)
+    assert same(cache.get(KEY), PIECES)
+
+
+def test_entry_under_another_key_is_rejected(tmp_path):
+    cache = DecompositionCache(str(tmp_path))
+    cache.put(KEY, PIECES)
+    other = "ab" * 32
+    os.makedirs(os.path.dirname(cache.path(other)), exist_ok=True)
+    os.replace(cache.path(KEY), cache.path(other))
+    assert cache.get(other) is None
+
+
+def test_unwritable_directory_only_costs_a_miss(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a directory")
+    cache = DecompositionCache(str(blocker))
+    cache.put(KEY, PIECES)  # no exception
+    assert cache.get(KEY) is None
+
+
+def _writer(directory: str, seed: int, rounds: int) -> None:
+    cache = DecompositionCache(directory)
+    for _ in range(rounds):
+        cache.put(KEY, PIECES)
+        got = cache.get(KEY)
+        assert got is not None and same(got, PIECES)
+
+
+def test_two_processes_writing_one_key_both_succeed(tmp_path):
+    context = multiprocessing.get_context("spawn")
+    procs = [
+        context.Process(target=_writer, args=(str(tmp_path), seed, 60)) for seed in range(2)
+    ]
+    for p in procs:
+        p.start()
+    for p in procs:
+        p.join(60)
+    assert [p.exitcode for p in procs] == [0, 0]
+    cache = DecompositionCache(str(tmp_path))
+    assert same(cache.get(KEY), PIECES)
+    leftovers = [n for n in os.listdir(os.path.dirname(cache.path(KEY))) if n.startswith(".tmp")]
+    assert leftovers == []
