@@ -1,0 +1,96 @@
+"""Numeric tolerances of the geometry kernels, in one place, each with the reason for its value.
+
+Every tolerance here is *relative*: it is multiplied by a length taken from the shapes of the
+query, so the kernels behave the same for a 1e-3 mm pin and a 1e4 mm frame, and for parts placed
+1e5 units from the origin.
+
+Two lengths are used:
+
+``size``
+    The largest axis-aligned bounding-box edge of the two shapes of a query. It sets the default
+    touching tolerance and the thresholds for "zero" and "degenerate" inside the kernels.
+``coord``
+    The largest absolute coordinate of the two shapes (before re-centring). Input coordinates are
+    only known to half an ulp of this, so the default tolerance never drops below a few ulps of it.
+
+The status codes shared by the compiled kernels also live here, because the numba code works on
+plain integers; :class:`meshcheck.geometry.Status` mirrors them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+EPS = float(np.finfo(np.float64).eps)
+
+# ---------------------------------------------------------------------------------------------
+# Default tolerance (used when the caller passes ``tolerance=None``)
+# ---------------------------------------------------------------------------------------------
+
+#: Default touching tolerance as a fraction of ``size``. 1e-10 is about 1e6 ulps of the shape's
+#: size: far above the rounding of a GJK step in re-centred coordinates (tens of ulps), and far
+#: below any gap a mechanical model means (a float32 STL export already carries ~1e-7 of noise,
+#: which is why the pipeline passes its own, larger tolerance).
+TOUCH_REL = 1e-10
+
+#: Floor of the default tolerance as a fraction of ``coord``: the inputs themselves are rounded
+#: to half an ulp of their magnitude (1.1e-16 relative), and re-centring, dot products and the
+#: simplex projections add a few more ulps. 64 ulps leaves a margin of ~10x on that.
+COORD_REL = 64.0 * EPS
+
+# ---------------------------------------------------------------------------------------------
+# GJK
+# ---------------------------------------------------------------------------------------------
+
+#: GJK stops when ``upper - lower <= GJK_REL_GAP * upper`` (parry's stopping rule on the gap
+#: between the distance bounds). 1e-10 gives distances to ~10 significant digits, which is far
+#: more than the inputs deserve, and still stops in a handful of iterations on polytopes
+#: (GJK on a polytope usually ends earlier anyway, when a support point repeats).
+GJK_REL_GAP = 1e-10
+
+#: Iteration cap for GJK. On polytopes GJK ends in a few to ~20 iterations; 128 only triggers on
+#: numerical trouble, and then the answer is decided from the bounds or reported UNDECIDED.
+GJK_MAX_ITER = 128
+
+#: ``|v| <= ZERO_REL * size`` means the origin lies on the current simplex (the shapes meet up to
+#: rounding). A GJK step in re-centred coordinates is accurate to ~10 ulps of ``size`` (~2e-15),
+#: so 1e-13 is above the noise and 1000x below :data:`TOUCH_REL`, which keeps "touching" decided
+#: by the caller's tolerance and not by this threshold. It is also capped at half the tolerance.
+ZERO_REL = 1e-13
+
+#: A simplex is treated as degenerate (a flat tetrahedron, a needle triangle) when its volume or
+#: area is below this fraction of the product of its edge lengths (a sine, in effect). Below
+#: ~1e-10 the sign of an orientation test is no longer reliable in float64 (it cancels ~10 digits
+#: of 16); the degenerate case is handled through the lower-dimensional faces, which is exact.
+DEGENERATE_SIN = 1e-10
+
+# ---------------------------------------------------------------------------------------------
+# EPA
+# ---------------------------------------------------------------------------------------------
+
+#: EPA stops when ``upper - lower <= EPA_REL_GAP * upper`` on the penetration depth, the same
+#: rule as GJK's on the distance.
+EPA_REL_GAP = 1e-10
+
+#: Iteration cap for EPA (one new polytope vertex per iteration). Depths of random 40-vertex
+#: hull pairs converge in ~10-40 iterations; the cap bounds the work arrays. When it triggers the
+#: status is still decided from the depth bounds where they allow it, else UNDECIDED.
+EPA_MAX_ITER = 128
+
+# ---------------------------------------------------------------------------------------------
+# Support maps
+# ---------------------------------------------------------------------------------------------
+
+#: Shapes with more hull vertices than this walk the vertex adjacency (hill climbing) to find a
+#: support point; smaller ones are scanned. Below ~32 vertices a straight scan is as fast as the
+#: walk (measured with ``bench/gjk.py``) and needs no adjacency.
+HILL_CLIMB_MIN_VERTICES = 32
+
+# ---------------------------------------------------------------------------------------------
+# Status codes (mirrored by ``meshcheck.geometry.gjk.Status``)
+# ---------------------------------------------------------------------------------------------
+
+SEPARATED = 0
+TOUCHING = 1
+PENETRATING = 2
+UNDECIDED = 3

@@ -1,0 +1,288 @@
+"""Support maps of convex shapes, and many hulls packed in flat arrays for the batch kernel.
+
+A convex shape is only ever asked one question: which of its points lies furthest along a
+direction (its *support point*). Small hulls are scanned; hulls with more than
+:data:`~meshcheck.geometry.constants.HILL_CLIMB_MIN_VERTICES` vertices walk their vertex
+adjacency from the previous answer (hill climbing), which visits a handful of vertices.
+
+Every support query works in re-centred coordinates: the caller passes the common centre ``c``
+and gets the index of a vertex ``p`` maximising ``(p - c) . d``; the caller then stores
+``p - c``. Subtracting before the dot product keeps the digits of shapes far from the origin.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+from scipy.spatial import ConvexHull, QhullError
+
+from .constants import HILL_CLIMB_MIN_VERTICES
+
+
+class ConvexPack(NamedTuple):
+    """Many convex shapes packed in flat arrays for :func:`meshcheck.geometry.query_pairs`.
+
+    Attributes
+    ----------
+    points : (N, 3) float64
+        Hull vertices of all shapes, concatenated, model units.
+    starts : (m + 1,) int64
+        Shape ``s`` owns ``points[starts[s]:starts[s + 1]]``.
+    nbr_starts : (N + 1,) int64
+        CSR row starts of the hull-vertex adjacency: the neighbours of vertex ``i`` are
+        ``nbrs[nbr_starts[i]:nbr_starts[i + 1]]``. A shape whose first vertex has no neighbours
+        (small or degenerate hulls) is scanned instead of walked.
+    nbrs : (E,) int64
+        Neighbour vertex indices, global into ``points``.
+    lower : (m, 3) float64
+        Axis-aligned bounding-box minimum of each shape.
+    upper : (m, 3) float64
+        Axis-aligned bounding-box maximum of each shape.
+    """
+
+    points: np.ndarray
+    starts: np.ndarray
+    nbr_starts: np.ndarray
+    nbrs: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+
+
+def _as_points(shape, index: int) -> np.ndarray:
+    arr = np.asarray(shape, dtype=np.float64)
+    if arr.ndim == 1 and arr.size == 3:
+        arr = arr.reshape(1, 3)
+    if arr.ndim != 2 or arr.shape[1] != 3 or arr.shape[0] == 0:
+        raise ValueError(f"shape {index}: expected an (n, 3) array with n >= 1, got {arr.shape}")
+    if not np.isfinite(arr).all():
+        raise ValueError(f"shape {index}: coordinates must be finite")
+    return arr
+
+
+def _hull_vertices(arr: np.ndarray, is_hull: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Return one shape's support vertices and its local adjacency as (E, 2) directed edges."""
+    no_edges = np.empty((0, 2), dtype=np.int64)
+    n = arr.shape[0]
+    if n <= 4 or (is_hull and n <= HILL_CLIMB_MIN_VERTICES):
+        # A scan over a handful of points needs no hull; duplicates are harmless to a scan but
+        # cheap to drop.
+        return np.unique(arr, axis=0), no_edges
+    try:
+        hull = ConvexHull(arr)
+    except (QhullError, ValueError):
+        # Flat, collinear or coincident points: no 3-D hull. The unique points are a valid
+        # support set (a scan over them is exact).
+        return np.unique(arr, axis=0), no_edges
+    verts = arr[hull.vertices]
+    nv = verts.shape[0]
+    if nv <= HILL_CLIMB_MIN_VERTICES:
+        return verts, no_edges
+    local = np.full(n, -1, dtype=np.int64)
+    local[hull.vertices] = np.arange(nv, dtype=np.int64)
+    tri = local[hull.simplices]
+    src = np.concatenate([tri[:, 0], tri[:, 1], tri[:, 2], tri[:, 1], tri[:, 2], tri[:, 0]])
+    dst = np.concatenate([tri[:, 1], tri[:, 2], tri[:, 0], tri[:, 0], tri[:, 1], tri[:, 2]])
+    key = np.unique(src * nv + dst)
+    return verts, np.stack([key // nv, key % nv], axis=1)
+
+
+def pack_convex(shapes: Sequence[np.ndarray], *, is_hull: bool = False) -> ConvexPack:
+    """Pack the convex hulls of many point sets into flat arrays.
+
+    Parameters
+    ----------
+    shapes : sequence of (n_i, 3) array-like of float
+        Point sets, model units; each stands for its convex hull (a point, segment, flat polygon
+        or solid). ``n_i >= 1``.
+    is_hull : bool, keyword-only
+        The caller promises the points are already hull vertices: hulls up to
+        ``HILL_CLIMB_MIN_VERTICES`` points skip Qhull and are scanned; larger ones still go
+        through Qhull once, to get the adjacency that hill climbing walks.
+
+    Returns
+    -------
+    ConvexPack
+        Hull vertices, adjacency (CSR) and bounding boxes of every shape, in input order.
+
+    Raises
+    ------
+    ValueError
+        A shape is not an (n, 3) array with n >= 1, or has non-finite coordinates.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> pack = pack_convex([np.eye(3), np.eye(3) + 2.0])
+    >>> pack.starts.tolist()
+    [0, 3, 6]
+    """
+    verts_list: list[np.ndarray] = []
+    edge_list: list[np.ndarray] = []
+    starts = np.zeros(len(shapes) + 1, dtype=np.int64)
+    total = 0
+    for s, shape in enumerate(shapes):
+        verts, edges = _hull_vertices(_as_points(shape, s), is_hull)
+        verts_list.append(verts)
+        edge_list.append(edges + total)
+        total += verts.shape[0]
+        starts[s + 1] = total
+    if not verts_list:
+        points = np.empty((0, 3), dtype=np.float64)
+        edges = np.empty((0, 2), dtype=np.int64)
+    else:
+        points = np.ascontiguousarray(np.concatenate(verts_list), dtype=np.float64)
+        edges = np.concatenate(edge_list)
+    counts = np.bincount(edges[:, 0], minlength=total) if edges.size else np.zeros(total, np.int64)
+    nbr_starts = np.zeros(total + 1, dtype=np.int64)
+    np.cumsum(counts, out=nbr_starts[1:])
+    nbrs = np.ascontiguousarray(edges[:, 1], dtype=np.int64)
+    m = len(verts_list)
+    lower = np.empty((m, 3), dtype=np.float64)
+    upper = np.empty((m, 3), dtype=np.float64)
+    for s, verts in enumerate(verts_list):
+        lower[s] = verts.min(axis=0)
+        upper[s] = verts.max(axis=0)
+    return ConvexPack(points, starts, nbr_starts, nbrs, lower, upper)
+
+
+def concat_packs(packs: Sequence[ConvexPack]) -> ConvexPack:
+    """Join packs into one, shapes in order, offsetting every index.
+
+    Parameters
+    ----------
+    packs : sequence of ConvexPack
+
+    Returns
+    -------
+    ConvexPack
+        Shape ``s`` of ``packs[p]`` becomes shape ``sum(len(packs[q].starts) - 1 for q < p) + s``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> both = concat_packs([pack_convex([np.eye(3)]), pack_convex([np.eye(3) + 1.0])])
+    >>> both.starts.tolist()
+    [0, 3, 6]
+    """
+    point_off = 0
+    edge_off = 0
+    points, starts, nbr_starts, nbrs, lower, upper = [], [np.zeros(1, np.int64)], [], [], [], []
+    nbr_starts.append(np.zeros(1, np.int64))
+    for pack in packs:
+        points.append(pack.points)
+        starts.append(pack.starts[1:] + point_off)
+        nbr_starts.append(pack.nbr_starts[1:] + edge_off)
+        nbrs.append(pack.nbrs + point_off)
+        lower.append(pack.lower)
+        upper.append(pack.upper)
+        point_off += pack.points.shape[0]
+        edge_off += pack.nbrs.shape[0]
+
+    def cat(parts, shape, dtype):
+        if not parts:
+            return np.empty(shape, dtype=dtype)
+        return np.ascontiguousarray(np.concatenate(parts), dtype=dtype)
+
+    return ConvexPack(
+        cat(points, (0, 3), np.float64),
+        cat(starts, (1,), np.int64),
+        cat(nbr_starts, (1,), np.int64),
+        cat(nbrs, (0,), np.int64),
+        cat(lower, (0, 3), np.float64),
+        cat(upper, (0, 3), np.float64),
+    )
+
+
+# ---------------------------------------------------------------------------------------------
+# Compiled support maps
+# ---------------------------------------------------------------------------------------------
+
+
+@njit(cache=True, nogil=True)
+def support_index(pts, nbr_starts, nbrs, s0, s1, climb, start, dx, dy, dz, cx, cy, cz):
+    """Index of a vertex of one shape maximising ``(p - c) . d``.
+
+    Parameters
+    ----------
+    pts : (N, 3) float64
+        Vertex array holding the shape's points at ``pts[s0:s1]``, model units.
+    nbr_starts, nbrs : (N + 1,) int64, (E,) int64
+        CSR vertex adjacency (global indices); only read when ``climb``.
+    s0, s1 : int64
+        The shape's vertex range.
+    climb : bool
+        Walk the adjacency from ``start`` instead of scanning ``s0:s1``.
+    start : int64
+        First vertex of the walk (the previous support point of this shape is a good one).
+    dx, dy, dz : float64
+        Direction (need not be unit).
+    cx, cy, cz : float64
+        Common centre of the query, subtracted before the dot product.
+
+    Returns
+    -------
+    int64
+        Global index into ``pts``.
+    """
+    if climb:
+        best = start
+        bv = (pts[best, 0] - cx) * dx + (pts[best, 1] - cy) * dy + (pts[best, 2] - cz) * dz
+        while True:
+            nxt = best
+            for e in range(nbr_starts[best], nbr_starts[best + 1]):
+                j = nbrs[e]
+                val = (pts[j, 0] - cx) * dx + (pts[j, 1] - cy) * dy + (pts[j, 2] - cz) * dz
+                if val > bv:
+                    bv = val
+                    nxt = j
+            if nxt == best:
+                return best
+            best = nxt
+    best = s0
+    bv = -np.inf
+    for i in range(s0, s1):
+        val = (pts[i, 0] - cx) * dx + (pts[i, 1] - cy) * dy + (pts[i, 2] - cz) * dz
+        if val > bv:
+            bv = val
+            best = i
+    return best
+
+
+@njit(cache=True, nogil=True)
+def cso_support(shape_a, range_a, shape_b, range_b, centre, dx, dy, dz, start_a, start_b):
+    """Support point of the Minkowski difference ``A - B`` in direction ``d``, by its sources.
+
+    The support point is ``s_A(d) - s_B(-d)``; the two source vertices are returned so the
+    caller keeps them with the Minkowski point (witness points then come for free).
+
+    Parameters
+    ----------
+    shape_a, shape_b : tuple of ((N, 3) float64, (N + 1,) int64, (E,) int64)
+        ``(points, nbr_starts, nbrs)`` holding each shape.
+    range_a, range_b : tuple of (int64, int64, int64)
+        ``(s0, s1, climb)``: the shape's vertex range and whether to walk its adjacency.
+    centre : (3,) float64
+        Common centre of the query.
+    dx, dy, dz : float64
+        Direction in the Minkowski difference.
+    start_a, start_b : int64
+        Where each walk starts.
+
+    Returns
+    -------
+    (int64, int64)
+        Global vertex indices of the support points of A and of B.
+    """
+    cx, cy, cz = centre[0], centre[1], centre[2]
+    ia = support_index(
+        shape_a[0], shape_a[1], shape_a[2], range_a[0], range_a[1], range_a[2] != 0,
+        start_a, dx, dy, dz, cx, cy, cz,
+    )  # fmt: skip
+    ib = support_index(
+        shape_b[0], shape_b[1], shape_b[2], range_b[0], range_b[1], range_b[2] != 0,
+        start_b, -dx, -dy, -dz, cx, cy, cz,
+    )  # fmt: skip
+    return ia, ib
