@@ -16,7 +16,7 @@ FORMATS = ("text", "json", "junit", "github")
 
 
 def default_fail_on(result: CheckResult) -> tuple[str, ...]:
-    """Interference always fails the run; clearance violations too when a clearance was asked for."""
+    """Interference always fails the run; clearance violations too when a clearance is set."""
     return (INTERFERENCE, CLEARANCE) if result.clearance is not None else (INTERFERENCE,)
 
 
@@ -38,7 +38,11 @@ def exit_status(result: CheckResult, *, fail_on: Collection[str] | None = None) 
 
 
 def summary(result: CheckResult, *, fail_on: Collection[str] | None = None) -> dict:
-    """Counts by status, approved findings, and whether the run passes."""
+    """Counts by status, approved findings, and whether the run passes.
+
+    The keys named by a status (``interference``, ``touching``, ``clearance``) count unapproved
+    findings; ``required_clearance`` is the --clearance setting (None when not set).
+    """
     fail_on = resolve_fail_on(result, fail_on)
     counts = {status: result.count(status) for status in STATUSES}
     return {
@@ -49,13 +53,15 @@ def summary(result: CheckResult, *, fail_on: Collection[str] | None = None) -> d
         "failed": sum(1 for f in result.findings if is_failing(f, fail_on)),
         "fail_on": list(fail_on),
         "tolerance": result.tolerance,
-        "clearance": result.clearance,
+        "required_clearance": result.clearance,
         "warnings": list(result.warnings),
         "passed": exit_status(result, fail_on=fail_on) == ExitStatus.OK,
     }
 
 
-def render(result: CheckResult, fmt: str = "text", *, fail_on: Collection[str] | None = None) -> str:
+def render(
+    result: CheckResult, fmt: str = "text", *, fail_on: Collection[str] | None = None
+) -> str:
     """Render ``result`` in ``fmt`` (one of ``FORMATS``), ending with a newline."""
     renderers = {
         "text": render_text,

@@ -1,4 +1,4 @@
-"""What a check finds: one ``Finding`` per part pair that is not clear, and the run's ``CheckResult``."""
+"""What a check finds: a ``Finding`` per part pair that is not clear, and the ``CheckResult``."""
 
 from __future__ import annotations
 

@@ -282,13 +282,18 @@ def test_output_file(in_root, cache_dir, tmp_path):
 
 
 def test_clearance_violation_fails(in_root, cache_dir):
-    # the M6 shanks sit 0.3 mm from the walls of their holes
-    result = run([PLATE, "sample_meshes/bolt_m6_a.stl", "--cache-dir", cache_dir, "--no-config",
-                  "--clearance", "0.5", "--format", "json"])
-    assert result.exit_code == 1
-    doc = json.loads(result.stdout)
-    assert doc["summary"]["clearance"] + doc["summary"]["touching"] >= 1
-    assert doc["summary"]["passed"] is False
+    # the bracket stands 10.83 mm from bolt C
+    args = ["sample_meshes/bolt_m6_c.stl", "sample_meshes/bracket.stl", "--cache-dir", cache_dir,
+            "--no-config", "--format", "json"]
+    near = run([*args, "--clearance", "11"])
+    assert near.exit_code == 1
+    doc = json.loads(near.stdout)
+    (finding,) = doc["results"]
+    assert finding["status"] == "clearance"
+    assert finding["distance"] == pytest.approx(10.83, abs=0.01)
+    assert (doc["summary"]["clearance"], doc["summary"]["required_clearance"]) == (1, 11.0)
+    assert run([*args, "--clearance", "10"]).exit_code == 0
+    assert run([*args, "--clearance", "11", "--fail-on", "interference"]).exit_code == 0
 
 
 # ------------------------------------------------------------------------------------------

@@ -82,6 +82,7 @@ def test_json_follows_the_contract():
     assert touch["depth"] is None and touch["distance"] == 0.0
     s = doc["summary"]
     assert (s["interference"], s["touching"], s["approved"], s["failed"]) == (1, 1, 1, 1)
+    assert (s["clearance"], s["required_clearance"]) == (0, None)
     assert s["passed"] is False
 
 
