@@ -553,3 +553,26 @@ def inscribed_ball(v, f, max_seeds):
         if r > best_r:
             best_r, best_x = r, x
     return best_r, best_x
+
+
+@njit(cache=True)
+def closest_points_on_triangles(p, v, f):
+    """Distance from point ``p (3,)`` to every triangle, and the closest points ``(m, 3)``."""
+    m = f.shape[0]
+    dist = np.empty(m)
+    q = np.empty((m, 3))
+    x = (p[0], p[1], p[2])
+    for k in range(m):
+        a, b, c = _tri(v, f, k)
+        y, ok = closest_point_triangle(x, a, b, c)
+        if not ok:
+            best = np.inf
+            for e in range(3):
+                _, z = closest_points_segments(x, x, (a, b, c)[e], (a, b, c)[(e + 1) % 3])
+                d = _sub(x, z)
+                if _dot(d, d) < best:
+                    best, y = _dot(d, d), z
+        d = _sub(x, y)
+        dist[k] = np.sqrt(_dot(d, d))
+        q[k, 0], q[k, 1], q[k, 2] = y
+    return dist, q
