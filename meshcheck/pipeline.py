@@ -48,7 +48,7 @@ def check(
 
     Parameters
     ----------
-    paths : sequence of str
+    paths : sequence of str or path-like (or a single one)
         Mesh files and directories (every supported mesh file below them). Each body becomes a
         part named by its path, ``PATH#NODE`` inside multi-body files.
     clearance : float, optional
@@ -87,6 +87,9 @@ def check(
     ConfigError
         The configuration file is invalid.
     """
+    if isinstance(paths, str | os.PathLike):
+        paths = [paths]
+    paths = [os.fspath(p) for p in paths]
     if config is not None and not isinstance(config, Config):
         config = load_config(config)
     if config is not None:

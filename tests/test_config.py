@@ -178,3 +178,53 @@ def test_approval_and_groups_are_symmetric(a, b, pa, pb):
     assert rule.matches(a, b) == rule.matches(b, a)
     groups = Groups((pa,), (pb,))
     assert groups.allows(a, b) == groups.allows(b, a)
+
+
+# ------------------------------------------------------------------------------------------
+# Through the Python API: options given to check() win over the file
+
+
+def _two_overlapping_cubes(tmp_path):
+    import trimesh
+
+    a, b = tmp_path / "a.stl", tmp_path / "b.stl"
+    trimesh.creation.box().export(str(a))
+    trimesh.creation.box().apply_translation((0.9, 0, 0)).export(str(b))
+    return a, b
+
+
+def test_check_applies_the_config_file(tmp_path):
+    from meshcheck.pipeline import check
+
+    a, b = _two_overlapping_cubes(tmp_path)
+    config = tmp_path / "meshcheck.toml"
+    config.write_text(
+        f'tolerance = 0.2\n[[ignore]]\na = "{a}"\nb = "*b.stl"\nreason = "shim"\n'
+    )
+    result = check([a, b], config=config)
+    (finding,) = result.findings
+    assert result.tolerance == 0.2
+    assert (finding.a, finding.b) == (str(a), str(b))
+    assert (finding.status, finding.approved) == ("touching", "shim")  # 0.1 overlap < 0.2
+
+    explicit = check([a, b], config=config, tolerance=0.01)
+    assert explicit.tolerance == 0.01
+    assert [(f.status, f.approved) for f in explicit.findings] == [("interference", "shim")]
+
+    plain = check(str(a))  # one path as a string is one part, not one per character
+    assert [p.name for p in plain.parts] == [str(a)]
+
+
+def test_check_groups_from_config_skip_other_pairs(tmp_path):
+    from meshcheck.pipeline import check
+
+    a, b = _two_overlapping_cubes(tmp_path)
+    config = load_config_text(tmp_path, '[groups]\na = ["*a.stl"]\nb = ["*c.stl"]\n')
+    assert check([a, b], config=config).findings == []
+    assert len(check([a, b]).findings) == 1
+
+
+def load_config_text(tmp_path, text):
+    path = tmp_path / "meshcheck.toml"
+    path.write_text(text)
+    return load_config(path)
