@@ -145,6 +145,55 @@ def test_3mf_build_items_are_placed_bodies(tmp_path):
     np.testing.assert_allclose(bodies[1].world.bounds, [[-0.5, -0.5, 1.5], [0.5, 0.5, 2.5]])
 
 
+def _3mf_with_model(path, model: str) -> str:
+    with zipfile.ZipFile(path, "w") as z:
+        z.writestr("3D/3dmodel.model", model)
+    return str(path)
+
+
+def _3mf_model(objects: str, build: str) -> str:
+    return (
+        '<model xmlns="http://schemas.microsoft.com/3dmanufacturing/core/2015/02">'
+        f"<resources>{objects}</resources><build>{build}</build></model>"
+    )
+
+
+def test_3mf_transform_is_row_vector_convention(tmp_path):
+    bar = box((2, 1, 1))
+    verts = "".join(f'<vertex x="{x}" y="{y}" z="{z}"/>' for x, y, z in bar.vertices)
+    tris = "".join(f'<triangle v1="{a}" v2="{b}" v3="{c}"/>' for a, b, c in bar.faces)
+    mesh = f"<mesh><vertices>{verts}</vertices><triangles>{tris}</triangles></mesh>"
+    obj = f'<object id="7">{mesh}</object>'
+    # 90 degrees about z, then 10 along x: the bar's long axis turns to y
+    item = '<item objectid="7" transform="0 1 0 -1 0 0 0 0 1 10 0 0"/>'
+    path = _3mf_with_model(tmp_path / "bar.3mf", _3mf_model(obj, item))
+    (body,) = load_bodies([path])
+    assert body.name == path
+    np.testing.assert_allclose(body.world.bounds, [[9.5, -1, -0.5], [10.5, 1, 0.5]], atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("build", "reason"),
+    [
+        ('<item objectid="9"/>', "missing object 9"),
+        ('<item objectid="1" transform="1 0 0"/>', "malformed 3MF transform"),
+        ("", "holds no triangles"),
+    ],
+)
+def test_broken_3mf_is_an_input_error(tmp_path, build, reason):
+    obj = '<object id="1"><mesh><vertices><vertex x="0" y="0" z="0"/></vertices></mesh></object>'
+    path = _3mf_with_model(tmp_path / "broken.3mf", _3mf_model(obj, build))
+    with pytest.raises(InputError, match=reason):
+        load_bodies([path])
+
+
+def test_3mf_component_cycle_is_an_input_error(tmp_path):
+    obj = '<object id="1"><components><component objectid="1"/></components></object>'
+    path = _3mf_with_model(tmp_path / "cycle.3mf", _3mf_model(obj, '<item objectid="1"/>'))
+    with pytest.raises(InputError, match="nest too deep"):
+        load_bodies([path])
+
+
 def test_directory_expands_to_sorted_mesh_files(tmp_path):
     root = tmp_path / "assy"
     (root / "sub").mkdir(parents=True)
