@@ -14,6 +14,7 @@ Each stage narrows the part pairs the next one looks at:
 from __future__ import annotations
 
 import dataclasses
+import fnmatch
 import os
 import warnings
 from collections.abc import Sequence
@@ -27,6 +28,7 @@ from .decompose import DEFAULT_THRESHOLD, decompose_bodies
 from .errors import MeshcheckWarning
 from .geometry import Status, pack_convex, query_pairs
 from .load import Body, load_bodies
+from .progress import Progress
 from .results import CheckResult, Finding, Part, finding_id
 
 
@@ -139,7 +141,7 @@ def check_bodies(
 ) -> CheckResult:
     """Run the check on bodies already loaded; see ``check``."""
     n = len(bodies)
-    hulls = pack_convex([b.world.vertices for b in bodies])
+    hulls = pack_convex(_world_hulls(bodies), is_hull=True)
     if tolerance is None:
         tolerance = default_tolerance(hulls.lower.min(axis=0), hulls.upper.max(axis=0))
     reach = tolerance + (clearance or 0.0)
@@ -147,15 +149,23 @@ def check_bodies(
     # Whole-part hulls: a mesh lies inside its hull, so a pair of hulls beyond reach is clear.
     pairs = candidate_pairs(hulls.lower, hulls.upper, margin=reach)
     if groups is not None:
-        allowed = [groups.allows(bodies[i].name, bodies[j].name) for i, j in pairs]
-        pairs = pairs[np.asarray(allowed, dtype=bool)]
+        # membership once per part, then one vectorised test over the candidate pairs
+        in_a = np.array([any(fnmatch.fnmatchcase(b.name, p) for p in groups.a) for b in bodies])
+        in_b = np.array([any(fnmatch.fnmatchcase(b.name, p) for p in groups.b) for b in bodies])
+        i, j = pairs[:, 0], pairs[:, 1]
+        pairs = pairs[(in_a[i] & in_b[j]) | (in_a[j] & in_b[i])]
     near = pairs[_within(query_pairs(hulls, pairs, tolerance=tolerance, depth=False), reach)]
 
     # Convex pieces, only for parts whose hull comes within reach of another part.
     needed = np.unique(near)
-    piece_lists = decompose_bodies(
-        [bodies[i] for i in needed], threshold=threshold, cache_dir=cache_dir, jobs=jobs
-    )
+    with Progress("decomposing", len({id(bodies[i].mesh) for i in needed})) as bar:
+        piece_lists = decompose_bodies(
+            [bodies[i] for i in needed],
+            threshold=threshold,
+            cache_dir=cache_dir,
+            jobs=jobs,
+            progress=bar.update,
+        )
     piece_count = np.zeros(n, dtype=np.int64)
     piece_count[needed] = [len(p) for p in piece_lists]
     owner = np.repeat(needed, piece_count[needed]).astype(np.int64)
@@ -172,7 +182,9 @@ def check_bodies(
     surfaces_near = set(np.unique(keys[hit]).tolist())
 
     findings = []
-    for i, j in near:
+    bar = Progress("checking", len(near))
+    for count, (i, j) in enumerate(near, start=1):
+        bar.update(count)
         a, b = bodies[i], bodies[j]
         verdict = verify.verify_pair(
             a.world,
@@ -198,6 +210,7 @@ def check_bodies(
                 approved=approval_reason(approvals, name_a, name_b),
             )
         )
+    bar.close()
     findings.sort(key=lambda f: (f.a, f.b))
     parts = [
         Part(b.name, b.path, len(b.mesh.faces), b.is_closed, int(piece_count[k]))
@@ -214,6 +227,28 @@ def check_bodies(
         clearance=clearance,
         pairs_checked=len(pairs),
     )
+
+
+def _world_hulls(bodies: Sequence[Body]) -> list[np.ndarray]:
+    """Hull vertices of each body, world coordinates; qhull runs once per distinct mesh."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    local: dict[int, np.ndarray] = {}
+    out = []
+    for body in bodies:
+        key = id(body.mesh)
+        if key not in local:
+            vertices = np.asarray(body.mesh.vertices, dtype=np.float64)
+            try:
+                local[key] = vertices[np.sort(ConvexHull(vertices).vertices)]
+            except (QhullError, ValueError):  # flat or degenerate: every vertex
+                local[key] = vertices
+        hull = local[key]
+        transform = np.asarray(body.transform, dtype=np.float64)
+        if not np.array_equal(transform, np.eye(4)):
+            hull = hull @ transform[:3, :3].T + transform[:3, 3]
+        out.append(hull)
+    return out
 
 
 def _within(result, reach: float) -> np.ndarray:
