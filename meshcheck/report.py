@@ -220,8 +220,12 @@ def _gh_property(text: str) -> str:
 
 
 def render_github(result: CheckResult, *, fail_on: Collection[str] | None = None) -> str:
-    """GitHub Actions workflow commands: ``::error`` per failing finding, ``::warning`` per other
-    finding and input warning, ``::notice`` per approved finding; then the summary line."""
+    """GitHub Actions workflow commands, then the summary line.
+
+    ``::error`` for each finding that fails the run, ``::notice`` for approved findings and
+    touching pairs that do not fail it, ``::warning`` for other findings and input warnings.
+    Annotations point at the file of the pair's first part.
+    """
     fail_on = resolve_fail_on(result, fail_on)
     paths = {p.name: p.path for p in result.parts}
     lines = []
@@ -230,6 +234,8 @@ def render_github(result: CheckResult, *, fail_on: Collection[str] | None = None
             level, extra = "notice", f" (approved: {f.approved})"
         elif is_failing(f, fail_on):
             level, extra = "error", ""
+        elif f.status == TOUCHING:
+            level, extra = "notice", ""  # contact is usually by design: keep it out of warnings
         else:
             level, extra = "warning", ""
         file = paths.get(f.a, f.a.split("#")[0])

@@ -127,17 +127,20 @@ def test_junit_lists_clear_pairs_when_the_pipeline_names_them():
 
 
 def test_github_annotations():
-    result = make_result(CLASH, TOUCH, APPROVED, warnings=["odd,file.stl: mesh is not closed"])
+    warnings = ["odd,file.stl: mesh is not closed"]
+    result = make_result(CLASH, TOUCH, APPROVED, NEAR, warnings=warnings)
     lines = render(result, "github").splitlines()
     assert lines[0] == (
         f"::error file=bolt.stl,title=meshcheck interference [{CLASH.id}]::"
         "bolt.stl and plate.stl: interference, depth 0.7  volume 2.5  at (1, 2, 3)"
     )
-    assert lines[1].startswith(f"::warning file=bracket.stl,title=meshcheck touching [{TOUCH.id}]")
+    assert lines[1].startswith(f"::notice file=bracket.stl,title=meshcheck touching [{TOUCH.id}]")
     notice = f"::notice file=nut.stl,title=meshcheck interference [{APPROVED.id}]"
     assert lines[2].startswith(notice)
     assert lines[2].endswith("(approved: press fit)")
-    assert lines[3] == "::warning title=meshcheck input::odd,file.stl: mesh is not closed"
+    # a clearance finding without --clearance does not fail the run
+    assert lines[3].startswith(f"::warning file=a.glb,title=meshcheck clearance [{NEAR.id}]")
+    assert lines[4] == "::warning title=meshcheck input::odd,file.stl: mesh is not closed"
     assert lines[-1].startswith("FAIL:")
 
 
