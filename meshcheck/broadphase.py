@@ -35,6 +35,8 @@ def candidate_pairs(
     --------
     >>> lo = np.array([[0.0, 0, 0], [2, 0, 0], [0.5, 0, 0]])
     >>> candidate_pairs(lo, lo + 1.0).tolist()
+    [[0, 2]]
+    >>> candidate_pairs(lo, lo + 1.0, margin=0.5).tolist()
     [[0, 2], [1, 2]]
     """
     lower = np.asarray(lower, dtype=np.float64).reshape(-1, 3)

@@ -159,3 +159,17 @@ def test_two_processes_writing_one_key_both_succeed(tmp_path):
     assert same(cache.get(KEY), PIECES)
     leftovers = [n for n in os.listdir(os.path.dirname(cache.path(KEY))) if n.startswith(".tmp")]
     assert leftovers == []
+
+
+def test_warm_run_gives_byte_identical_json(tmp_path):
+    """Cold run, warm run and a run without cache agree byte for byte."""
+    from meshcheck.pipeline import check
+    from meshcheck.report import render_json
+
+    paths = [f"sample_meshes/{n}.stl" for n in ("plate", "bolt_m8_oversized", "bracket")]
+    cold = render_json(check(paths, cache_dir=str(tmp_path), jobs=1))
+    assert list(tmp_path.rglob("*.npz"))
+    warm = render_json(check(paths, cache_dir=str(tmp_path), jobs=1))
+    uncached = render_json(check(paths, cache_dir=None, jobs=2))
+    assert cold == warm == uncached
+    assert '"interference"' in cold
