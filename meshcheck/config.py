@@ -80,7 +80,10 @@ class Config:
     fail_on : tuple of str or None
         Finding statuses that fail the run.
     ignore : tuple of Approval
-        Approved findings.
+        Approved findings, by part-name patterns.
+    ignore_ids : tuple of (str, str)
+        Approved findings by stable ID, with the reason: the approval lapses when either mesh
+        changes, since the ID hashes both meshes' content.
     groups : Groups or None
         Check only pairs across two groups of parts.
     """
@@ -91,6 +94,7 @@ class Config:
     threshold: float | None = None
     fail_on: tuple[str, ...] | None = None
     ignore: tuple[Approval, ...] = ()
+    ignore_ids: tuple[tuple[str, str], ...] = ()
     groups: Groups | None = None
 
 
@@ -173,6 +177,10 @@ def load_config(path: str | os.PathLike) -> Config:
         b = "bearing_*.stl"
         reason = "press fit, 0.02 mm interference by design"
 
+        [[ignore]]
+        id = "e0ffa4dd810d"
+        reason = "approved in review 2024-05; lapses when either part changes"
+
         [groups]
         a = ["frame.stl"]
         b = ["bolts/*"]
@@ -214,21 +222,26 @@ def load_config(path: str | os.PathLike) -> Config:
     ignore = doc.get("ignore", [])
     if not isinstance(ignore, list):
         fail("ignore must be an array of tables ([[ignore]] entries with a, b and reason)")
-    approvals = []
+    approvals, id_approvals = [], []
     for k, rule in enumerate(ignore, start=1):
         label = f"ignore entry {k}"
         if not isinstance(rule, dict):
-            fail(f"{label} must be a table with a, b and reason")
+            fail(f"{label} must be a table with a, b and reason (or id and reason)")
         for key in rule:
-            if key not in ("a", "b", "reason"):
-                fail(f"unknown key {key!r} in {label} (known: a, b, reason)")
-        for key in ("a", "b", "reason"):
+            if key not in ("a", "b", "id", "reason"):
+                fail(f"unknown key {key!r} in {label} (known: a, b, id, reason)")
+        if "id" in rule and ("a" in rule or "b" in rule):
+            fail(f"{label}: give either id or a and b, not both")
+        for key in ("id", "reason") if "id" in rule else ("a", "b", "reason"):
             if key not in rule:
                 hint = ": say why the finding is approved" if key == "reason" else ""
                 fail(f"{label} has no {key!r}{hint}")
             if not isinstance(rule[key], str) or not rule[key].strip():
                 fail(f"{label}: {key} must be a non-empty string")
-        approvals.append(Approval(rule["a"], rule["b"], rule["reason"].strip()))
+        if "id" in rule:
+            id_approvals.append((rule["id"].strip().lower(), rule["reason"].strip()))
+        else:
+            approvals.append(Approval(rule["a"], rule["b"], rule["reason"].strip()))
 
     groups = doc.get("groups")
     if groups is not None:
@@ -256,6 +269,7 @@ def load_config(path: str | os.PathLike) -> Config:
         threshold=number("threshold", 0.01, 1.0),
         fail_on=fail_on,
         ignore=tuple(approvals),
+        ignore_ids=tuple(id_approvals),
         groups=groups,
     )
 

@@ -76,6 +76,7 @@ def check(
     config : Config or path, optional
         Settings from a configuration file (``config.load_config``); an option passed here
         wins over the file. Not searched for: the command line does that (``find_config``).
+        Its ``ignore`` rules by ``id`` approve the finding with that stable ID.
 
     Returns
     -------
@@ -124,6 +125,14 @@ def check(
         for w in caught:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
     messages = [str(w.message) for w in caught if issubclass(w.category, MeshcheckWarning)]
+    if config is not None and config.ignore_ids:
+        by_id = dict(reversed(config.ignore_ids))  # the first rule for an ID wins
+        findings = [
+            dataclasses.replace(f, approved=by_id[f.id])
+            if f.approved is None and f.id in by_id else f
+            for f in result.findings
+        ]
+        result = dataclasses.replace(result, findings=findings)
     return dataclasses.replace(result, warnings=[*result.warnings, *messages])
 
 

@@ -36,6 +36,10 @@ a = "*#pin"
 b = "*#hub"
 reason = "  keyed  "
 
+[[ignore]]
+id = "E0FFA4DD810D"
+reason = "reviewed"
+
 [groups]
 a = ["frame.stl"]
 b = "bolts/*"
@@ -56,6 +60,7 @@ def test_full_meshcheck_toml(tmp_path):
             Approval("frame.stl", "bearing_*.stl", "press fit by design"),
             Approval("*#pin", "*#hub", "keyed"),
         ),
+        ignore_ids=(("e0ffa4dd810d", "reviewed"),),
         groups=Groups(("frame.stl",), ("bolts/*",)),
     )
 
@@ -106,8 +111,12 @@ INVALID = {
     "empty reason": ('[[ignore]]\na = "x"\nb = "y"\nreason = " "\n', "non-empty string"),
     "ignore key": (
         '[[ignore]]\na = "x"\nb = "y"\nreason = "r"\nstatus = "touching"\n',
-        "unknown key 'status' in ignore entry 1",
+        "unknown key 'status' in ignore entry 1 (known: a, b, id, reason)",
     ),
+    "id and names": (
+        '[[ignore]]\nid = "abc"\na = "x"\nb = "y"\nreason = "r"\n', "either id or a and b",
+    ),
+    "id without reason": ('[[ignore]]\nid = "abc"\n', "has no 'reason'"),
     "pattern type": ('[[ignore]]\na = 1\nb = "y"\nreason = "r"\n', "a must be a non-empty string"),
     "groups missing": ('[groups]\na = ["x"]\n', "groups.b must be"),
     "groups key": ('[groups]\na = ["x"]\nb = ["y"]\nc = ["z"]\n', "unknown key 'c' in groups"),
@@ -213,6 +222,22 @@ def test_check_applies_the_config_file(tmp_path):
 
     plain = check(str(a))  # one path as a string is one part, not one per character
     assert [p.name for p in plain.parts] == [str(a)]
+
+
+def test_check_approves_findings_by_stable_id(tmp_path):
+    import trimesh
+
+    from meshcheck.pipeline import check
+
+    a, b = _two_overlapping_cubes(tmp_path)
+    (finding,) = check([a, b]).findings
+    config = load_config_text(tmp_path, f'[[ignore]]\nid = "{finding.id}"\nreason = "ok"\n')
+    assert [f.approved for f in check([a, b], config=config).findings] == ["ok"]
+    # the ID hashes the meshes: once a part changes, the approval no longer applies
+    trimesh.creation.box().apply_translation((0.8, 0, 0)).export(str(b))
+    (moved,) = check([a, b], config=config).findings
+    assert moved.id != finding.id
+    assert moved.approved is None
 
 
 def test_check_groups_from_config_skip_other_pairs(tmp_path):
