@@ -3,17 +3,40 @@
 Example
 -------
 >>> import meshcheck
->>> result = meshcheck.check(["sample_meshes/plate.stl", "sample_meshes/bolt_m6_a.stl"])
->>> [f.status for f in result.findings]
-[]
+>>> result = meshcheck.check(["sample_meshes/plate.stl", "sample_meshes/bolt_m8_oversized.stl"])
+>>> [(f.status, f.a) for f in result.findings]
+[('interference', 'sample_meshes/bolt_m8_oversized.stl')]
+>>> meshcheck.signed_distance([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 0, 2], [1, 0, 2], [0, 1, 2]])
+2.0
+
+The names below are imported on first use, so ``meshcheck --help`` does not pay for numba,
+trimesh and scipy.
 """
 
 from __future__ import annotations
 
+import importlib
+from typing import TYPE_CHECKING
+
 from .errors import ConfigError, ExitStatus, InputError, MeshcheckError, MeshcheckWarning
-from .geometry import Contact, Status, intersects, query, signed_distance
-from .pipeline import check
-from .results import CheckResult, Finding, Location, Part
+
+if TYPE_CHECKING:
+    from .geometry import Contact, Status, intersects, query, signed_distance
+    from .pipeline import check
+    from .results import CheckResult, Finding, Location, Part
+
+_LAZY = {
+    "Contact": ".geometry",
+    "Status": ".geometry",
+    "intersects": ".geometry",
+    "query": ".geometry",
+    "signed_distance": ".geometry",
+    "check": ".pipeline",
+    "CheckResult": ".results",
+    "Finding": ".results",
+    "Location": ".results",
+    "Part": ".results",
+}
 
 __all__ = [
     "CheckResult",
@@ -32,3 +55,15 @@ __all__ = [
     "query",
     "signed_distance",
 ]
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        value = getattr(importlib.import_module(_LAZY[name], __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'meshcheck' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))
