@@ -235,6 +235,7 @@ def check_bodies(
         tolerance=tolerance,
         clearance=clearance,
         pairs_checked=len(pairs),
+        checked_pairs=[(bodies[i].name, bodies[j].name) for i, j in pairs],
     )
 
 
