@@ -13,6 +13,7 @@ rewritten.
 from __future__ import annotations
 
 import contextlib
+import functools
 import hashlib
 import itertools
 import json
@@ -52,6 +53,7 @@ def cache_key(digest: str, options: dict) -> str:
     return hashlib.sha256(text.encode()).hexdigest()
 
 
+@functools.cache
 def coacd_version() -> str:
     """Installed CoACD version, read from package metadata (without importing CoACD)."""
     import importlib.metadata
