@@ -342,14 +342,27 @@ def decompose_bodies(
             by_topology.setdefault(topo, []).append(digest)
     todo = [d for d in misses if d not in leaders]
 
-    results = _run_jobs([(*distinct[d], settings) for d in todo], jobs, progress, done)
-    for digest, pieces in zip(todo, results, strict=True):
+    # Convex meshes are their own hull: decided here, so a pool starts only for CoACD work.
+    import trimesh
+
+    concave = []
+    for digest in todo:
+        local, faces = distinct[digest]
+        if is_convex(trimesh.Trimesh(local, faces, process=False)):
+            pieces_of[digest] = [_hull_vertices(local)]
+        else:
+            concave.append(digest)
+    done += len(todo) - len(concave)
+    if progress is not None and len(todo) > len(concave):
+        progress(done)
+    results = _run_jobs([(*distinct[d], settings) for d in concave], jobs, progress, done)
+    for digest, pieces in zip(concave, results, strict=True):
         pieces_of[digest] = pieces
     for digest, leader in leaders.items():
         local, faces = distinct[digest]
         pieces_of[digest] = cover_triangles(local, faces, [p.copy() for p in pieces_of[leader]])
     if progress is not None and leaders:
-        progress(done + len(todo) + len(leaders))
+        progress(done + len(concave) + len(leaders))
     if cache is not None:
         for digest in misses:
             cache.put(keys[digest], pieces_of[digest])

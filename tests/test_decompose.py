@@ -237,6 +237,20 @@ def test_convex_bodies_skip_coacd(counted):
     assert counted == [] and len(out[0]) == 1
 
 
+def test_no_pool_for_a_single_concave_mesh(monkeypatch, counted):
+    import concurrent.futures
+
+    def no_pool(*args, **kwargs):
+        raise AssertionError("a process pool was started")
+
+    monkeypatch.setattr(concurrent.futures, "ProcessPoolExecutor", no_pool)
+    boxes = [trimesh.creation.box(extents=[1, k, 3]) for k in (1, 2, 3)]
+    bodies = [Body(str(k), str(k), m) for k, m in enumerate([*boxes, l_bracket()])]
+    out = decompose_bodies(bodies, options=FAST, cache_dir=None, jobs=4)
+    assert [len(p) == 1 for p in out] == [True, True, True, False]
+    assert len(counted) == 1
+
+
 def test_cache_round_trip_is_bit_exact_and_skips_coacd(tmp_path, counted):
     bodies = [Body("a", "a", l_bracket()), Body("b", "b", u_channel())]
     kwargs = {"threshold": 0.05, "options": FAST, "cache_dir": str(tmp_path), "jobs": 1}
