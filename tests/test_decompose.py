@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import io
+
 import numpy as np
 import pytest
 import trimesh
@@ -296,3 +298,20 @@ def test_progress_reports_every_mesh():
     bodies = [Body("a", "a", l_bracket()), Body("b", "b", trimesh.creation.box())]
     decompose_bodies(bodies, options=FAST, cache_dir=None, jobs=1, progress=seen.append)
     assert seen and seen[-1] == 2 and seen == sorted(seen)
+
+
+class _Terminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+def test_progress_draws_only_on_a_terminal():
+    from meshcheck.progress import Progress
+
+    pipe, tty = io.StringIO(), _Terminal()
+    for stream in (pipe, tty):
+        with Progress("decomposing", 2, stream=stream) as bar:
+            bar.update(1)
+            bar.update(2)
+    assert pipe.getvalue() == ""
+    assert "\rdecomposing 2/2" in tty.getvalue() and tty.getvalue().endswith("\r\033[K")
