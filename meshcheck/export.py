@@ -17,7 +17,7 @@ import trimesh
 from . import results
 from .errors import InputError
 from .load import Body
-from .verify import shared_solid
+from .verify import outward_faces, shared_solid
 
 # RGBA, 0-255.
 PART_COLOR = (160, 160, 160, 90)
@@ -44,7 +44,8 @@ def clash_mesh(a: Body, b: Body, finding: results.Finding) -> trimesh.Trimesh | 
     if a.is_closed and b.is_closed:
         va, vb = np.asarray(a.world.vertices, float), np.asarray(b.world.vertices, float)
         origin = 0.5 * (va.mean(axis=0) + vb.mean(axis=0))
-        solid = shared_solid(va - origin, a.world.faces, vb - origin, b.world.faces)
+        fa, fb = np.asarray(a.world.faces, np.int64), np.asarray(b.world.faces, np.int64)
+        solid = shared_solid(va - origin, outward_faces(va, fa), vb - origin, outward_faces(vb, fb))
         if solid is not None and len(solid[1]):
             return trimesh.Trimesh(vertices=solid[0] + origin, faces=solid[1], process=False)
     loc = finding.location

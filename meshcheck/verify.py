@@ -119,6 +119,8 @@ def verify_pair(
     vb, fb = np.asarray(b.vertices, dtype=np.float64), np.asarray(b.faces, dtype=np.int64)
     origin = _common_origin(va, vb)
     va, vb = va - origin, vb - origin
+    if is_closed:  # manifold3d and the inward rays want outward winding
+        fa, fb = outward_faces(va, fa), outward_faces(vb, fb)
     meshes = _Pair(va, fa, vb, fb, origin)
 
     if surfaces_apart:
@@ -176,6 +178,13 @@ def _is_closed(mesh: trimesh.Trimesh) -> bool:
     return bool(mesh.is_watertight and mesh.is_winding_consistent)
 
 
+def outward_faces(v: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """Faces of a closed mesh wound outward (flipped when its signed volume is negative)."""
+    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+    signed = np.einsum("ij,ij->", a - a.mean(axis=0), np.cross(b - a, c - a))
+    return f[:, ::-1].copy() if signed < 0 else f
+
+
 def _common_origin(va: np.ndarray, vb: np.ndarray) -> np.ndarray:
     """A point between the two meshes: the centre of their boxes' overlap (or of the gap)."""
     lo = np.maximum(va.min(axis=0), vb.min(axis=0))
@@ -214,12 +223,13 @@ def _shell_points(v: np.ndarray, f: np.ndarray) -> np.ndarray:
 
 
 def _is_buried(m: _Pair) -> bool:
-    """True when a shell of one mesh lies inside the other (winding number above one half)."""
+    """True when a shell of one mesh lies inside the other (winding number above one half, in
+    magnitude: an inside-out mesh has winding number -1 inside)."""
     for v, f, ov, of in ((m.va, m.fa, m.vb, m.fb), (m.vb, m.fb, m.va, m.fa)):
         points = _shell_points(v, f)
         lo, hi = ov.min(axis=0), ov.max(axis=0)
         inside_box = np.all((points >= lo) & (points <= hi), axis=1)
-        if inside_box.any() and np.any(winding_numbers(points[inside_box], ov, of) > 0.5):
+        if inside_box.any() and np.any(np.abs(winding_numbers(points[inside_box], ov, of)) > 0.5):
             return True
     return False
 
@@ -411,7 +421,7 @@ def _deep_points(m: _Pair, near: _Near, tolerance: float) -> np.ndarray:
         faces = np.unique(near.pairs[:, col])
         tri = v[f[faces]]
         points = np.concatenate([tri.mean(axis=1), v[np.unique(f[faces])]])
-        inside = points[winding_numbers(points, ov, of) > 0.5]
+        inside = points[np.abs(winding_numbers(points, ov, of)) > 0.5]
         if len(inside):
             found.append(inside[point_distances(inside, ov, of) > tolerance])
     return np.concatenate(found) if found else np.empty((0, 3))

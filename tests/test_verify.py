@@ -103,6 +103,17 @@ def test_surfaces_apart_finds_a_buried_part_and_clears_the_rest():
     assert v.status == CLEAR
 
 
+def test_inside_out_meshes_give_the_same_verdicts():
+    outer, inner = box([0, 0, 0], [4, 4, 4]), box([1, 1, 1], [2, 2, 2])
+    inner.invert()
+    v = verify_pair(inner, outer, tolerance=TOL, clearance=None)
+    assert v.status == results.INTERFERENCE and v.volume == pytest.approx(1.0)
+    flipped = unit((0.7, 0, 0))
+    flipped.invert()
+    v = verify_pair(unit(), flipped, tolerance=TOL, clearance=None)
+    assert v.status == results.INTERFERENCE and v.volume == pytest.approx(0.3)
+
+
 def test_second_shell_buried_is_found():
     """A part made of two shells, one far away and one inside the other part."""
     two = trimesh.util.concatenate([box([10, 0, 0], [11, 1, 1]), box([1, 1, 1], [2, 2, 2])])
@@ -396,3 +407,59 @@ def test_box_pairs_matches_all_pairs():
     got = {tuple(p) for p in box_pairs(alo, ahi, blo, bhi, 0.3).tolist()}
     gap_ok = np.all((alo[:, None] <= bhi[None] + 0.3) & (blo[None] <= ahi[:, None] + 0.3), axis=2)
     assert got == {tuple(p) for p in np.argwhere(gap_ok).tolist()}
+
+
+# --- export ----------------------------------------------------------------------------------
+
+
+def test_export_writes_parts_and_a_red_node_per_interference(tmp_path):
+    from meshcheck.export import CLASH_COLOR, CLASHING_PART_COLOR, PART_COLOR, export_clashes
+    from meshcheck.load import Body
+
+    a, b, c = unit(), unit((0.7, 0, 0)), unit((3, 0, 0))
+    bodies = [Body(n, n, m) for n, m in (("a.stl", a), ("b.stl", b), ("c.stl", c))]
+    v = verify_pair(a, b, tolerance=TOL, clearance=None)
+    finding = results.Finding(
+        a="a.stl",
+        b="b.stl",
+        status=v.status,
+        distance=v.distance,
+        depth=v.depth,
+        volume=v.volume,
+        location=v.location,
+        id="0123456789ab",
+    )
+    touching = results.Finding(a="b.stl", b="c.stl", status=results.TOUCHING, distance=0.0)
+    path = tmp_path / "clashes.glb"
+    export_clashes(str(path), bodies, [finding, touching])
+
+    scene = trimesh.load_scene(str(path))
+    nodes = {n: scene.geometry[scene.graph[n][1]] for n in scene.graph.nodes_geometry}
+    assert set(nodes) == {"a.stl", "b.stl", "c.stl", "interference a.stl x b.stl [0123456789ab]"}
+    clash = nodes["interference a.stl x b.stl [0123456789ab]"]
+    assert clash.volume == pytest.approx(0.3, rel=1e-6)
+    colour = {n: tuple(int(x) for x in m.visual.material.baseColorFactor) for n, m in nodes.items()}
+    assert colour["a.stl"] == colour["b.stl"] == CLASHING_PART_COLOR
+    assert colour["c.stl"] == PART_COLOR
+    assert colour["interference a.stl x b.stl [0123456789ab]"] == CLASH_COLOR
+
+
+def test_export_marks_a_surface_only_clash_with_its_location_box(tmp_path):
+    from meshcheck.export import export_clashes
+    from meshcheck.load import Body
+
+    a, b = open_box(), unit((0.5, 0.3, 0.2))
+    v = verify_pair(a, b, tolerance=TOL, clearance=None)
+    assert v.is_surface_only
+    finding = results.Finding(
+        a="a.obj",
+        b="b.stl",
+        status=v.status,
+        distance=0.0,
+        location=v.location,
+        is_surface_only=True,
+    )
+    path = tmp_path / "clashes.glb"
+    export_clashes(str(path), [Body("a.obj", "a.obj", a), Body("b.stl", "b.stl", b)], [finding])
+    scene = trimesh.load_scene(str(path))
+    assert "interference a.obj x b.stl" in set(scene.graph.nodes_geometry)
