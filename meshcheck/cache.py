@@ -25,7 +25,7 @@ import numpy as np
 
 # Bump when the layout of an entry or the meaning of a decomposition changes (e.g. the triangle
 # cover fix-up): old entries are then simply never looked up again.
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
 
 
 def cache_key(digest: str, options: dict) -> str:
