@@ -463,3 +463,20 @@ def test_export_marks_a_surface_only_clash_with_its_location_box(tmp_path):
     export_clashes(str(path), [Body("a.obj", "a.obj", a), Body("b.stl", "b.stl", b)], [finding])
     scene = trimesh.load_scene(str(path))
     assert "interference a.obj x b.stl" in set(scene.graph.nodes_geometry)
+
+
+@settings(derandomize=True, deadline=None, max_examples=40)
+@given(angles, angles, st.tuples(*[st.floats(-0.9, 0.9)] * 3))
+def test_depth_of_two_overlapping_boxes_matches_an_lp(ra, rb, off):
+    """The shared solid of two boxes is convex: its inscribed ball is the Chebyshev centre of
+    the twelve half-spaces, an LP independent of the mesh machinery."""
+    a = _placed(1, ra, (0, 0, 0))
+    b = _placed(1, rb, off)
+    n = np.concatenate([a.face_normals, b.face_normals])
+    h = np.einsum("ij,ij->i", n, np.concatenate([a.triangles[:, 0], b.triangles[:, 0]]))
+    lp = linprog([0, 0, 0, -1], A_ub=np.c_[n, np.ones(len(n))], b_ub=h, bounds=[(None, None)] * 4)
+    thickness = -2 * lp.fun
+    assume(thickness > 1e-3)
+    v = verify_pair(a, b, tolerance=TOL, clearance=None)
+    assert v.status == results.INTERFERENCE
+    assert v.depth == pytest.approx(thickness, rel=1e-4)
