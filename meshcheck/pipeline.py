@@ -24,7 +24,7 @@ import numpy as np
 from . import verify
 from .broadphase import candidate_pairs
 from .config import Approval, Config, Groups, approval_reason, default_tolerance, load_config
-from .decompose import DEFAULT_THRESHOLD, decompose_bodies
+from .decompose import DEFAULT_THRESHOLD, decompose_bodies, local_geometry
 from .errors import MeshcheckWarning
 from .geometry import Status, pack_convex, query_pairs
 from .load import Body, load_bodies
@@ -240,20 +240,27 @@ def check_bodies(
 
 
 def _world_hulls(bodies: Sequence[Body]) -> list[np.ndarray]:
-    """Hull vertices of each body, world coordinates; qhull runs once per distinct mesh."""
+    """Hull vertices of each body, world coordinates; qhull runs once per distinct geometry.
+
+    Geometry is compared up to translation (``decompose.local_geometry``), so instances of one
+    mesh and copies of one part at other places share a hull.
+    """
     from scipy.spatial import ConvexHull, QhullError
 
-    local: dict[int, np.ndarray] = {}
+    by_mesh: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # id(mesh) -> (local hull, corner)
+    by_digest: dict[str, np.ndarray] = {}
     out = []
     for body in bodies:
-        key = id(body.mesh)
-        if key not in local:
-            vertices = np.asarray(body.mesh.vertices, dtype=np.float64)
-            try:
-                local[key] = vertices[np.sort(ConvexHull(vertices).vertices)]
-            except (QhullError, ValueError):  # flat or degenerate: every vertex
-                local[key] = vertices
-        hull = local[key]
+        if id(body.mesh) not in by_mesh:
+            local, _, corner, digest = local_geometry(body.mesh)
+            if digest not in by_digest:
+                try:
+                    by_digest[digest] = local[np.sort(ConvexHull(local).vertices)]
+                except (QhullError, ValueError):  # flat or degenerate: every vertex
+                    by_digest[digest] = local
+            by_mesh[id(body.mesh)] = (by_digest[digest], corner)
+        hull, corner = by_mesh[id(body.mesh)]
+        hull = hull + corner
         transform = np.asarray(body.transform, dtype=np.float64)
         if not np.array_equal(transform, np.eye(4)):
             hull = hull @ transform[:3, :3].T + transform[:3, 3]
