@@ -17,6 +17,7 @@ from meshcheck.geometry import (
     query_pairs,
     signed_distance,
 )
+from meshcheck.geometry.constants import HILL_CLIMB_MIN_VERTICES
 
 CUBE = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], dtype=np.float64)
 CENTRED_CUBE = CUBE - 0.5
@@ -399,6 +400,9 @@ def test_intersects():
 # --- batch ------------------------------------------------------------------------------------
 
 
+BIG = HILL_CLIMB_MIN_VERTICES + 50  # hulls this big are walked, not scanned
+
+
 def sphere_points(n, seed, radius=1.0, centre=(0, 0, 0)):
     rng = np.random.default_rng(seed)
     p = rng.normal(size=(n, 3))
@@ -406,12 +410,12 @@ def sphere_points(n, seed, radius=1.0, centre=(0, 0, 0)):
 
 
 def test_pack_convex_keeps_hull_vertices_and_adjacency():
-    ball = sphere_points(200, 0)
+    ball = sphere_points(BIG, 0)
     pack = pack_convex([ball, CUBE, TRI, [[1.0, 2.0, 3.0]]])
-    assert pack.starts.tolist()[:2] == [0, 200]  # all on the sphere: all hull vertices
-    assert pack.starts[-1] == 200 + 8 + 3 + 1
-    assert pack.nbr_starts[200] - pack.nbr_starts[0] >= 3 * 200  # adjacency for the big hull
-    assert pack.nbr_starts[208] == pack.nbr_starts[200]  # the cube is scanned
+    assert pack.starts.tolist()[:2] == [0, BIG]  # all on the sphere: all hull vertices
+    assert pack.starts[-1] == BIG + 8 + 3 + 1
+    assert pack.nbr_starts[BIG] - pack.nbr_starts[0] >= 3 * BIG  # adjacency for the big hull
+    assert pack.nbr_starts[BIG + 8] == pack.nbr_starts[BIG]  # the cube is scanned
     np.testing.assert_allclose(pack.lower[1], [0, 0, 0])
     np.testing.assert_allclose(pack.upper[0], ball.max(axis=0))
     inner = pack_convex([np.concatenate([CUBE, [[0.5, 0.5, 0.5]]] * 3)])
@@ -419,19 +423,20 @@ def test_pack_convex_keeps_hull_vertices_and_adjacency():
 
 
 def test_concat_packs_offsets_indices():
-    p1 = pack_convex([sphere_points(64, 1), CUBE])
-    p2 = pack_convex([sphere_points(50, 2, centre=(3, 0, 0))])
+    p1 = pack_convex([sphere_points(BIG, 1), CUBE])
+    p2 = pack_convex([sphere_points(BIG, 2, centre=(3, 0, 0))])
     both = concat_packs([p1, p2])
-    assert both.starts.tolist() == [0, 64, 72, 122]
-    assert both.nbrs[both.nbr_starts[72] :].min() >= 72
+    assert both.starts.tolist() == [0, BIG, BIG + 8, 2 * BIG + 8]
+    assert both.nbrs[both.nbr_starts[BIG + 8] :].min() >= BIG + 8
+    assert both.nbrs[: both.nbr_starts[BIG]].max() < BIG
     res = query_pairs(both, np.array([[0, 2], [1, 2]]), tolerance=1e-9)
     assert res.distance[0] == pytest.approx(1.0, abs=0.05)
     assert res.distance[1] == pytest.approx(signed_distance(CUBE, p2.points), rel=1e-12)
 
 
 def test_query_pairs_matches_query_on_big_hulls():
-    """Hill climbing over 300-vertex hulls gives what a scan gives."""
-    shapes = [sphere_points(300, s, centre=(1.9 * s, 0.3 * s, 0)) for s in range(5)]
+    """Hill climbing over big hulls gives what a scan gives."""
+    shapes = [sphere_points(BIG, s, centre=(1.9 * s, 0.3 * s, 0)) for s in range(5)]
     pack = pack_convex(shapes)
     pairs = np.array([[i, j] for i in range(5) for j in range(i + 1, 5)])
     res = query_pairs(pack, pairs, tolerance=1e-9)

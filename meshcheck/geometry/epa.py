@@ -179,25 +179,45 @@ def _answer_face(status, distance, f, V, VA, VB, FV, FN, nx, ny, nz, centre, out
     i, j, k = FV[f, 0], FV[f, 1], FV[f, 2]
     li, lj, lk = closest_on_triangle(V, i, j, k)
     write_answer(
-        out, status, distance,
+        out,
+        status,
+        distance,
         li * VA[i, 0] + lj * VA[j, 0] + lk * VA[k, 0],
         li * VA[i, 1] + lj * VA[j, 1] + lk * VA[k, 1],
         li * VA[i, 2] + lj * VA[j, 2] + lk * VA[k, 2],
         li * VB[i, 0] + lj * VB[j, 0] + lk * VB[k, 0],
         li * VB[i, 1] + lj * VB[j, 1] + lk * VB[k, 1],
         li * VB[i, 2] + lj * VB[j, 2] + lk * VB[k, 2],
-        nx, ny, nz, centre,
-    )  # fmt: skip
+        nx,
+        ny,
+        nz,
+        centre,
+    )
 
 
 @njit(cache=True, nogil=True)
-def _support_into(shape_a, range_a, shape_b, range_b, centre, dx, dy, dz, V, VA, VB, VI, slot):
-    """Put the support point of ``A - B`` along ``d`` into row ``slot``; return its ``. d``."""
-    ia, ib = cso_support(shape_a, range_a, shape_b, range_b, centre, dx, dy, dz, VI[0, 0], VI[0, 1])
-    pa, pb = shape_a[0], shape_b[0]
+def _copy_row(V, VA, VB, VI, src, dst):
     for c in range(3):
-        VA[slot, c] = pa[ia, c] - centre[c]
-        VB[slot, c] = pb[ib, c] - centre[c]
+        V[dst, c] = V[src, c]
+        VA[dst, c] = VA[src, c]
+        VB[dst, c] = VB[src, c]
+    VI[dst, 0] = VI[src, 0]
+    VI[dst, 1] = VI[src, 1]
+
+
+# The two shapes as flat arguments (see :func:`meshcheck.geometry.support.cso_support`), in
+# every signature below: ``pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, ..., climb_b``.
+
+
+@njit(cache=True, nogil=True)
+def _support_into(pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, nst_b, nbr_b, b0, b1, climb_b,
+                  centre, dx, dy, dz, V, VA, VB, VI, slot):  # fmt: skip
+    """Put the support point of ``A - B`` along ``d`` into row ``slot``; return its ``. d``."""
+    ia, ib = cso_support(pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, nst_b, nbr_b, b0, b1,
+                         climb_b, centre, dx, dy, dz, VI[0, 0], VI[0, 1])  # fmt: skip
+    for c in range(3):
+        VA[slot, c] = pts_a[ia, c] - centre[c]
+        VB[slot, c] = pts_b[ib, c] - centre[c]
         V[slot, c] = VA[slot, c] - VB[slot, c]
     VI[slot, 0] = ia
     VI[slot, 1] = ib
@@ -205,14 +225,40 @@ def _support_into(shape_a, range_a, shape_b, range_b, centre, dx, dy, dz, V, VA,
 
 
 @njit(cache=True, nogil=True)
-def contact(shape_a, range_a, shape_b, range_b, centre, size, tol, want_depth,
-            k, W, SA, SB, IX, lam, out):  # fmt: skip
+def epa_workspace():
+    """Work arrays for :func:`contact`: ``(floats, ints)``, allocated once per batch."""
+    floats = np.empty((3 * _MAX_VERTS + _MAX_FACES + _MAX_FACES // 3 + 1, 3))
+    ints = np.empty(2 * _MAX_VERTS + 3 * _MAX_FACES + 2 * _MAX_FACES + 6 * _MAX_FACES, np.int64)
+    return floats, ints
+
+
+@njit(cache=True, nogil=True)
+def _carve(floats, ints):
+    """Views into the work arrays: polytope vertices, their sources and the faces."""
+    mv, mf = _MAX_VERTS, _MAX_FACES
+    V, VA, VB = floats[0:mv], floats[mv : 2 * mv], floats[2 * mv : 3 * mv]
+    FN = floats[3 * mv : 3 * mv + mf]
+    FD = floats[3 * mv + mf :].reshape(-1)[:mf]
+    VI = ints[0 : 2 * mv].reshape((mv, 2))
+    o = 2 * mv
+    FV = ints[o : o + 3 * mf].reshape((mf, 3))
+    o += 3 * mf
+    alive, free = ints[o : o + mf], ints[o + mf : o + 2 * mf]
+    o += 2 * mf
+    edges = ints[o : o + 6 * mf].reshape((3 * mf, 2))
+    return V, VA, VB, VI, FV, FN, FD, alive, free, edges
+
+
+@njit(cache=True, nogil=True)
+def contact(pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, nst_b, nbr_b, b0, b1, climb_b,
+            centre, size, tol, want_depth, k, W, SA, SB, IX, lam, floats, ints, out):  # fmt: skip
     """Classify and measure a pair whose GJK simplex holds the origin (the shapes meet).
 
     Parameters
     ----------
-    shape_a, range_a, shape_b, range_b, centre
-        The two shapes, as for :func:`meshcheck.geometry.support.cso_support`.
+    pts_a, ..., climb_b, centre
+        The two shapes and the common centre, as for
+        :func:`meshcheck.geometry.support.cso_support`.
     size : float64
         Size of the query (largest AABB edge), model units.
     tol : float64
@@ -222,17 +268,16 @@ def contact(shape_a, range_a, shape_b, range_b, centre, size, tol, want_depth,
         then carries minus a *lower bound* of the depth.
     k : int64
         Number of simplex points (1 to 4). With ``k < 4`` the origin lies on the simplex (within
-        rounding); with ``k == 4`` the tetrahedron encloses it.
+        rounding or ``tol``); with ``k == 4`` the tetrahedron encloses it.
     W, SA, SB, IX, lam
         The GJK simplex: Minkowski points, their source points on A and B (re-centred), source
         indices, barycentric weights of the origin's nearest point.
+    floats, ints
+        Work arrays from :func:`epa_workspace`.
     out : (11,) float64
         Receives the answer (see :func:`write_answer`).
     """
-    V = np.empty((_MAX_VERTS, 3))
-    VA = np.empty((_MAX_VERTS, 3))
-    VB = np.empty((_MAX_VERTS, 3))
-    VI = np.empty((_MAX_VERTS, 2), dtype=np.int64)
+    V, VA, VB, VI, FV, FN, FD, alive, free, edges = _carve(floats, ints)
     # Where GJK found the origin: the witness points of a touching answer.
     pax = pay = paz = pbx = pby = pbz = 0.0
     for r in range(k):
@@ -251,23 +296,25 @@ def contact(shape_a, range_a, shape_b, range_b, centre, size, tol, want_depth,
     nv = k
     zero_len = ZERO_REL * size
 
-    # -- 1. Blow the simplex up to a tetrahedron holding the origin. Before each new point, the
-    #       support value along its direction says whether D is flat there within tol: then the
-    #       origin is within tol of D's boundary and the shapes only touch.
+    # -- Blow the simplex up to a tetrahedron holding the origin. Before each new point, the
+    #    support value along its direction says whether D is flat there within tol: then the
+    #    origin is within tol of D's boundary and the shapes only touch.
+    passes = 0
     while nv < 4:
+        passes += 1
+        if passes > 8:
+            # Needle triangles again and again: no tetrahedron can be built.
+            write_answer(out, UNDECIDED, 0.0, pax, pay, paz, pbx, pby, pbz, 1.0, 0.0, 0.0, centre)
+            return
         if nv == 1:
             grown = False
             for axis in range(6):
-                dx = dy = dz = 0.0
                 sign = 1.0 if axis < 3 else -1.0
-                if axis % 3 == 0:
-                    dx = sign
-                elif axis % 3 == 1:
-                    dy = sign
-                else:
-                    dz = sign
-                h = _support_into(shape_a, range_a, shape_b, range_b, centre,
-                                  dx, dy, dz, V, VA, VB, VI, 1)  # fmt: skip
+                dx = sign if axis % 3 == 0 else 0.0
+                dy = sign if axis % 3 == 1 else 0.0
+                dz = sign if axis % 3 == 2 else 0.0
+                h = _support_into(pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, nst_b, nbr_b, b0,
+                                  b1, climb_b, centre, dx, dy, dz, V, VA, VB, VI, 1)  # fmt: skip
                 if h <= tol:
                     write_answer(out, TOUCHING, 0.0, pax, pay, paz, pbx, pby, pbz,
                                  dx, dy, dz, centre)  # fmt: skip
@@ -286,7 +333,8 @@ def contact(shape_a, range_a, shape_b, range_b, centre, size, tol, want_depth,
             if el <= zero_len:
                 nv = 1
                 continue
-            # A direction square to the segment: cross it with its least-aligned axis.
+            # Two directions square to the segment (cross it with its least-aligned axis, then
+            # with that); keep the support point that stands furthest off the segment's line.
             ax, ay, az = abs(ex), abs(ey), abs(ez)
             if ax <= ay and ax <= az:
                 ux, uy, uz = 0.0, ez, -ey
@@ -296,12 +344,25 @@ def contact(shape_a, range_a, shape_b, range_b, centre, size, tol, want_depth,
                 ux, uy, uz = ey, -ex, 0.0
             ul = np.sqrt(ux * ux + uy * uy + uz * uz)
             ux, uy, uz = ux / ul, uy / ul, uz / ul
-            h = _support_into(shape_a, range_a, shape_b, range_b, centre,
-                              ux, uy, uz, V, VA, VB, VI, 2)  # fmt: skip
-            if h <= tol:
-                write_answer(out, TOUCHING, 0.0, pax, pay, paz, pbx, pby, pbz,
-                             ux, uy, uz, centre)  # fmt: skip
-                return
+            first_h = 0.0
+            for turn in range(2):
+                if turn == 1:
+                    ux, uy, uz = (
+                        (ey * uz - ez * uy) / el,
+                        (ez * ux - ex * uz) / el,
+                        (ex * uy - ey * ux) / el,
+                    )
+                h = _support_into(pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, nst_b, nbr_b, b0,
+                                  b1, climb_b, centre, ux, uy, uz, V, VA, VB, VI,
+                                  2 + turn)  # fmt: skip
+                if h <= tol:
+                    write_answer(out, TOUCHING, 0.0, pax, pay, paz, pbx, pby, pbz,
+                                 ux, uy, uz, centre)  # fmt: skip
+                    return
+                if turn == 0:
+                    first_h = h
+                elif h > first_h:
+                    _copy_row(V, VA, VB, VI, 3, 2)
             nv = 3
         else:
             abx, aby, abz = V[1, 0] - V[0, 0], V[1, 1] - V[0, 1], V[1, 2] - V[0, 2]
@@ -314,43 +375,37 @@ def contact(shape_a, range_a, shape_b, range_b, centre, size, tol, want_depth,
             ac = np.sqrt(acx * acx + acy * acy + acz * acz)
             if nn <= DEGENERATE_SIN * ab * ac or nn == 0.0:
                 # Needle triangle: keep its longest edge (the origin lies on it) and redo.
-                bc = np.sqrt((V[2, 0] - V[1, 0]) ** 2 + (V[2, 1] - V[1, 1]) ** 2
-                             + (V[2, 2] - V[1, 2]) ** 2)  # fmt: skip
+                bc = np.sqrt(
+                    (V[2, 0] - V[1, 0]) ** 2 + (V[2, 1] - V[1, 1]) ** 2 + (V[2, 2] - V[1, 2]) ** 2
+                )
                 drop = 2 if (ab >= ac and ab >= bc) else (1 if ac >= bc else 0)
                 for r in range(drop, 2):
-                    for c in range(3):
-                        V[r, c] = V[r + 1, c]
-                        VA[r, c] = VA[r + 1, c]
-                        VB[r, c] = VB[r + 1, c]
-                    VI[r, 0] = VI[r + 1, 0]
-                    VI[r, 1] = VI[r + 1, 1]
+                    _copy_row(V, VA, VB, VI, r + 1, r)
                 nv = 2
                 continue
             nx, ny, nz = nx / nn, ny / nn, nz / nn
-            h = _support_into(shape_a, range_a, shape_b, range_b, centre,
-                              -nx, -ny, -nz, V, VA, VB, VI, 3)  # fmt: skip
-            if h <= tol:
-                write_answer(out, TOUCHING, 0.0, pax, pay, paz, pbx, pby, pbz,
-                             -nx, -ny, -nz, centre)  # fmt: skip
-                return
-            h = _support_into(shape_a, range_a, shape_b, range_b, centre,
-                              nx, ny, nz, V, VA, VB, VI, 3)  # fmt: skip
-            if h <= tol:
-                write_answer(out, TOUCHING, 0.0, pax, pay, paz, pbx, pby, pbz,
-                             nx, ny, nz, centre)  # fmt: skip
-                return
+            for side in (-1.0, 1.0):  # the +n point stays in row 3
+                h = _support_into(pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, nst_b, nbr_b, b0,
+                                  b1, climb_b, centre, side * nx, side * ny, side * nz,
+                                  V, VA, VB, VI, 3)  # fmt: skip
+                if h <= tol:
+                    write_answer(out, TOUCHING, 0.0, pax, pay, paz, pbx, pby, pbz,
+                                 side * nx, side * ny, side * nz, centre)  # fmt: skip
+                    return
             nv = 4
-    epa(shape_a, range_a, shape_b, range_b, centre, size, tol, want_depth,
-        nv, V, VA, VB, VI, out)  # fmt: skip
+    epa(pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, nst_b, nbr_b, b0, b1, climb_b,
+        centre, size, tol, want_depth, V, VA, VB, VI, FV, FN, FD, alive, free, edges,
+        out)  # fmt: skip
 
 
 @njit(cache=True, nogil=True)
-def epa(shape_a, range_a, shape_b, range_b, centre, size, tol, want_depth,
-        nv, V, VA, VB, VI, out):  # fmt: skip
+def epa(pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, nst_b, nbr_b, b0, b1, climb_b,
+        centre, size, tol, want_depth, V, VA, VB, VI, FV, FN, FD, alive, free, edges,
+        out):  # fmt: skip
     """Expand the tetrahedron ``V[:4]`` (holding the origin) to the depth of ``A - B``.
 
-    Parameters are those of :func:`contact`; ``V, VA, VB, VI`` are ``(_MAX_VERTS, ...)`` work
-    arrays whose first ``nv == 4`` rows hold the start tetrahedron.
+    Parameters are those of :func:`contact`; ``V, VA, VB, VI`` hold the start tetrahedron in
+    their first four rows, the face arrays are work space (see :func:`_carve`).
 
     The depth is bracketed by ``lower`` (nearest face of the polytope, which lies inside ``D``)
     and ``upper`` (least support value ``h_D(n)`` seen). The answer is
@@ -359,33 +414,35 @@ def epa(shape_a, range_a, shape_b, range_b, centre, size, tol, want_depth,
     * PENETRATING when ``lower > tol`` (at once if not ``want_depth``, with ``-lower``);
     * else the converged depth decides; on the iteration cap without a decision, UNDECIDED.
     """
-    FV = np.empty((_MAX_FACES, 3), dtype=np.int64)
-    FN = np.empty((_MAX_FACES, 3))
-    FD = np.empty(_MAX_FACES)
-    alive = np.zeros(_MAX_FACES, dtype=np.bool_)
-    free = np.empty(_MAX_FACES, dtype=np.int64)
-    edges = np.empty((3 * _MAX_FACES, 2), dtype=np.int64)
     zero_len = min(ZERO_REL * size, 0.5 * tol)
+    nv = 4
 
     # Start faces, turned so their normals point away from the centroid (an interior point).
     gx = 0.25 * (V[0, 0] + V[1, 0] + V[2, 0] + V[3, 0])
     gy = 0.25 * (V[0, 1] + V[1, 1] + V[2, 1] + V[3, 1])
     gz = 0.25 * (V[0, 2] + V[1, 2] + V[2, 2] + V[3, 2])
-    nf = 0
     for f in range(4):
-        i, j, k = (
-            (0, 1, 2) if f == 0 else ((0, 3, 1) if f == 1 else ((0, 2, 3) if f == 2 else (1, 3, 2)))
-        )
+        if f == 0:
+            i, j, k = 0, 1, 2
+        elif f == 1:
+            i, j, k = 0, 3, 1
+        elif f == 2:
+            i, j, k = 0, 2, 3
+        else:
+            i, j, k = 1, 3, 2
         ox, oy, oz = gx - V[i, 0], gy - V[i, 1], gz - V[i, 2]
         abx, aby, abz = V[j, 0] - V[i, 0], V[j, 1] - V[i, 1], V[j, 2] - V[i, 2]
         acx, acy, acz = V[k, 0] - V[i, 0], V[k, 1] - V[i, 1], V[k, 2] - V[i, 2]
-        side = (ox * (aby * acz - abz * acy) + oy * (abz * acx - abx * acz)
-                + oz * (abx * acy - aby * acx))  # fmt: skip
+        side = (
+            ox * (aby * acz - abz * acy)
+            + oy * (abz * acx - abx * acz)
+            + oz * (abx * acy - aby * acx)
+        )
         if side > 0.0:
             j, k = k, j
         _set_face(V, FV, FN, FD, f, i, j, k)
-        alive[f] = True
-        nf += 1
+        alive[f] = 1
+    nf = 4
     nfree = 0
 
     lower = -np.inf
@@ -409,14 +466,13 @@ def epa(shape_a, range_a, shape_b, range_b, centre, size, tol, want_depth,
             return
         if nv >= _MAX_VERTS:
             break
-        h = _support_into(shape_a, range_a, shape_b, range_b, centre,
-                          nx, ny, nz, V, VA, VB, VI, nv)  # fmt: skip
+        h = _support_into(pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, nst_b, nbr_b, b0, b1,
+                          climb_b, centre, nx, ny, nz, V, VA, VB, VI, nv)  # fmt: skip
         if h < upper:
             upper = h
             ux, uy, uz = nx, ny, nz
         if upper <= tol:
-            _answer_face(TOUCHING, _neg(upper), best, V, VA, VB, FV, FN, ux, uy, uz,
-                         centre, out)  # fmt: skip
+            _answer_face(TOUCHING, _neg(upper), best, V, VA, VB, FV, FN, ux, uy, uz, centre, out)
             return
         converged = h - dmin <= EPA_REL_GAP * abs(h) + zero_len
         if not converged:
@@ -437,7 +493,7 @@ def epa(shape_a, range_a, shape_b, range_b, centre, size, tol, want_depth,
                 continue
             if f != best and FN[f, 0] * wx + FN[f, 1] * wy + FN[f, 2] * wz - FD[f] <= zero_len:
                 continue
-            alive[f] = False
+            alive[f] = 0
             free[nfree] = f
             nfree += 1
             for e in range(3):
@@ -463,18 +519,16 @@ def epa(shape_a, range_a, shape_b, range_b, centre, size, tol, want_depth,
                 f = nf
                 nf += 1
             _set_face(V, FV, FN, FD, f, edges[s, 0], edges[s, 1], nv)
-            alive[f] = True
+            alive[f] = 1
         nv += 1
 
     # Iteration cap (or numerical trouble): decide from the bounds where they allow it.
     if best < 0:
         write_answer(out, UNDECIDED, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, ux, uy, uz, centre)
     elif lower > tol:
-        _answer_face(PENETRATING, -lower, best, V, VA, VB, FV, FN,
-                     FN[best, 0], FN[best, 1], FN[best, 2], centre, out)  # fmt: skip
+        nx, ny, nz = FN[best, 0], FN[best, 1], FN[best, 2]
+        _answer_face(PENETRATING, -lower, best, V, VA, VB, FV, FN, nx, ny, nz, centre, out)
     elif upper <= tol:
-        _answer_face(TOUCHING, _neg(upper), best, V, VA, VB, FV, FN, ux, uy, uz,
-                     centre, out)  # fmt: skip
+        _answer_face(TOUCHING, _neg(upper), best, V, VA, VB, FV, FN, ux, uy, uz, centre, out)
     else:
-        _answer_face(UNDECIDED, _neg(lower), best, V, VA, VB, FV, FN, ux, uy, uz,
-                     centre, out)  # fmt: skip
+        _answer_face(UNDECIDED, _neg(lower), best, V, VA, VB, FV, FN, ux, uy, uz, centre, out)
