@@ -36,6 +36,10 @@ CLEAR = "clear"
 
 # Faces cast inward to seed the inscribed-ball search; caps the cost on large overlaps.
 _MAX_SEEDS = 1024
+# Points tested with winding numbers (each costs one pass over the other mesh's triangles): one per
+# shell for burial (a triangle soup can have a shell per triangle), and the surface-only probes.
+_MAX_SHELL_PROBES = 20000
+_MAX_SURFACE_PROBES = 4096
 
 
 @dataclass(frozen=True)
@@ -219,7 +223,12 @@ def _shell_points(v: np.ndarray, f: np.ndarray) -> np.ndarray:
     graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(len(v), len(v)))
     _, labels = connected_components(graph, directed=False)
     _, first = np.unique(labels[used], return_index=True)
-    return v[used[first]]
+    return _strided(v[used[first]], _MAX_SHELL_PROBES)
+
+
+def _strided(points: np.ndarray, limit: int) -> np.ndarray:
+    """At most ``limit`` of ``points``, evenly strided."""
+    return points if len(points) <= limit else points[:: -(-len(points) // limit)]
 
 
 def _is_buried(m: _Pair) -> bool:
@@ -420,7 +429,9 @@ def _deep_points(m: _Pair, near: _Near, tolerance: float) -> np.ndarray:
     for col, (v, f, ov, of) in enumerate(((m.va, m.fa, m.vb, m.fb), (m.vb, m.fb, m.va, m.fa))):
         faces = np.unique(near.pairs[:, col])
         tri = v[f[faces]]
-        points = np.concatenate([tri.mean(axis=1), v[np.unique(f[faces])]])
+        points = _strided(
+            np.concatenate([tri.mean(axis=1), v[np.unique(f[faces])]]), _MAX_SURFACE_PROBES
+        )
         inside = points[np.abs(winding_numbers(points, ov, of)) > 0.5]
         if len(inside):
             found.append(inside[point_distances(inside, ov, of) > tolerance])
