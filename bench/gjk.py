@@ -12,8 +12,9 @@ beforehand (faces from Qhull), and is called with ``fcl.distance`` and
 ``DistanceRequest(enable_nearest_points=True)``, GJK solver defaults; meshcheck is timed as
 
 * ``signed_distance(a, b)`` per call on the raw (V, 3) point arrays (no hull, linear scan);
-* ``query_pairs(pack, pairs)`` once for all pairs, on a pack built beforehand (hill climbing),
-  with the penetration depth (``depth=True``) and without it (``depth=False``).
+* ``query_pairs(pack, pairs)`` once for all pairs, on a pack built beforehand, with the
+  penetration depth (``depth=True``) and without it (``depth=False``), in one thread
+  (``parallel=1``) and on numba's threads (``NUMBA_NUM_THREADS``, default all cores).
 
 Rounds alternate between the contenders in one process, after a warm-up that compiles (or
 loads) the numba kernels; the figures are medians over rounds, per pair. Note the work differs
@@ -25,12 +26,14 @@ checked for agreement of the distances.
 from __future__ import annotations
 
 import argparse
+import os
 import platform
 import statistics
 import sys
 import time
 from pathlib import Path
 
+import numba
 import numpy as np
 from scipy.spatial import ConvexHull
 
@@ -100,17 +103,22 @@ def main() -> None:
             out[k] = signed_distance(a_list[k], b_list[k], tolerance=tolerance)
         return out
 
-    def run_batch():
-        return query_pairs(pack, pairs, tolerance=tolerance).distance
+    def batch(depth: bool, threads: int):
+        def run():
+            return query_pairs(
+                pack, pairs, tolerance=tolerance, depth=depth, parallel=threads
+            ).distance
 
-    def run_batch_status():
-        return query_pairs(pack, pairs, tolerance=tolerance, depth=False).distance
+        return run
 
+    threads = numba.get_num_threads()
     contenders = {
         "fcl.distance per call": run_fcl,
         "signed_distance per call": run_single,
-        "query_pairs depth=True": run_batch,
-        "query_pairs depth=False": run_batch_status,
+        "query_pairs depth=True": batch(True, 1),
+        "query_pairs depth=False": batch(False, 1),
+        f"  same, {threads} threads, depth=True": batch(True, threads),
+        f"  same, {threads} threads, depth=False": batch(False, threads),
     }
     results = {name: f() for name, f in contenders.items()}  # warm-up (numba compile / load)
     times: dict[str, list[float]] = {name: [] for name in contenders}
@@ -124,7 +132,10 @@ def main() -> None:
     d_ours = results["signed_distance per call"]
     sep = d_ours > 0
     agree = np.abs(d_fcl[sep] - d_ours[sep])
-    print(f"python {platform.python_version()}, numpy {np.__version__}, fcl {fcl.__version__}")
+    print(
+        f"python {platform.python_version()}, numpy {np.__version__}, numba {numba.__version__}, "
+        f"fcl {fcl.__version__}, {os.cpu_count()} cores"
+    )
     print(
         f"{n} hull pairs x {args.vertices} vertices, seed {args.seed}: "
         f"{sep.sum()} separated, {(~sep).sum()} touching or overlapping; "
@@ -134,14 +145,16 @@ def main() -> None:
         f"separated pairs: max |fcl - meshcheck| distance {agree.max():.2e}; "
         f"fcl reports {np.sum(d_fcl[~sep] < 0)} of the rest as colliding (-1)"
     )
-    batch_same = np.abs(results["query_pairs depth=True"] - d_ours).max()
+    batch_same = max(
+        np.abs(results[name] - d_ours).max() for name in contenders if "depth=True" in name
+    )
     print(f"query_pairs vs signed_distance: max |difference| {batch_same:.2e}")
     print()
     base = statistics.median(times["fcl.distance per call"])
-    print(f"{'contender':<28}{'us / pair':>12}{'fcl / this':>14}")
+    print(f"{'contender':<34}{'us / pair':>10}{'fcl / this':>12}")
     for name in contenders:
         t = statistics.median(times[name])
-        print(f"{name:<28}{t * 1e6:>12.2f}{base / t:>13.2f}x")
+        print(f"{name:<34}{t * 1e6:>10.2f}{base / t:>11.2f}x")
 
 
 if __name__ == "__main__":

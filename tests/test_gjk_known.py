@@ -17,7 +17,7 @@ from meshcheck.geometry import (
     query_pairs,
     signed_distance,
 )
-from meshcheck.geometry.constants import HILL_CLIMB_MIN_VERTICES
+from meshcheck.geometry.constants import HILL_CLIMB_MIN_VERTICES, PARALLEL_MIN_PAIRS
 
 CUBE = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], dtype=np.float64)
 CENTRED_CUBE = CUBE - 0.5
@@ -474,3 +474,16 @@ def test_query_pairs_per_pair_tolerance():
     assert res.status.tolist() == [Status.TOUCHING, Status.SEPARATED]
     default = query_pairs(pack, pairs, tolerance=None)
     assert default.status.tolist() == [Status.SEPARATED] * 2
+
+
+def test_query_pairs_threads_give_the_same_answers():
+    rng = np.random.default_rng(7)
+    shapes = [rng.normal(size=(12, 3)) * 0.4 + rng.uniform(-2, 2, size=3) for _ in range(40)]
+    pack = pack_convex(shapes)
+    pairs = np.array([[i, j] for i in range(40) for j in range(i + 1, 40)], dtype=np.int64)
+    assert len(pairs) >= PARALLEL_MIN_PAIRS
+    one = query_pairs(pack, pairs, tolerance=1e-9, parallel=1)
+    two = query_pairs(pack, pairs, tolerance=1e-9, parallel=2)
+    for got, want in zip(two, one, strict=True):
+        np.testing.assert_array_equal(got, want)
+    assert set(one.status.tolist()) >= {Status.SEPARATED, Status.PENETRATING}

@@ -89,6 +89,10 @@ EPA_MAX_ITER = 128
 #: vs 27, 1000: 16 vs 31). Large body hulls queried in several pairs are warm and climb well.
 HILL_CLIMB_MIN_VERTICES = 1024
 
+#: ``query_pairs`` spreads the pairs over numba's threads from this many pairs on. Starting the
+#: thread pool's tasks costs tens of microseconds, i.e. a few hundred 40-vertex pairs.
+PARALLEL_MIN_PAIRS = 256
+
 # ---------------------------------------------------------------------------------------------
 # Status codes (mirrored by ``meshcheck.geometry.gjk.Status``)
 # ---------------------------------------------------------------------------------------------

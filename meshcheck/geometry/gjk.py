@@ -33,13 +33,14 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+from numba import get_num_threads, njit, prange
 
 from .constants import (
     COORD_REL,
     DEGENERATE_SIN,
     GJK_MAX_ITER,
     GJK_REL_GAP,
+    PARALLEL_MIN_PAIRS,
     SEPARATED,
     TOUCH_REL,
     TOUCHING,
@@ -567,13 +568,14 @@ def intersects(a, b, *, tolerance: float | None = None) -> bool:
 # ---------------------------------------------------------------------------------------------
 
 
-@njit(cache=True)
-def _query_pairs_kernel(points, starts, nbr_starts, nbrs, lower, upper, pairs, tols, max_dists,
-                        want_depth, status, distance, point_a, point_b, normal):  # fmt: skip
+@njit(cache=True, nogil=True)
+def _query_pairs_range(points, starts, nbr_starts, nbrs, lower, upper, pairs, tols, max_dists,
+                       want_depth, status, distance, point_a, point_b, normal, q0, q1):  # fmt: skip
+    """Answer pairs ``q0:q1`` (one task's share) into the output arrays."""
     W, SA, SB, box, centre, guess, lam, IX, _ = _workspace()
     fws, iws = epa_workspace()
     out = np.empty(11)
-    for q in range(pairs.shape[0]):
+    for q in range(q0, q1):
         i, j = pairs[q, 0], pairs[q, 1]
         a0, a1, b0, b1 = starts[i], starts[i + 1], starts[j], starts[j + 1]
         climb_a = nbr_starts[a0 + 1] > nbr_starts[a0]
@@ -597,6 +599,18 @@ def _query_pairs_kernel(points, starts, nbr_starts, nbrs, lower, upper, pairs, t
             normal[q, c] = out[8 + c]
 
 
+@njit(cache=True, parallel=True)
+def _query_pairs_parallel(points, starts, nbr_starts, nbrs, lower, upper, pairs, tols, max_dists,
+                          want_depth, status, distance, point_a, point_b, normal,
+                          chunks):  # fmt: skip
+    """The pairs split into ``chunks`` contiguous shares, run as parallel tasks."""
+    k = pairs.shape[0]
+    for t in prange(chunks):
+        _query_pairs_range(points, starts, nbr_starts, nbrs, lower, upper, pairs, tols,
+                           max_dists, want_depth, status, distance, point_a, point_b, normal,
+                           t * k // chunks, (t + 1) * k // chunks)  # fmt: skip
+
+
 def _per_pair(value, k: int, name: str, default: float) -> np.ndarray:
     if value is None:
         return np.full(k, default)
@@ -613,6 +627,7 @@ def query_pairs(
     tolerance: float | np.ndarray | None,
     depth: bool = True,
     max_distance: float | np.ndarray | None = None,
+    parallel: int | None = None,
 ) -> PairQuery:
     """Relate many pairs of packed convex shapes in one compiled call.
 
@@ -633,6 +648,10 @@ def query_pairs(
         the pair is SEPARATED with ``distance`` set to that *lower bound* (not converged) and
         witness points of the current simplex. The pipeline passes clearance + tolerance, so
         every pair with ``distance <= max_distance`` is still measured exactly.
+    parallel : int, optional, keyword-only
+        Threads to spread the pairs over. Default: numba's thread count
+        (``NUMBA_NUM_THREADS``) when there are at least ``PARALLEL_MIN_PAIRS`` pairs, else one.
+        ``parallel=1`` runs in the calling thread only.
 
     Returns
     -------
@@ -665,21 +684,15 @@ def query_pairs(
     normal = np.empty((k, 3))
     if k:
         f8, i8 = np.float64, np.int64
-        _query_pairs_kernel(
-            np.ascontiguousarray(pack.points, f8),
-            np.ascontiguousarray(pack.starts, i8),
-            np.ascontiguousarray(pack.nbr_starts, i8),
-            np.ascontiguousarray(pack.nbrs, i8),
-            np.ascontiguousarray(pack.lower, f8),
-            np.ascontiguousarray(pack.upper, f8),
-            pairs,
-            tols,
-            max_dists,
-            bool(depth),
-            status,
-            distance,
-            point_a,
-            point_b,
-            normal,
-        )
+        args = (
+            np.ascontiguousarray(pack.points, f8), np.ascontiguousarray(pack.starts, i8),
+            np.ascontiguousarray(pack.nbr_starts, i8), np.ascontiguousarray(pack.nbrs, i8),
+            np.ascontiguousarray(pack.lower, f8), np.ascontiguousarray(pack.upper, f8),
+            pairs, tols, max_dists, bool(depth), status, distance, point_a, point_b, normal,
+        )  # fmt: skip
+        threads = get_num_threads() if parallel is None else max(1, int(parallel))
+        if threads > 1 and k >= PARALLEL_MIN_PAIRS:
+            _query_pairs_parallel(*args, 4 * threads)
+        else:
+            _query_pairs_range(*args, 0, k)
     return PairQuery(status, distance, point_a, point_b, normal)
