@@ -227,6 +227,32 @@ def test_open_surfaces_apart_are_clear_or_clearance():
     )
 
 
+def _open(m: trimesh.Trimesh, axis: int, side: int) -> trimesh.Trimesh:
+    keep = ~np.isclose(m.triangles_center[:, axis], m.bounds[side][axis])
+    return trimesh.Trimesh(m.vertices, m.faces[keep], process=False)
+
+
+@pytest.mark.parametrize(
+    "a, b, status",
+    [
+        # Surfaces that meet only along mesh edges and coplanar faces: no edge passes strictly
+        # through a triangle, the probes inside the other mesh decide.
+        (_open(unit(), 2, 1), unit((0.7, 0, 0)), results.INTERFERENCE),
+        (_open(unit(), 2, 1), _open(unit((0.7, 0, 0)), 2, 1), results.INTERFERENCE),
+        (_open(unit(), 0, 0), _open(unit((0.7, 0, 0)), 0, 1), results.INTERFERENCE),
+        (
+            _open(box([0, 0, 0], [3, 3, 3]), 2, 1),
+            _open(box([1, 1, 1], [2, 2, 2]), 2, 1),
+            results.INTERFERENCE,
+        ),
+        (_open(unit(), 2, 1), unit((1 - 1e-7, 0, 0)), results.TOUCHING),
+    ],
+)
+def test_open_surfaces_aligned_with_each_other(a, b, status):
+    v = verify_pair(a, b, tolerance=TOL, clearance=None)
+    assert v.status == status and v.is_surface_only
+
+
 def test_box_buried_in_an_open_box_interferes():
     v = verify_pair(
         open_box(), box([0.3, 0.3, 0.2], [0.6, 0.6, 0.5]), tolerance=TOL, clearance=None
