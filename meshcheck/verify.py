@@ -62,8 +62,9 @@ class Verdict:
         Volume of the shared solid (manifold3d boolean intersection), model units cubed, when both
         meshes are closed and the pair interferes.
     location : results.Location or None
-        Interference: centroid and box of the shared solid. Touching: the contact region (boxes
-        of the triangle pairs within the tolerance). Clearance: the two closest points.
+        Interference: centroid and box of the shared solid. Touching: the box of the contact
+        region (triangle pairs within the tolerance) and its centre. Clearance: the box of the two
+        closest points and their midpoint.
     is_surface_only : bool
         True when a mesh is not closed (or the boolean failed), so the verdict rests on the
         surfaces alone.
@@ -439,18 +440,15 @@ def _deep_points(m: _Pair, near: _Near, tolerance: float) -> np.ndarray:
 
 
 def _contact_region(m: _Pair, near: _Near | None, tolerance: float) -> results.Location | None:
-    """Where two meshes touch: the union of the overlaps of the boxes of the triangle pairs
-    within the tolerance; the centroid is the mean of those overlaps' centres."""
+    """Where two meshes touch: the box around the overlaps of the boxes of the triangle pairs
+    within the tolerance, and its centre (exact for the usual flat rectangles and rings)."""
     if near is None:
         return None
     touching = near.pairs[near.distance <= tolerance]
     if len(touching) == 0:
         return None
     ta, tb = m.va[m.fa[touching[:, 0]]], m.vb[m.fb[touching[:, 1]]]
-    lo = np.maximum(ta.min(axis=1), tb.min(axis=1)) - tolerance
-    hi = np.minimum(ta.max(axis=1), tb.max(axis=1)) + tolerance
+    lo = (np.maximum(ta.min(axis=1), tb.min(axis=1)) - tolerance).min(axis=0)
+    hi = (np.minimum(ta.max(axis=1), tb.max(axis=1)) + tolerance).max(axis=0)
     hi = np.maximum(lo, hi)
-    centres = 0.5 * (lo + hi)
-    return results.Location(
-        centres.mean(axis=0) + m.origin, lo.min(axis=0) + m.origin, hi.max(axis=0) + m.origin
-    )
+    return results.Location(0.5 * (lo + hi) + m.origin, lo + m.origin, hi + m.origin)
