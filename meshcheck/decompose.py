@@ -346,9 +346,14 @@ def decompose_bodies(
         progress(done)
 
     # Misses: copies differing only by float32 rounding share the first one's decomposition.
+    # Cached entries and earlier misses lead; a miss that matches one reuses its pieces.
     misses = [d for d in distinct if d not in pieces_of]
     leaders: dict[str, str] = {}
     by_topology: dict[tuple, list[str]] = {}
+    for digest, (local, faces) in distinct.items():
+        topo = (local.shape, hashlib.sha256(faces.tobytes()).hexdigest())
+        if digest in pieces_of:
+            by_topology.setdefault(topo, []).append(digest)
     for digest in misses:
         local, faces = distinct[digest]
         topo = (local.shape, hashlib.sha256(faces.tobytes()).hexdigest())

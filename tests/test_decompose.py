@@ -315,3 +315,14 @@ def test_progress_draws_only_on_a_terminal():
             bar.update(2)
     assert pipe.getvalue() == ""
     assert "\rdecomposing 2/2" in tty.getvalue() and tty.getvalue().endswith("\r\033[K")
+
+
+def test_near_copy_reuses_a_cached_decomposition(tmp_path, counted):
+    mesh = l_bracket()
+    copy = mesh.copy()
+    copy.vertices = (mesh.vertices + np.array([500.3, 0, 0])).astype(np.float32).astype(np.float64)
+    kwargs = {"threshold": 0.05, "options": FAST, "cache_dir": str(tmp_path), "jobs": 1}
+    decompose_bodies([Body("a", "a", mesh)], **kwargs)
+    (out,) = decompose_bodies([Body("b", "b", copy)], **kwargs)
+    assert len(counted) == 1
+    assert uncovered(copy.vertices, copy.faces, out, tol=1e-7) == []
