@@ -17,7 +17,7 @@ array described in :func:`write_answer`.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, types
 
 from .constants import (
     DEGENERATE_SIN,
@@ -28,15 +28,21 @@ from .constants import (
     UNDECIDED,
     ZERO_REL,
 )
-from .support import cso_support
+from .support import B1, F1D, F2D, F8, I1D, I2D, I8, SHAPE, cso_support
 
 #: Work-array sizes: the polytope gains one vertex per iteration (plus the 4-5 it starts with);
 #: a closed triangulated polytope has at most ``2 V - 4`` faces.
 _MAX_VERTS = EPA_MAX_ITER + 8
 _MAX_FACES = 2 * _MAX_VERTS
 
+_GJK_SIMPLEX = (I8, F2D, F2D, F2D, I2D, F1D)  # k, W, SA, SB, IX, lam
+_CONTACT_SIG = types.none(*SHAPE, *SHAPE, F1D, F8, F8, B1, *_GJK_SIMPLEX, F2D, I1D, F1D)
+_EPA_SIG = types.none(
+    *SHAPE, *SHAPE, F1D, F8, F8, B1, F2D, F2D, F2D, I2D, I2D, F2D, F1D, I1D, I1D, I2D, F1D
+)
 
-@njit(cache=True, nogil=True)
+
+@njit(types.none(F1D, I8, F8, F8, F8, F8, F8, F8, F8, F8, F8, F8, F1D), cache=True, nogil=True)
 def write_answer(out, status, distance, ax, ay, az, bx, by, bz, nx, ny, nz, centre):
     """Store one answer, moving the witness points back to world coordinates.
 
@@ -63,13 +69,13 @@ def write_answer(out, status, distance, ax, ay, az, bx, by, bz, nx, ny, nz, cent
     out[10] = nz + 0.0
 
 
-@njit(cache=True, nogil=True)
+@njit(F8(F8), cache=True, nogil=True)
 def _neg(x):
     """``-x`` for ``x > 0``, else 0.0 (never -0.0): a depth bound as a signed distance."""
     return -x if x > 0.0 else 0.0
 
 
-@njit(cache=True, nogil=True)
+@njit(types.UniTuple(F8, 2)(F2D, I8, I8), cache=True, nogil=True)
 def closest_on_segment(W, i, j):
     """Barycentric weights ``(l_i, l_j)`` of the point of segment ``W[i] W[j]`` nearest 0."""
     ax, ay, az = W[i, 0], W[i, 1], W[i, 2]
@@ -85,7 +91,7 @@ def closest_on_segment(W, i, j):
     return 1.0 - t, t
 
 
-@njit(cache=True, nogil=True)
+@njit(types.UniTuple(F8, 3)(F2D, I8, I8, I8), cache=True, nogil=True)
 def closest_on_triangle(W, i, j, k):
     """Weights ``(l_i, l_j, l_k)`` of the point of triangle ``W[i] W[j] W[k]`` nearest the origin.
 
@@ -154,7 +160,7 @@ def closest_on_triangle(W, i, j, k):
     return 1.0 - v - w, v, w
 
 
-@njit(cache=True, nogil=True)
+@njit(types.none(F2D, I2D, F2D, F1D, I8, I8, I8, I8), cache=True, nogil=True)
 def _set_face(V, FV, FN, FD, f, i, j, k):
     """Store face ``f = (i, j, k)`` with its unit normal and plane offset (inf if degenerate)."""
     FV[f, 0], FV[f, 1], FV[f, 2] = i, j, k
@@ -173,7 +179,7 @@ def _set_face(V, FV, FN, FD, f, i, j, k):
     FD[f] = (nx * V[i, 0] + ny * V[i, 1] + nz * V[i, 2]) / nn
 
 
-@njit(cache=True, nogil=True)
+@njit(types.none(I8, F8, I8, F2D, F2D, F2D, I2D, F2D, F8, F8, F8, F1D, F1D), cache=True, nogil=True)
 def _answer_face(status, distance, f, V, VA, VB, FV, FN, nx, ny, nz, centre, out):
     """Answer with the witness points of the point of face ``f`` nearest the origin."""
     i, j, k = FV[f, 0], FV[f, 1], FV[f, 2]
@@ -195,7 +201,7 @@ def _answer_face(status, distance, f, V, VA, VB, FV, FN, nx, ny, nz, centre, out
     )
 
 
-@njit(cache=True, nogil=True)
+@njit(types.none(F2D, F2D, F2D, I2D, I8, I8), cache=True, nogil=True)
 def _copy_row(V, VA, VB, VI, src, dst):
     for c in range(3):
         V[dst, c] = V[src, c]
@@ -209,7 +215,7 @@ def _copy_row(V, VA, VB, VI, src, dst):
 # every signature below: ``pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, ..., climb_b``.
 
 
-@njit(cache=True, nogil=True)
+@njit(F8(*SHAPE, *SHAPE, F1D, F8, F8, F8, F2D, F2D, F2D, I2D, I8), cache=True, nogil=True)
 def _support_into(pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, nst_b, nbr_b, b0, b1, climb_b,
                   centre, dx, dy, dz, V, VA, VB, VI, slot):  # fmt: skip
     """Put the support point of ``A - B`` along ``d`` into row ``slot``; return its ``. d``."""
@@ -224,7 +230,7 @@ def _support_into(pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, nst_b, nbr_b, b0,
     return V[slot, 0] * dx + V[slot, 1] * dy + V[slot, 2] * dz
 
 
-@njit(cache=True, nogil=True)
+@njit(types.Tuple((F2D, I1D))(), cache=True, nogil=True)
 def epa_workspace():
     """Work arrays for :func:`contact`: ``(floats, ints)``, allocated once per batch."""
     floats = np.empty((3 * _MAX_VERTS + _MAX_FACES + _MAX_FACES // 3 + 1, 3))
@@ -232,7 +238,10 @@ def epa_workspace():
     return floats, ints
 
 
-@njit(cache=True, nogil=True)
+_VIEWS = types.Tuple((F2D, F2D, F2D, I2D, I2D, F2D, F1D, I1D, I1D, I2D))
+
+
+@njit(_VIEWS(F2D, I1D), cache=True, nogil=True)
 def _carve(floats, ints):
     """Views into the work arrays: polytope vertices, their sources and the faces."""
     mv, mf = _MAX_VERTS, _MAX_FACES
@@ -249,7 +258,143 @@ def _carve(floats, ints):
     return V, VA, VB, VI, FV, FN, FD, alive, free, edges
 
 
-@njit(cache=True, nogil=True)
+@njit(_EPA_SIG, cache=True, nogil=True)
+def epa(pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, nst_b, nbr_b, b0, b1, climb_b,
+        centre, size, tol, want_depth, V, VA, VB, VI, FV, FN, FD, alive, free, edges,
+        out):  # fmt: skip
+    """Expand the tetrahedron ``V[:4]`` (holding the origin) to the depth of ``A - B``.
+
+    Parameters are those of :func:`contact`; ``V, VA, VB, VI`` hold the start tetrahedron in
+    their first four rows, the face arrays are work space (see :func:`_carve`).
+
+    The depth is bracketed by ``lower`` (nearest face of the polytope, which lies inside ``D``)
+    and ``upper`` (least support value ``h_D(n)`` seen). The answer is
+
+    * TOUCHING when ``upper <= tol``;
+    * PENETRATING when ``lower > tol`` (at once if not ``want_depth``, with ``-lower``);
+    * else the converged depth decides; on the iteration cap without a decision, UNDECIDED.
+    """
+    zero_len = min(ZERO_REL * size, 0.5 * tol)
+    nv = 4
+
+    # Start faces, turned so their normals point away from the centroid (an interior point).
+    gx = 0.25 * (V[0, 0] + V[1, 0] + V[2, 0] + V[3, 0])
+    gy = 0.25 * (V[0, 1] + V[1, 1] + V[2, 1] + V[3, 1])
+    gz = 0.25 * (V[0, 2] + V[1, 2] + V[2, 2] + V[3, 2])
+    for f in range(4):
+        if f == 0:
+            i, j, k = 0, 1, 2
+        elif f == 1:
+            i, j, k = 0, 3, 1
+        elif f == 2:
+            i, j, k = 0, 2, 3
+        else:
+            i, j, k = 1, 3, 2
+        ox, oy, oz = gx - V[i, 0], gy - V[i, 1], gz - V[i, 2]
+        abx, aby, abz = V[j, 0] - V[i, 0], V[j, 1] - V[i, 1], V[j, 2] - V[i, 2]
+        acx, acy, acz = V[k, 0] - V[i, 0], V[k, 1] - V[i, 1], V[k, 2] - V[i, 2]
+        side = (
+            ox * (aby * acz - abz * acy)
+            + oy * (abz * acx - abx * acz)
+            + oz * (abx * acy - aby * acx)
+        )
+        if side > 0.0:
+            j, k = k, j
+        _set_face(V, FV, FN, FD, f, i, j, k)
+        alive[f] = 1
+    nf = 4
+    nfree = 0
+
+    lower = -np.inf
+    upper = np.inf
+    ux, uy, uz = 1.0, 0.0, 0.0
+    best = -1
+    for _ in range(EPA_MAX_ITER):
+        best = -1
+        dmin = np.inf
+        for f in range(nf):
+            if alive[f] and FD[f] < dmin:
+                dmin = FD[f]
+                best = f
+        if best < 0:
+            break
+        if dmin > lower:
+            lower = dmin
+        nx, ny, nz = FN[best, 0], FN[best, 1], FN[best, 2]
+        if not want_depth and lower > tol:
+            _answer_face(PENETRATING, -lower, best, V, VA, VB, FV, FN, nx, ny, nz, centre, out)
+            return
+        if nv >= _MAX_VERTS:
+            break
+        h = _support_into(pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, nst_b, nbr_b, b0, b1,
+                          climb_b, centre, nx, ny, nz, V, VA, VB, VI, nv)  # fmt: skip
+        if h < upper:
+            upper = h
+            ux, uy, uz = nx, ny, nz
+        if upper <= tol:
+            _answer_face(TOUCHING, _neg(upper), best, V, VA, VB, FV, FN, ux, uy, uz, centre, out)
+            return
+        converged = h - dmin <= EPA_REL_GAP * abs(h) + zero_len
+        if not converged:
+            for r in range(nv):
+                if VI[r, 0] == VI[nv, 0] and VI[r, 1] == VI[nv, 1]:
+                    converged = True
+                    break
+        if converged:
+            status = PENETRATING if dmin > tol else TOUCHING
+            _answer_face(status, -dmin, best, V, VA, VB, FV, FN, nx, ny, nz, centre, out)
+            return
+        # Remove the faces the new point sees; their outline (the horizon) is kept as the
+        # directed edges whose reverse is not also removed.
+        wx, wy, wz = V[nv, 0], V[nv, 1], V[nv, 2]
+        ne = 0
+        for f in range(nf):
+            if not alive[f]:
+                continue
+            if f != best and FN[f, 0] * wx + FN[f, 1] * wy + FN[f, 2] * wz - FD[f] <= zero_len:
+                continue
+            alive[f] = 0
+            free[nfree] = f
+            nfree += 1
+            for e in range(3):
+                p, q = FV[f, e], FV[f, (e + 1) % 3]
+                found = -1
+                for s in range(ne):
+                    if edges[s, 0] == q and edges[s, 1] == p:
+                        found = s
+                        break
+                if found >= 0:
+                    ne -= 1
+                    edges[found, 0] = edges[ne, 0]
+                    edges[found, 1] = edges[ne, 1]
+                else:
+                    edges[ne, 0] = p
+                    edges[ne, 1] = q
+                    ne += 1
+        for s in range(ne):
+            if nfree > 0:
+                nfree -= 1
+                f = free[nfree]
+            else:
+                f = nf
+                nf += 1
+            _set_face(V, FV, FN, FD, f, edges[s, 0], edges[s, 1], nv)
+            alive[f] = 1
+        nv += 1
+
+    # Iteration cap (or numerical trouble): decide from the bounds where they allow it.
+    if best < 0:
+        write_answer(out, UNDECIDED, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, ux, uy, uz, centre)
+    elif lower > tol:
+        nx, ny, nz = FN[best, 0], FN[best, 1], FN[best, 2]
+        _answer_face(PENETRATING, -lower, best, V, VA, VB, FV, FN, nx, ny, nz, centre, out)
+    elif upper <= tol:
+        _answer_face(TOUCHING, _neg(upper), best, V, VA, VB, FV, FN, ux, uy, uz, centre, out)
+    else:
+        _answer_face(UNDECIDED, _neg(lower), best, V, VA, VB, FV, FN, ux, uy, uz, centre, out)
+
+
+@njit(_CONTACT_SIG, cache=True, nogil=True)
 def contact(pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, nst_b, nbr_b, b0, b1, climb_b,
             centre, size, tol, want_depth, k, W, SA, SB, IX, lam, floats, ints, out):  # fmt: skip
     """Classify and measure a pair whose GJK simplex holds the origin (the shapes meet).
@@ -396,139 +541,3 @@ def contact(pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, nst_b, nbr_b, b0, b1, c
     epa(pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, nst_b, nbr_b, b0, b1, climb_b,
         centre, size, tol, want_depth, V, VA, VB, VI, FV, FN, FD, alive, free, edges,
         out)  # fmt: skip
-
-
-@njit(cache=True, nogil=True)
-def epa(pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, nst_b, nbr_b, b0, b1, climb_b,
-        centre, size, tol, want_depth, V, VA, VB, VI, FV, FN, FD, alive, free, edges,
-        out):  # fmt: skip
-    """Expand the tetrahedron ``V[:4]`` (holding the origin) to the depth of ``A - B``.
-
-    Parameters are those of :func:`contact`; ``V, VA, VB, VI`` hold the start tetrahedron in
-    their first four rows, the face arrays are work space (see :func:`_carve`).
-
-    The depth is bracketed by ``lower`` (nearest face of the polytope, which lies inside ``D``)
-    and ``upper`` (least support value ``h_D(n)`` seen). The answer is
-
-    * TOUCHING when ``upper <= tol``;
-    * PENETRATING when ``lower > tol`` (at once if not ``want_depth``, with ``-lower``);
-    * else the converged depth decides; on the iteration cap without a decision, UNDECIDED.
-    """
-    zero_len = min(ZERO_REL * size, 0.5 * tol)
-    nv = 4
-
-    # Start faces, turned so their normals point away from the centroid (an interior point).
-    gx = 0.25 * (V[0, 0] + V[1, 0] + V[2, 0] + V[3, 0])
-    gy = 0.25 * (V[0, 1] + V[1, 1] + V[2, 1] + V[3, 1])
-    gz = 0.25 * (V[0, 2] + V[1, 2] + V[2, 2] + V[3, 2])
-    for f in range(4):
-        if f == 0:
-            i, j, k = 0, 1, 2
-        elif f == 1:
-            i, j, k = 0, 3, 1
-        elif f == 2:
-            i, j, k = 0, 2, 3
-        else:
-            i, j, k = 1, 3, 2
-        ox, oy, oz = gx - V[i, 0], gy - V[i, 1], gz - V[i, 2]
-        abx, aby, abz = V[j, 0] - V[i, 0], V[j, 1] - V[i, 1], V[j, 2] - V[i, 2]
-        acx, acy, acz = V[k, 0] - V[i, 0], V[k, 1] - V[i, 1], V[k, 2] - V[i, 2]
-        side = (
-            ox * (aby * acz - abz * acy)
-            + oy * (abz * acx - abx * acz)
-            + oz * (abx * acy - aby * acx)
-        )
-        if side > 0.0:
-            j, k = k, j
-        _set_face(V, FV, FN, FD, f, i, j, k)
-        alive[f] = 1
-    nf = 4
-    nfree = 0
-
-    lower = -np.inf
-    upper = np.inf
-    ux, uy, uz = 1.0, 0.0, 0.0
-    best = -1
-    for _ in range(EPA_MAX_ITER):
-        best = -1
-        dmin = np.inf
-        for f in range(nf):
-            if alive[f] and FD[f] < dmin:
-                dmin = FD[f]
-                best = f
-        if best < 0:
-            break
-        if dmin > lower:
-            lower = dmin
-        nx, ny, nz = FN[best, 0], FN[best, 1], FN[best, 2]
-        if not want_depth and lower > tol:
-            _answer_face(PENETRATING, -lower, best, V, VA, VB, FV, FN, nx, ny, nz, centre, out)
-            return
-        if nv >= _MAX_VERTS:
-            break
-        h = _support_into(pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, nst_b, nbr_b, b0, b1,
-                          climb_b, centre, nx, ny, nz, V, VA, VB, VI, nv)  # fmt: skip
-        if h < upper:
-            upper = h
-            ux, uy, uz = nx, ny, nz
-        if upper <= tol:
-            _answer_face(TOUCHING, _neg(upper), best, V, VA, VB, FV, FN, ux, uy, uz, centre, out)
-            return
-        converged = h - dmin <= EPA_REL_GAP * abs(h) + zero_len
-        if not converged:
-            for r in range(nv):
-                if VI[r, 0] == VI[nv, 0] and VI[r, 1] == VI[nv, 1]:
-                    converged = True
-                    break
-        if converged:
-            status = PENETRATING if dmin > tol else TOUCHING
-            _answer_face(status, -dmin, best, V, VA, VB, FV, FN, nx, ny, nz, centre, out)
-            return
-        # Remove the faces the new point sees; their outline (the horizon) is kept as the
-        # directed edges whose reverse is not also removed.
-        wx, wy, wz = V[nv, 0], V[nv, 1], V[nv, 2]
-        ne = 0
-        for f in range(nf):
-            if not alive[f]:
-                continue
-            if f != best and FN[f, 0] * wx + FN[f, 1] * wy + FN[f, 2] * wz - FD[f] <= zero_len:
-                continue
-            alive[f] = 0
-            free[nfree] = f
-            nfree += 1
-            for e in range(3):
-                p, q = FV[f, e], FV[f, (e + 1) % 3]
-                found = -1
-                for s in range(ne):
-                    if edges[s, 0] == q and edges[s, 1] == p:
-                        found = s
-                        break
-                if found >= 0:
-                    ne -= 1
-                    edges[found, 0] = edges[ne, 0]
-                    edges[found, 1] = edges[ne, 1]
-                else:
-                    edges[ne, 0] = p
-                    edges[ne, 1] = q
-                    ne += 1
-        for s in range(ne):
-            if nfree > 0:
-                nfree -= 1
-                f = free[nfree]
-            else:
-                f = nf
-                nf += 1
-            _set_face(V, FV, FN, FD, f, edges[s, 0], edges[s, 1], nv)
-            alive[f] = 1
-        nv += 1
-
-    # Iteration cap (or numerical trouble): decide from the bounds where they allow it.
-    if best < 0:
-        write_answer(out, UNDECIDED, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, ux, uy, uz, centre)
-    elif lower > tol:
-        nx, ny, nz = FN[best, 0], FN[best, 1], FN[best, 2]
-        _answer_face(PENETRATING, -lower, best, V, VA, VB, FV, FN, nx, ny, nz, centre, out)
-    elif upper <= tol:
-        _answer_face(TOUCHING, _neg(upper), best, V, VA, VB, FV, FN, ux, uy, uz, centre, out)
-    else:
-        _answer_face(UNDECIDED, _neg(lower), best, V, VA, VB, FV, FN, ux, uy, uz, centre, out)

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
-from numba import get_num_threads, njit, prange
+from numba import get_num_threads, njit, prange, types
 
 from .constants import (
     COORD_REL,
@@ -48,7 +48,7 @@ from .constants import (
     ZERO_REL,
 )
 from .epa import closest_on_segment, closest_on_triangle, contact, epa_workspace, write_answer
-from .support import ConvexPack, cso_support
+from .support import B1, F1D, F2D, F8, I1D, I2D, I8, SHAPE, ConvexPack, cso_support
 
 __all__ = [
     "Contact",
@@ -128,7 +128,7 @@ class PairQuery(NamedTuple):
 # ---------------------------------------------------------------------------------------------
 
 
-@njit(cache=True, nogil=True)
+@njit(I8(F2D, F2D, F2D, I2D, F1D, I8), cache=True, nogil=True)
 def _compact(W, SA, SB, IX, lam, k):
     """Drop simplex points of zero weight, keeping order; return the new size."""
     n = 0
@@ -146,21 +146,21 @@ def _compact(W, SA, SB, IX, lam, k):
     return n
 
 
-@njit(cache=True, nogil=True)
+@njit(I8(F2D, F2D, F2D, I2D, F1D), cache=True, nogil=True)
 def do_simplex2(W, SA, SB, IX, lam):
     """Segment: keep the vertex or the segment nearest the origin. Returns the new size."""
     lam[0], lam[1] = closest_on_segment(W, 0, 1)
     return _compact(W, SA, SB, IX, lam, 2)
 
 
-@njit(cache=True, nogil=True)
+@njit(I8(F2D, F2D, F2D, I2D, F1D), cache=True, nogil=True)
 def do_simplex3(W, SA, SB, IX, lam):
     """Triangle: keep the vertex, edge or face nearest the origin. Returns the new size."""
     lam[0], lam[1], lam[2] = closest_on_triangle(W, 0, 1, 2)
     return _compact(W, SA, SB, IX, lam, 3)
 
 
-@njit(cache=True, nogil=True)
+@njit(types.Tuple((I8, B1))(F2D, F2D, F2D, I2D, F1D), cache=True, nogil=True)
 def do_simplex4(W, SA, SB, IX, lam):
     """Tetrahedron: detect that it holds the origin, else keep its feature nearest the origin.
 
@@ -226,7 +226,7 @@ def do_simplex4(W, SA, SB, IX, lam):
 # ---------------------------------------------------------------------------------------------
 
 
-@njit(cache=True, nogil=True)
+@njit(types.none(I8, F8, I8, F2D, F2D, F1D, F8, F8, F8, F1D, F1D), cache=True, nogil=True)
 def _answer_simplex(status, distance, k, SA, SB, lam, nx, ny, nz, centre, out):
     ax = ay = az = bx = by = bz = 0.0
     for r in range(k):
@@ -239,7 +239,7 @@ def _answer_simplex(status, distance, k, SA, SB, lam, nx, ny, nz, centre, out):
     write_answer(out, status, distance, ax, ay, az, bx, by, bz, nx, ny, nz, centre)
 
 
-@njit(cache=True, nogil=True)
+@njit(types.UniTuple(F8, 3)(F2D, F1D, I8), cache=True, nogil=True)
 def _nearest_point(W, lam, k):
     """The simplex point ``v`` nearest the origin.
 
@@ -267,7 +267,10 @@ def _nearest_point(W, lam, k):
     return vx, vy, vz
 
 
-@njit(cache=True, nogil=True)
+_SIMPLEX = (F2D, F2D, F2D, I2D, F1D)  # W, SA, SB, IX, lam
+
+
+@njit(I8(*SHAPE, *SHAPE, F1D, F1D, F8, F8, F8, *_SIMPLEX, F1D), cache=True, nogil=True)
 def gjk(pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, nst_b, nbr_b, b0, b1, climb_b,
         centre, guess, size, tol, max_distance, W, SA, SB, IX, lam, out):  # fmt: skip
     """Run GJK on one pair; answer into ``out``, or hand over to EPA when the shapes meet.
@@ -383,7 +386,7 @@ def gjk(pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, nst_b, nbr_b, b0, b1, climb
     return 0
 
 
-@njit(cache=True, nogil=True)
+@njit(types.Tuple((F2D, F2D, F2D, F2D, F1D, F1D, F1D, I2D, I1D))(), cache=True, nogil=True)
 def _workspace():
     """Work arrays of one GJK query, carved from two allocations (each costs ~0.1 us)."""
     f = np.empty((20, 3))
@@ -393,7 +396,7 @@ def _workspace():
     return f[0:4], f[4:8], f[8:12], f[12:16], f[16], f[17], lam, idx[0:4], idx[4]
 
 
-@njit(cache=True, nogil=True)
+@njit(B1(F2D, F1D, F1D), cache=True, nogil=True)
 def _bounds(pts, lo, hi):
     """Fill the AABB ``lo, hi`` of ``pts``; return False if a coordinate is not finite."""
     for c in range(3):
@@ -412,7 +415,7 @@ def _bounds(pts, lo, hi):
     return True
 
 
-@njit(cache=True, nogil=True)
+@njit(types.UniTuple(F8, 2)(F2D, F8, F1D, F1D), cache=True, nogil=True)
 def _setup(box, tol, centre, guess):
     """Fill the common centre and first direction; return ``(size, tol)`` (default if tol < 0).
 
@@ -436,7 +439,7 @@ def _setup(box, tol, centre, guess):
     return size, tol
 
 
-@njit(cache=True, nogil=True)
+@njit(types.none(F2D, F2D, F8, B1, F1D), cache=True, nogil=True)
 def _query_points(a, b, tol, want_depth, out):
     """Compiled body of :func:`query`: linear-scan supports on the raw points, no hull.
 
@@ -457,6 +460,16 @@ def _query_points(a, b, tol, want_depth, out):
                 centre, size, tol, want_depth, k, W, SA, SB, IX, lam, fws, iws, out)  # fmt: skip
 
 
+def _contiguous(x, dtype) -> np.ndarray:
+    """``x`` as a C-contiguous, writable array of ``dtype``, copied only if needed.
+
+    The kernels are compiled for exactly these array types; a read-only or strided array would
+    cost one more compilation (seconds) and one more cache entry.
+    """
+    arr = np.ascontiguousarray(x, dtype=dtype)
+    return arr if arr.flags.writeable else arr.copy()
+
+
 def _points(x, name: str) -> np.ndarray:
     if (
         type(x) is np.ndarray
@@ -465,9 +478,10 @@ def _points(x, name: str) -> np.ndarray:
         and x.shape[1] == 3
         and x.shape[0] > 0
         and x.flags.c_contiguous
+        and x.flags.writeable
     ):
         return x
-    arr = np.ascontiguousarray(x, dtype=np.float64)
+    arr = _contiguous(x, np.float64)
     if arr.ndim == 1 and arr.size == 3:
         arr = arr.reshape(1, 3)
     if arr.ndim != 2 or arr.shape[1] != 3 or arr.shape[0] == 0:
@@ -568,7 +582,15 @@ def intersects(a, b, *, tolerance: float | None = None) -> bool:
 # ---------------------------------------------------------------------------------------------
 
 
-@njit(cache=True, nogil=True)
+# pack arrays, pairs, tolerances, max distances, depth?, then the five output arrays
+_PAIRS = (F2D, I1D, I1D, I1D, F2D, F2D, I2D, F1D, F1D, B1, types.int8[::1], F1D, F2D, F2D, F2D)
+
+
+def _PAIRS_SIG(*extra):
+    return types.none(*_PAIRS, *extra)
+
+
+@njit(_PAIRS_SIG(I8, I8), cache=True, nogil=True)
 def _query_pairs_range(points, starts, nbr_starts, nbrs, lower, upper, pairs, tols, max_dists,
                        want_depth, status, distance, point_a, point_b, normal, q0, q1):  # fmt: skip
     """Answer pairs ``q0:q1`` (one task's share) into the output arrays."""
@@ -599,7 +621,7 @@ def _query_pairs_range(points, starts, nbr_starts, nbrs, lower, upper, pairs, to
             normal[q, c] = out[8 + c]
 
 
-@njit(cache=True, parallel=True)
+@njit(_PAIRS_SIG(I8), cache=True, parallel=True)
 def _query_pairs_parallel(points, starts, nbr_starts, nbrs, lower, upper, pairs, tols, max_dists,
                           want_depth, status, distance, point_a, point_b, normal,
                           chunks):  # fmt: skip
@@ -614,7 +636,7 @@ def _query_pairs_parallel(points, starts, nbr_starts, nbrs, lower, upper, pairs,
 def _per_pair(value, k: int, name: str, default: float) -> np.ndarray:
     if value is None:
         return np.full(k, default)
-    arr = np.ascontiguousarray(np.broadcast_to(np.asarray(value, dtype=np.float64), (k,)))
+    arr = np.array(np.broadcast_to(np.asarray(value, dtype=np.float64), (k,)))  # a fresh copy
     if np.isnan(arr).any() or (arr < 0.0).any():
         raise ValueError(f"{name} must be >= 0")
     return arr
@@ -668,7 +690,7 @@ def query_pairs(
     >>> res.status.tolist(), np.round(res.distance, 12).tolist()
     ([0, 2], [2.0, -0.5])
     """
-    pairs = np.ascontiguousarray(pairs, dtype=np.int64)
+    pairs = _contiguous(pairs, np.int64)
     if pairs.ndim != 2 or pairs.shape[1] != 2:
         raise ValueError(f"pairs: expected a (k, 2) array, got {pairs.shape}")
     k = pairs.shape[0]
@@ -685,9 +707,9 @@ def query_pairs(
     if k:
         f8, i8 = np.float64, np.int64
         args = (
-            np.ascontiguousarray(pack.points, f8), np.ascontiguousarray(pack.starts, i8),
-            np.ascontiguousarray(pack.nbr_starts, i8), np.ascontiguousarray(pack.nbrs, i8),
-            np.ascontiguousarray(pack.lower, f8), np.ascontiguousarray(pack.upper, f8),
+            _contiguous(pack.points, f8), _contiguous(pack.starts, i8),
+            _contiguous(pack.nbr_starts, i8), _contiguous(pack.nbrs, i8),
+            _contiguous(pack.lower, f8), _contiguous(pack.upper, f8),
             pairs, tols, max_dists, bool(depth), status, distance, point_a, point_b, normal,
         )  # fmt: skip
         threads = get_num_threads() if parallel is None else max(1, int(parallel))

@@ -16,7 +16,7 @@ from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+from numba import njit, types
 from scipy.spatial import ConvexHull, QhullError
 
 from .constants import HILL_CLIMB_MIN_VERTICES
@@ -200,8 +200,19 @@ def concat_packs(packs: Sequence[ConvexPack]) -> ConvexPack:
 # Compiled support maps
 # ---------------------------------------------------------------------------------------------
 
+# Every compiled function of the geometry package has one explicit signature over these types
+# (C-contiguous float64 / int64 arrays, int64, float64, bool). Without them numba compiles one
+# version per call site whenever a call passes a literal (a status constant, ``False``, ``0``),
+# which doubled the cold compile time; with them each function is compiled (or loaded from the
+# cache) once, when the module is imported.
+F8, I8, B1 = types.float64, types.int64, types.boolean
+F1D, F2D = types.float64[::1], types.float64[:, ::1]
+I1D, I2D = types.int64[::1], types.int64[:, ::1]
+#: A shape in a compiled signature: points, nbr_starts, nbrs, first, end, climb.
+SHAPE = (F2D, I1D, I1D, I8, I8, B1)
 
-@njit(cache=True, nogil=True)
+
+@njit(I8(F2D, I1D, I1D, I8, I8, B1, I8, F8, F8, F8, F8, F8, F8), cache=True, nogil=True)
 def support_index(pts, nbr_starts, nbrs, s0, s1, climb, start, dx, dy, dz, cx, cy, cz):
     """Index of a vertex of one shape maximising ``(p - c) . d``.
 
@@ -251,7 +262,7 @@ def support_index(pts, nbr_starts, nbrs, s0, s1, climb, start, dx, dy, dz, cx, c
     return best
 
 
-@njit(cache=True, nogil=True)
+@njit(types.UniTuple(I8, 2)(*SHAPE, *SHAPE, F1D, F8, F8, F8, I8, I8), cache=True, nogil=True)
 def cso_support(pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, nst_b, nbr_b, b0, b1, climb_b,
                 centre, dx, dy, dz, start_a, start_b):  # fmt: skip
     """Support point of the Minkowski difference ``A - B`` in direction ``d``, by its sources.
