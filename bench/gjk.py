@@ -14,7 +14,7 @@ beforehand (faces from Qhull), and is called with ``fcl.distance`` and
 * ``signed_distance(a, b)`` per call on the raw (V, 3) point arrays (no hull, linear scan);
 * ``query_pairs(pack, pairs)`` once for all pairs, on a pack built beforehand, with the
   penetration depth (``depth=True``) and without it (``depth=False``), in one thread
-  (``parallel=1``) and on numba's threads (``NUMBA_NUM_THREADS``, default all cores).
+  (``threads=1``) and on numba's threads (``NUMBA_NUM_THREADS``, default all cores).
 
 Rounds alternate between the contenders in one process, after a warm-up that compiles (or
 loads) the numba kernels; the figures are medians over rounds, per pair. Note the work differs
@@ -106,7 +106,7 @@ def main() -> None:
     def batch(depth: bool, threads: int):
         def run():
             return query_pairs(
-                pack, pairs, tolerance=tolerance, depth=depth, parallel=threads
+                pack, pairs, tolerance=tolerance, depth=depth, threads=threads
             ).distance
 
         return run

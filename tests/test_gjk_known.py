@@ -482,8 +482,31 @@ def test_query_pairs_threads_give_the_same_answers():
     pack = pack_convex(shapes)
     pairs = np.array([[i, j] for i in range(40) for j in range(i + 1, 40)], dtype=np.int64)
     assert len(pairs) >= PARALLEL_MIN_PAIRS
-    one = query_pairs(pack, pairs, tolerance=1e-9, parallel=1)
-    two = query_pairs(pack, pairs, tolerance=1e-9, parallel=2)
+    one = query_pairs(pack, pairs, tolerance=1e-9, threads=1)
+    two = query_pairs(pack, pairs, tolerance=1e-9, threads=2)
     for got, want in zip(two, one, strict=True):
         np.testing.assert_array_equal(got, want)
     assert set(one.status.tolist()) >= {Status.SEPARATED, Status.PENETRATING}
+
+
+def test_pack_convex_is_hull_skips_qhull_for_small_hulls():
+    pack = pack_convex([CUBE, sphere_points(BIG, 3)], is_hull=True)
+    assert pack.starts.tolist() == [0, 8, 8 + BIG]
+    assert pack.nbr_starts[8] == pack.nbr_starts[0]  # the cube is scanned
+    assert pack.nbr_starts[8 + BIG] > pack.nbr_starts[8]  # the big hull is walked
+    res = query_pairs(pack, np.array([[0, 1]]), tolerance=1e-9)
+    assert res.distance[0] == pytest.approx(signed_distance(CUBE, pack.points[8:]), rel=1e-12)
+
+
+def test_read_only_and_strided_inputs():
+    a = np.asfortranarray(CUBE)
+    b = CUBE + vec(3.0, 0, 0)
+    b.setflags(write=False)
+    assert signed_distance(a, b) == pytest.approx(2.0, rel=1e-15)
+    assert signed_distance(a[::2], b.tolist()) == pytest.approx(2.0, rel=1e-15)
+    pack = pack_convex([a, b])
+    pairs = np.array([[0, 1]])
+    pairs.setflags(write=False)
+    tol = np.array([1e-9])
+    tol.setflags(write=False)
+    assert query_pairs(pack, pairs, tolerance=tol).distance[0] == pytest.approx(2.0, rel=1e-15)

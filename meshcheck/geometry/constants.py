@@ -89,8 +89,8 @@ EPA_MAX_ITER = 128
 #: vs 27, 1000: 16 vs 31). Large body hulls queried in several pairs are warm and climb well.
 HILL_CLIMB_MIN_VERTICES = 1024
 
-#: ``query_pairs`` spreads the pairs over numba's threads from this many pairs on. Starting the
-#: thread pool's tasks costs tens of microseconds, i.e. a few hundred 40-vertex pairs.
+#: ``query_pairs(..., threads=N)`` spreads the pairs over N threads only from this many pairs
+#: on: starting the thread pool's tasks costs tens of microseconds, a few hundred 40-vertex pairs.
 PARALLEL_MIN_PAIRS = 256
 
 # ---------------------------------------------------------------------------------------------

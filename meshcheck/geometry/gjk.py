@@ -621,7 +621,9 @@ def _query_pairs_range(points, starts, nbr_starts, nbrs, lower, upper, pairs, to
             normal[q, c] = out[8 + c]
 
 
-@njit(_PAIRS_SIG(I8), cache=True, parallel=True)
+# Compiled lazily (no signature): threads are opt-in, so nobody pays its ~4 s cold compile
+# unless they use it. Its arguments always arrive as the types above.
+@njit(cache=True, parallel=True)
 def _query_pairs_parallel(points, starts, nbr_starts, nbrs, lower, upper, pairs, tols, max_dists,
                           want_depth, status, distance, point_a, point_b, normal,
                           chunks):  # fmt: skip
@@ -649,7 +651,7 @@ def query_pairs(
     tolerance: float | np.ndarray | None,
     depth: bool = True,
     max_distance: float | np.ndarray | None = None,
-    parallel: int | None = None,
+    threads: int = 1,
 ) -> PairQuery:
     """Relate many pairs of packed convex shapes in one compiled call.
 
@@ -670,10 +672,13 @@ def query_pairs(
         the pair is SEPARATED with ``distance`` set to that *lower bound* (not converged) and
         witness points of the current simplex. The pipeline passes clearance + tolerance, so
         every pair with ``distance <= max_distance`` is still measured exactly.
-    parallel : int, optional, keyword-only
-        Threads to spread the pairs over. Default: numba's thread count
-        (``NUMBA_NUM_THREADS``) when there are at least ``PARALLEL_MIN_PAIRS`` pairs, else one.
-        ``parallel=1`` runs in the calling thread only.
+    threads : int, keyword-only
+        Threads to spread the pairs over (numba ``prange``); 0 means numba's thread count
+        (``NUMBA_NUM_THREADS``, by default the number of cores). Default 1: the calling thread
+        only, because on the shared 2-core machines measured, two threads gained 1.3-1.8x when
+        a core was free and lost up to 2x when it was not, and because numba's OpenMP thread
+        layer makes a later ``fork()`` of the process unsafe (use the "spawn" start method).
+        Fewer than ``PARALLEL_MIN_PAIRS`` pairs always run in the calling thread.
 
     Returns
     -------
@@ -712,7 +717,7 @@ def query_pairs(
             _contiguous(pack.lower, f8), _contiguous(pack.upper, f8),
             pairs, tols, max_dists, bool(depth), status, distance, point_a, point_b, normal,
         )  # fmt: skip
-        threads = get_num_threads() if parallel is None else max(1, int(parallel))
+        threads = get_num_threads() if threads == 0 else max(1, int(threads))
         if threads > 1 and k >= PARALLEL_MIN_PAIRS:
             _query_pairs_parallel(*args, 4 * threads)
         else:
