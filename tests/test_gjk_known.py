@@ -510,3 +510,11 @@ def test_read_only_and_strided_inputs():
     tol = np.array([1e-9])
     tol.setflags(write=False)
     assert query_pairs(pack, pairs, tolerance=tol).distance[0] == pytest.approx(2.0, rel=1e-15)
+
+
+def test_scalar_results_are_python_types():
+    assert type(intersects(CUBE, CUBE + 0.5)) is bool
+    assert type(signed_distance(CUBE, CUBE + 3.0)) is float
+    c = query(CUBE, CUBE + 3.0)
+    assert type(c.distance) is float and isinstance(c.status, Status)
+    assert c.point_a.dtype == np.float64 and c.point_a.shape == (3,)

@@ -574,7 +574,7 @@ def intersects(a, b, *, tolerance: float | None = None) -> bool:
     False
     """
     out = _run(a, b, tolerance, False)
-    return out[0] != SEPARATED
+    return bool(out[0] != SEPARATED)
 
 
 # ---------------------------------------------------------------------------------------------
