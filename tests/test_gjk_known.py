@@ -518,3 +518,20 @@ def test_scalar_results_are_python_types():
     c = query(CUBE, CUBE + 3.0)
     assert type(c.distance) is float and isinstance(c.status, Status)
     assert c.point_a.dtype == np.float64 and c.point_a.shape == (3,)
+
+
+def test_hill_climbing_on_a_cylinder_with_flat_caps():
+    """Ties across a flat cap and along the side must not stop the walk short."""
+    n = HILL_CLIMB_MIN_VERTICES // 2 + 20
+    angle = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
+    ring = np.stack([np.cos(angle), np.sin(angle), np.zeros(n)], axis=1)
+    cylinder = np.concatenate([ring, ring + vec(0, 0, 2.0)])
+    cap_box = box([-0.2, -0.2, 2.0], [0.2, 0.2, 2.5])
+    side_box = box([1.0, -0.1, 0.5], [1.5, 0.1, 1.5])
+    apart = box([-0.2, -0.2, 2.5], [0.2, 0.2, 3.0])
+    pack = pack_convex([cylinder, cap_box, side_box, apart])
+    assert pack.nbr_starts[2 * n] > pack.nbr_starts[0]  # the cylinder is walked
+    res = query_pairs(pack, np.array([[0, 1], [0, 2], [0, 3], [1, 0]]), tolerance=1e-9)
+    touch, apart_ = Status.TOUCHING, Status.SEPARATED
+    assert res.status.tolist() == [touch, touch, apart_, touch]
+    assert res.distance[2] == pytest.approx(0.5, rel=1e-12)
