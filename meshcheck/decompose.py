@@ -18,10 +18,12 @@ from __future__ import annotations
 
 import hashlib
 import os
+import warnings
 from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from .errors import MeshcheckWarning
 from .load import Body
 
 # CoACD settings, measured with bench/coacd_settings.py on CAD-like parts of 4,400-7,900 triangles
@@ -44,6 +46,12 @@ DEFAULT_OPTIONS = {
     "merge": True,
     "seed": 0,  # CoACD is randomised: a fixed seed makes runs repeatable
 }
+
+# CoACD's time is erratic: on the 48-tooth gear of bench/coacd_settings.py, settings that take 1.5 s
+# took 151 s after a small change (bad early cuts split it into 757 pieces). Past this many seconds
+# per mesh the worker is killed and the part's hull stands in for its pieces: the check stays
+# exact, only slower for that part.
+DEFAULT_TIME_LIMIT = 20.0
 
 # A vertex counts as inside a piece when it is at most this fraction of the mesh's bounding-box
 # diagonal outside one of the piece's face planes: room for qhull's rounding (~1e-15 relative),
@@ -292,6 +300,7 @@ def decompose_bodies(
     jobs: int | None = None,
     options: dict | None = None,
     progress: Callable[[int], None] | None = None,
+    time_limit: float | None = DEFAULT_TIME_LIMIT,
 ) -> list[list[np.ndarray]]:
     """Convex pieces of each body in world coordinates, covering every triangle of the body.
 
@@ -309,6 +318,10 @@ def decompose_bodies(
         Other CoACD options, overriding ``DEFAULT_OPTIONS``.
     progress : callable, optional
         Called with the number of meshes done each time some finish.
+    time_limit : float, optional
+        Seconds CoACD may spend on one mesh; a mesh that takes longer is represented by its
+        convex hull (a valid, coarser cover) with a ``MeshcheckWarning``. None: no limit, and a
+        single mesh is decomposed in this process.
 
     Returns
     -------
@@ -324,9 +337,11 @@ def decompose_bodies(
 
     # One entry per distinct frame-local geometry, in order of first appearance.
     geometry: dict[int, tuple] = {}  # id(mesh) -> (local, faces, corner, digest)
+    names: dict[str, str] = {}  # digest -> name of the first body with that geometry
     for body in bodies:
         if id(body.mesh) not in geometry:
             geometry[id(body.mesh)] = local_geometry(body.mesh)
+        names.setdefault(geometry[id(body.mesh)][3], body.name)
     distinct: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     for local, faces, _, digest in geometry.values():
         distinct.setdefault(digest, (local, faces))
@@ -381,8 +396,18 @@ def decompose_bodies(
     done += len(todo) - len(concave)
     if progress is not None and len(todo) > len(concave):
         progress(done)
-    results = _run_jobs([(*distinct[d], settings) for d in concave], jobs, progress, done)
+    tasks = [(*distinct[d], settings) for d in concave]
+    results = _run_jobs(tasks, jobs, progress, done, time_limit)
     for digest, pieces in zip(concave, results, strict=True):
+        if pieces is None:  # overran the time limit: the hull covers every triangle too
+            local = distinct[digest][0]
+            pieces = [_hull_vertices(local)]
+            warnings.warn(
+                f"{names[digest]}: convex decomposition took over {time_limit:g} s; "
+                "the part's convex hull stands in for its pieces (the check stays exact)",
+                MeshcheckWarning,
+                stacklevel=2,
+            )
         pieces_of[digest] = pieces
     for digest, leader in leaders.items():
         local, faces = distinct[digest]
@@ -412,28 +437,114 @@ def _run_jobs(
     jobs: int | None,
     progress: Callable[[int], None] | None,
     done: int,
-) -> list[list[np.ndarray]]:
-    """Decompose each task, in worker processes when there are two or more and jobs allow."""
+    time_limit: float | None,
+) -> list[list[np.ndarray] | None]:
+    """Decompose each task; None for a task that overran ``time_limit`` or crashed its worker.
+
+    Without a time limit and with one worker, tasks run in this process. Otherwise they run in
+    spawned worker processes (one OpenMP thread each), largest mesh first, and a worker whose task
+    overruns the limit is killed and replaced.
+    """
     workers = min(jobs or default_jobs(), len(tasks))
     results: list[list[np.ndarray] | None] = [None] * len(tasks)
-    if workers <= 1:
+    if not tasks:
+        return results
+    if workers <= 1 and time_limit is None:
         for i, task in enumerate(tasks):
             results[i] = _decompose_job(task)
             if progress is not None:
                 progress(done + i + 1)
-        return results  # type: ignore[return-value]
+        return results
 
     import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+    import time
+    from collections import deque
+    from multiprocessing.connection import wait
 
     # Spawned workers start without the parent's OpenMP runtime, so the one-thread setting holds.
     context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(workers, mp_context=context, initializer=_worker_init) as pool:
-        # Largest meshes first, so no worker is left with a big one at the end.
-        order = sorted(range(len(tasks)), key=lambda i: -len(tasks[i][1]))
-        futures = {pool.submit(_decompose_job, tasks[i]): i for i in order}
-        for count, future in enumerate(as_completed(futures), start=1):
-            results[futures[future]] = future.result()
-            if progress is not None:
-                progress(done + count)
-    return results  # type: ignore[return-value]
+    pending = deque(sorted(range(len(tasks)), key=lambda i: -len(tasks[i][1])))
+    live: dict = {}  # connection -> [process, task index or None, start time]
+    finished = 0
+
+    def spawn() -> None:
+        parent, child = context.Pipe()
+        process = context.Process(target=_worker_main, args=(child,), daemon=True)
+        process.start()
+        child.close()
+        live[parent] = [process, None, 0.0]
+
+    def retire(conn) -> None:
+        process = live.pop(conn)[0]
+        process.kill()
+        process.join()
+        conn.close()
+
+    try:
+        for _ in range(max(workers, 1)):
+            spawn()
+        while finished < len(tasks):
+            now = time.monotonic()
+            timeout = None
+            if time_limit is not None:
+                starts = [t for _, i, t in live.values() if i is not None]
+                if starts:
+                    timeout = max(0.0, min(starts) + time_limit - now)
+            ready = wait(list(live), timeout=timeout)
+            for conn in ready:
+                _, index, _ = live[conn]
+                try:
+                    message = conn.recv()
+                except (EOFError, OSError):  # the worker died (CoACD crashed): fall back
+                    retire(conn)
+                    if index is not None:
+                        finished += 1
+                        if progress is not None:
+                            progress(done + finished)
+                    if pending:
+                        spawn()
+                    continue
+                if index is not None:
+                    if isinstance(message, BaseException):
+                        raise message
+                    results[index] = message
+                    finished += 1
+                    if progress is not None:
+                        progress(done + finished)
+                if pending:
+                    index = pending.popleft()
+                    conn.send(tasks[index])
+                    live[conn][1:] = [index, time.monotonic()]
+                else:
+                    live[conn][1] = None
+                    retire(conn)
+            if time_limit is not None:
+                now = time.monotonic()
+                for conn, (_, index, started) in list(live.items()):
+                    if index is not None and now - started > time_limit:
+                        retire(conn)  # results[index] stays None: the caller falls back
+                        finished += 1
+                        if progress is not None:
+                            progress(done + finished)
+                        if pending:
+                            spawn()
+    finally:
+        for conn in list(live):
+            retire(conn)
+    return results
+
+
+def _worker_main(conn) -> None:
+    """Worker loop: say ready, then decompose each task received until the pipe closes."""
+    _worker_init()
+    conn.send("ready")
+    while True:
+        try:
+            task = conn.recv()
+        except (EOFError, OSError):
+            return
+        try:
+            result = _decompose_job(task)
+        except Exception as exc:  # a bug: hand it to the parent to raise
+            result = exc
+        conn.send(result)

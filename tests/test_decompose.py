@@ -23,6 +23,8 @@ from meshcheck.load import Body
 
 # Tiny, fast CoACD settings for tests (the defaults are tuned for 5,000-triangle parts).
 FAST = {"resolution": 200, "mcts_nodes": 4, "mcts_iterations": 10, "mcts_max_depth": 1}
+# In this process, so monkeypatched CoACD calls are seen.
+SERIAL = {"jobs": 1, "time_limit": None}
 
 
 def l_bracket() -> trimesh.Trimesh:
@@ -180,8 +182,8 @@ def test_world_pieces_follow_the_body_transform(offset, angle):
     decompose.run_coacd = fake_coacd
     try:
         (local,), (world,) = (
-            decompose_bodies([Body("a", "a", mesh)], cache_dir=None, jobs=1),
-            decompose_bodies([Body("b", "b", mesh, transform)], cache_dir=None, jobs=1),
+            decompose_bodies([Body("a", "a", mesh)], cache_dir=None, **SERIAL),
+            decompose_bodies([Body("b", "b", mesh, transform)], cache_dir=None, **SERIAL),
         )
     finally:
         decompose.run_coacd = original
@@ -197,7 +199,7 @@ def test_world_pieces_follow_the_body_transform(offset, angle):
 
 @pytest.fixture
 def counted(monkeypatch):
-    """Count CoACD calls (jobs=1 runs in this process)."""
+    """Count CoACD calls (jobs=1 without a time limit runs in this process)."""
     calls = []
     original = decompose.run_coacd
 
@@ -223,7 +225,7 @@ def test_same_geometry_decomposed_once(counted):
         Body("c", "c", mesh, shift),  # an instance of the same mesh object
         Body("d", "d", nudged),  # float32 copy at another place: reuses the decomposition
     ]
-    out = decompose_bodies(bodies, threshold=0.05, options=FAST, cache_dir=None, jobs=1)
+    out = decompose_bodies(bodies, threshold=0.05, options=FAST, cache_dir=None, **SERIAL)
     assert len(counted) == 1
     assert len({len(p) for p in out}) == 1
     for body, pieces in zip(bodies, out, strict=True):
@@ -235,7 +237,7 @@ def test_same_geometry_decomposed_once(counted):
 
 def test_convex_bodies_skip_coacd(counted):
     box = trimesh.creation.box(extents=[1, 2, 3])
-    out = decompose_bodies([Body("a", "a", box)], cache_dir=None, jobs=1)
+    out = decompose_bodies([Body("a", "a", box)], cache_dir=None, **SERIAL)
     assert counted == [] and len(out[0]) == 1
 
 
@@ -248,14 +250,14 @@ def test_no_pool_for_a_single_concave_mesh(monkeypatch, counted):
     monkeypatch.setattr(concurrent.futures, "ProcessPoolExecutor", no_pool)
     boxes = [trimesh.creation.box(extents=[1, k, 3]) for k in (1, 2, 3)]
     bodies = [Body(str(k), str(k), m) for k, m in enumerate([*boxes, l_bracket()])]
-    out = decompose_bodies(bodies, options=FAST, cache_dir=None, jobs=4)
+    out = decompose_bodies(bodies, options=FAST, cache_dir=None, jobs=4, time_limit=None)
     assert [len(p) == 1 for p in out] == [True, True, True, False]
     assert len(counted) == 1
 
 
 def test_cache_round_trip_is_bit_exact_and_skips_coacd(tmp_path, counted):
     bodies = [Body("a", "a", l_bracket()), Body("b", "b", u_channel())]
-    kwargs = {"threshold": 0.05, "options": FAST, "cache_dir": str(tmp_path), "jobs": 1}
+    kwargs = {"threshold": 0.05, "options": FAST, "cache_dir": str(tmp_path), **SERIAL}
     cold = decompose_bodies(bodies, **kwargs)
     assert len(counted) == 2
     warm = decompose_bodies(bodies, **kwargs)
@@ -272,7 +274,7 @@ def test_corrupt_cache_entry_is_recomputed(tmp_path, counted):
     from meshcheck.cache import DecompositionCache
 
     bodies = [Body("a", "a", l_bracket())]
-    kwargs = {"threshold": 0.05, "options": FAST, "cache_dir": str(tmp_path), "jobs": 1}
+    kwargs = {"threshold": 0.05, "options": FAST, "cache_dir": str(tmp_path), **SERIAL}
     cold = decompose_bodies(bodies, **kwargs)
     cache = DecompositionCache(str(tmp_path))
     (entry,) = [p for p in (tmp_path.rglob("*.npz"))]
@@ -286,11 +288,29 @@ def test_corrupt_cache_entry_is_recomputed(tmp_path, counted):
 def test_parallel_matches_serial(tmp_path):
     meshes = [l_bracket(), u_channel(), stairs()]
     bodies = [Body(str(k), str(k), mesh) for k, mesh in enumerate(meshes)]
-    serial = decompose_bodies(bodies, threshold=0.05, options=FAST, cache_dir=None, jobs=1)
-    parallel = decompose_bodies(bodies, threshold=0.05, options=FAST, cache_dir=None, jobs=2)
-    for a, b in zip(serial, parallel, strict=True):
-        assert len(a) == len(b)
+    kwargs = {"threshold": 0.05, "options": FAST, "cache_dir": None}
+    serial = decompose_bodies(bodies, jobs=1, time_limit=None, **kwargs)
+    parallel = decompose_bodies(bodies, jobs=2, **kwargs)
+    one_worker = decompose_bodies(bodies, jobs=1, time_limit=60.0, **kwargs)
+    for a, b, c in zip(serial, parallel, one_worker, strict=True):
+        assert len(a) == len(b) == len(c)
         assert all(x.tobytes() == y.tobytes() for x, y in zip(a, b, strict=True))
+        assert all(x.tobytes() == y.tobytes() for x, y in zip(a, c, strict=True))
+
+
+def test_overrunning_the_time_limit_falls_back_to_the_hull(tmp_path):
+    from meshcheck.errors import MeshcheckWarning
+
+    mesh = l_bracket()
+    with pytest.warns(MeshcheckWarning, match="bracket.stl: convex decomposition took over"):
+        (pieces,) = decompose_bodies(
+            [Body("bracket.stl", "bracket.stl", mesh)],
+            options={**FAST, "resolution": 5000, "mcts_iterations": 500},
+            cache_dir=str(tmp_path),
+            time_limit=1e-3,
+        )
+    assert len(pieces) == 1
+    assert uncovered(mesh.vertices, mesh.faces, pieces) == []
 
 
 def test_progress_reports_every_mesh():
@@ -321,7 +341,7 @@ def test_near_copy_reuses_a_cached_decomposition(tmp_path, counted):
     mesh = l_bracket()
     copy = mesh.copy()
     copy.vertices = (mesh.vertices + np.array([500.3, 0, 0])).astype(np.float32).astype(np.float64)
-    kwargs = {"threshold": 0.05, "options": FAST, "cache_dir": str(tmp_path), "jobs": 1}
+    kwargs = {"threshold": 0.05, "options": FAST, "cache_dir": str(tmp_path), **SERIAL}
     decompose_bodies([Body("a", "a", mesh)], **kwargs)
     (out,) = decompose_bodies([Body("b", "b", copy)], **kwargs)
     assert len(counted) == 1
