@@ -535,3 +535,20 @@ def test_hill_climbing_on_a_cylinder_with_flat_caps():
     touch, apart_ = Status.TOUCHING, Status.SEPARATED
     assert res.status.tolist() == [touch, touch, apart_, touch]
     assert res.distance[2] == pytest.approx(0.5, rel=1e-12)
+
+
+def test_nearly_collinear_segments_1e10_apart():
+    """A long thin Minkowski difference: the gap still gets a certified lower bound.
+
+    (Found by hypothesis: with the search direction only ~3e-6 square to the segment, the
+    bound from the far end was -2e-7 and the answer UNDECIDED.)
+    """
+    a = np.array([[0.1369616873214543, -0.2302132862361297, -0.4590264760638053],
+                  [-0.4834723644714709, 0.3132702392002724, 0.4127555772777217]])  # fmt: skip
+    b = a + vec(0.0, 0.0, 1e-10)
+    e = a[1] - a[0]
+    perp = np.linalg.norm(np.cross(e, [0.0, 0.0, 1e-10])) / np.linalg.norm(e)
+    c = query(a, b, tolerance=1e-12)
+    assert c.status == Status.SEPARATED
+    assert c.distance == pytest.approx(perp, rel=1e-5)
+    assert query(a, b).status == Status.TOUCHING  # default tolerance 1e-10 x size

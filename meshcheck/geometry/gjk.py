@@ -248,6 +248,10 @@ def _nearest_point(W, lam, k):
     new direction): when the shapes nearly touch, ``v`` is tiny next to the simplex points and
     ``sum(lam * W)`` would give its direction only to ``eps |W| / |v|`` (1e-6 at a 1e-10 gap),
     while the normal keeps full precision, and with it the lower bound ``w . v / |v|``.
+
+    For a segment ``e`` the same holds for the component of ``v`` along ``e``: it is projected
+    out once more, so ``v`` is square to ``e`` to ``eps |v|`` and both ends of a long thin
+    Minkowski difference give the same, accurate bound (nearly collinear segments 1e-10 apart).
     """
     if k == 3:
         abx, aby, abz = W[1, 0] - W[0, 0], W[1, 1] - W[0, 1], W[1, 2] - W[0, 2]
@@ -264,6 +268,12 @@ def _nearest_point(W, lam, k):
         vx += lam[r] * W[r, 0]
         vy += lam[r] * W[r, 1]
         vz += lam[r] * W[r, 2]
+    if k == 2:
+        ex, ey, ez = W[1, 0] - W[0, 0], W[1, 1] - W[0, 1], W[1, 2] - W[0, 2]
+        ee = ex * ex + ey * ey + ez * ez
+        if ee > 0.0:
+            s = (vx * ex + vy * ey + vz * ez) / ee
+            vx, vy, vz = vx - s * ex, vy - s * ey, vz - s * ez
     return vx, vy, vz
 
 
