@@ -1,9 +1,11 @@
 """Measure CoACD settings: decomposition time against how well the pieces filter part pairs.
 
-Run from the repository root (about 10 minutes on 2 cores)::
+Run from the repository root::
 
-    python bench/coacd_settings.py            # all settings, all parts
-    python bench/coacd_settings.py --quick    # fewer settings
+    python bench/coacd_settings.py            # the fast settings, about 3 minutes on 2 cores
+    python bench/coacd_settings.py --slow     # also CoACD's defaults and others (an hour)
+    python bench/coacd_settings.py --quick    # three settings
+    python bench/coacd_settings.py --settings "t0.2 r300 mcts(5,20,1)" --parts gear_48
 
 The verify stage decides every candidate on the real meshes, so the convex pieces only have to be
 a good filter: few piece pairs within reach of a neighbour's pieces, and few part pairs left for
@@ -206,7 +208,10 @@ SETTINGS = {
     "t0.1": dict(threshold=0.1),
     "t0.1 r1000 mcts(10,60,2)": _fast(0.1, 1000, 10, 60, 2),
     "t0.1 r500 mcts(10,40,2)": _fast(0.1, 500, 10, 40, 2),
+    "t0.05 r300 mcts(5,20,1)": _fast(0.05, 300, 5, 20, 1),
+    "t0.1 r300 mcts(5,20,2)": _fast(0.1, 300, 5, 20, 2),
     "t0.1 r300 mcts(5,20,1)": _fast(0.1, 300, 5, 20, 1),
+    "t0.1 r200 mcts(4,10,1)": _fast(0.1, 200, 4, 10, 1),
     "t0.15 r300 mcts(5,20,1)": _fast(0.15, 300, 5, 20, 1),
     "t0.2 r500 mcts(8,30,1)": _fast(0.2, 500, 8, 30, 1),
     "t0.2 r300 mcts(5,20,1)": _fast(0.2, 300, 5, 20, 1),
@@ -214,6 +219,16 @@ SETTINGS = {
     "t0.3 r300 mcts(5,20,1)": _fast(0.3, 300, 5, 20, 1),
 }
 QUICK = ["hull only", "t0.1 r300 mcts(5,20,1)", "t0.2 r300 mcts(5,20,1)"]
+# Each of these took over 2 minutes on at least one part here (CoACD's time is erratic).
+SLOW = [
+    "coacd defaults t0.05",
+    "t0.1",
+    "t0.1 r1000 mcts(10,60,2)",
+    "t0.1 r500 mcts(10,40,2)",
+    "t0.05 r300 mcts(5,20,1)",
+    "t0.1 r300 mcts(5,20,2)",
+    "t0.1 r200 mcts(4,10,1)",
+]
 
 
 def main(argv=None) -> None:
@@ -221,10 +236,13 @@ def main(argv=None) -> None:
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--quick", action="store_true", help="only a few settings")
+    parser.add_argument("--slow", action="store_true", help="also the slow settings (an hour)")
     parser.add_argument("--parts", nargs="*", default=list(PARTS), help="parts to use")
     parser.add_argument("--settings", nargs="*", default=None, help="setting names to use")
     args = parser.parse_args(argv)
-    names = args.settings or (QUICK if args.quick else list(SETTINGS))
+    names = args.settings or (
+        QUICK if args.quick else [n for n in SETTINGS if args.slow or n not in SLOW]
+    )
 
     meshes = {name: PARTS[name]() for name in args.parts}
     rigs = {name: probes(mesh) for name, mesh in meshes.items()}
