@@ -11,7 +11,8 @@ Work is done once per distinct geometry: meshes are hashed in their own frame af
 lowest corner to the origin, so instances of one mesh (a GLB node placed many times) and the same
 STL part at several positions share an entry; copies that differ only by float32 rounding reuse one
 decomposition (then re-covered against their own triangles). Misses are decomposed in parallel
-worker processes, each with one OpenMP thread, and stored in the cache.
+worker processes, each with one OpenMP thread, and stored in the cache. A mesh that CoACD has not
+finished within ``DEFAULT_TIME_LIMIT`` seconds is represented by its convex hull instead.
 """
 
 from __future__ import annotations
