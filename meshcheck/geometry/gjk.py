@@ -685,9 +685,10 @@ def query_pairs(
     threads : int, keyword-only
         Threads to spread the pairs over (numba ``prange``); 0 means numba's thread count
         (``NUMBA_NUM_THREADS``, by default the number of cores). Default 1: the calling thread
-        only, because on the shared 2-core machines measured, two threads gained 1.3-1.8x when
-        a core was free and lost up to 2x when it was not, and because numba's OpenMP thread
-        layer makes a later ``fork()`` of the process unsafe (use the "spawn" start method).
+        only, because on the shared 2-core machine measured (``bench/gjk.py``) two threads
+        ranged from 2.8x faster to 3x slower than one, depending on what else was running, and
+        because numba's OpenMP thread layer makes a later ``fork()`` of the process unsafe (use
+        the "spawn" start method).
         Fewer than ``PARALLEL_MIN_PAIRS`` pairs always run in the calling thread.
 
     Returns
