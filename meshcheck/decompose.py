@@ -400,11 +400,11 @@ def decompose_bodies(
     tasks = [(*distinct[d], settings) for d in concave]
     results = _run_jobs(tasks, jobs, progress, done, time_limit)
     for digest, pieces in zip(concave, results, strict=True):
-        if pieces is None:  # overran the time limit: the hull covers every triangle too
+        if pieces is None:  # overran the time limit or crashed: the hull covers every triangle
             local = distinct[digest][0]
             pieces = [_hull_vertices(local)]
             warnings.warn(
-                f"{names[digest]}: convex decomposition took over {time_limit:g} s; "
+                f"{names[digest]}: convex decomposition took over {time_limit:g} s or crashed; "
                 "the part's convex hull stands in for its pieces (the check stays exact)",
                 MeshcheckWarning,
                 stacklevel=2,
