@@ -30,8 +30,8 @@ from .load import Body
 # CoACD settings, measured with bench/coacd_settings.py on CAD-like parts of 4,400-7,900 triangles
 # (plates with 40-60 holes, a slotted bracket, a pocketed housing, a 48-tooth gear). The verify
 # stage is exact, so the pieces only have to be a good filter: these take 0.7 s per part on one
-# core (1.8 s at most) where CoACD's defaults take 50-150 s, and leave 270 of 1000 close-but-clear
-# probes near a piece, against 228 for settings 16x slower and 370 for the bare hull.
+# core (1.8 s at most) where CoACD's defaults take 37 s (5-72 s), and leave 270 of 1000
+# close-but-clear probes near a piece, against 175 with CoACD's defaults and 370 for the bare hull.
 DEFAULT_THRESHOLD = 0.1  # concavity threshold (CoACD default 0.05)
 DEFAULT_OPTIONS = {
     "resolution": 300,  # surface samples for the concavity metric (default 2000)
