@@ -166,7 +166,8 @@ def test_warm_run_gives_byte_identical_json(tmp_path):
     from meshcheck.pipeline import check
     from meshcheck.report import render_json
 
-    paths = [f"sample_meshes/{n}.stl" for n in ("plate", "bolt_m8_oversized", "bracket")]
+    samples = os.path.join(os.path.dirname(__file__), "..", "sample_meshes")
+    paths = [os.path.join(samples, f"{n}.stl") for n in ("plate", "bolt_m8_oversized", "bracket")]
     cold = render_json(check(paths, cache_dir=str(tmp_path), jobs=1))
     assert list(tmp_path.rglob("*.npz"))
     warm = render_json(check(paths, cache_dir=str(tmp_path), jobs=1))
