@@ -174,3 +174,24 @@ def test_warm_run_gives_byte_identical_json(tmp_path):
     uncached = render_json(check(paths, cache_dir=None, jobs=2))
     assert cold == warm == uncached
     assert '"interference"' in cold
+
+
+def test_warm_run_does_not_import_coacd(tmp_path):
+    """A warm run pays for no CoACD import (nor does a cold one: CoACD runs in workers)."""
+    import subprocess
+    import sys
+
+    samples = os.path.join(os.path.dirname(__file__), "..", "sample_meshes")
+    paths = [os.path.join(samples, f"{n}.stl") for n in ("plate", "bolt_m8_oversized")]
+    script = (
+        "import sys\n"
+        "from meshcheck.pipeline import check\n"
+        f"check({paths!r}, cache_dir={str(tmp_path)!r})\n"
+        "print('coacd' in sys.modules)\n"
+    )
+    root = os.path.join(os.path.dirname(__file__), "..")
+    for _ in ("cold", "warm"):
+        out = subprocess.run(
+            [sys.executable, "-c", script], capture_output=True, text=True, cwd=root, check=True
+        )
+        assert out.stdout.strip() == "False"
