@@ -314,7 +314,9 @@ def decompose_bodies(
     cache_dir : str, optional
         Directory of the decomposition cache; None neither reads nor writes it.
     jobs : int, optional
-        Worker processes; default all cores. No pool is started for fewer than two meshes.
+        Worker processes; default all cores, never more than meshes to decompose. With a time
+        limit, CoACD always runs in workers (one for a single mesh), so an overrun can be killed
+        and the main process never loads CoACD.
     options : dict, optional
         Other CoACD options, overriding ``DEFAULT_OPTIONS``.
     progress : callable, optional
@@ -403,8 +405,9 @@ def decompose_bodies(
         if pieces is None:  # overran the time limit or crashed: the hull covers every triangle
             local = distinct[digest][0]
             pieces = [_hull_vertices(local)]
+            limit = f"took over {time_limit:g} s or " if time_limit is not None else ""
             warnings.warn(
-                f"{names[digest]}: convex decomposition took over {time_limit:g} s or crashed; "
+                f"{names[digest]}: convex decomposition {limit}crashed; "
                 "the part's convex hull stands in for its pieces (the check stays exact)",
                 MeshcheckWarning,
                 stacklevel=2,
