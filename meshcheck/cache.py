@@ -139,6 +139,22 @@ class DecompositionCache:
         except OSError:
             with contextlib.suppress(OSError):
                 os.unlink(tmp)
+        _remove_stale_temporaries(os.path.dirname(final))
+
+
+# A temporary file older than this was left by a writer that was killed before its os.replace.
+STALE_SECONDS = 3600.0
+
+
+def _remove_stale_temporaries(directory: str) -> None:
+    import time
+
+    cutoff = time.time() - STALE_SECONDS
+    with contextlib.suppress(OSError):
+        for entry in os.scandir(directory):
+            if entry.name.startswith(".tmp-") and entry.stat().st_mtime < cutoff:
+                with contextlib.suppress(OSError):
+                    os.unlink(entry.path)
 
 
 def _checksum(points: np.ndarray, starts: np.ndarray, key: str) -> bytes:

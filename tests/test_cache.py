@@ -137,6 +137,18 @@ def test_unwritable_directory_only_costs_a_miss(tmp_path):
     assert cache.get(KEY) is None
 
 
+def test_stale_temporary_files_are_removed(tmp_path):
+    cache = DecompositionCache(str(tmp_path))
+    cache.put(KEY, PIECES)
+    folder = os.path.dirname(cache.path(KEY))
+    stale, fresh = os.path.join(folder, ".tmp-old.npz"), os.path.join(folder, ".tmp-new.npz")
+    for path in (stale, fresh):
+        open(path, "wb").write(b"partial")
+    os.utime(stale, (0, 0))
+    cache.put(KEY, PIECES)
+    assert not os.path.exists(stale) and os.path.exists(fresh)
+
+
 def _writer(directory: str, seed: int, rounds: int) -> None:
     cache = DecompositionCache(directory)
     for _ in range(rounds):
