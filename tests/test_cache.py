@@ -149,18 +149,25 @@ def test_stale_temporary_files_are_removed(tmp_path):
     assert not os.path.exists(stale) and os.path.exists(fresh)
 
 
-def _writer(directory: str, seed: int, rounds: int) -> None:
+def _writer(directory: str, barrier, seconds: float) -> None:
+    import time
+
     cache = DecompositionCache(directory)
-    for _ in range(rounds):
+    barrier.wait(30)  # both processes start writing at the same moment
+    stop = time.monotonic() + seconds
+    rounds = 0
+    while time.monotonic() < stop or rounds < 20:
         cache.put(KEY, PIECES)
         got = cache.get(KEY)
         assert got is not None and same(got, PIECES)
+        rounds += 1
 
 
 def test_two_processes_writing_one_key_both_succeed(tmp_path):
     context = multiprocessing.get_context("spawn")
+    barrier = context.Barrier(2)
     procs = [
-        context.Process(target=_writer, args=(str(tmp_path), seed, 60)) for seed in range(2)
+        context.Process(target=_writer, args=(str(tmp_path), barrier, 0.5)) for _ in range(2)
     ]
     for p in procs:
         p.start()
