@@ -163,7 +163,8 @@ def check_bodies(
         in_b = np.array([any(fnmatch.fnmatchcase(b.name, p) for p in groups.b) for b in bodies])
         i, j = pairs[:, 0], pairs[:, 1]
         pairs = pairs[(in_a[i] & in_b[j]) | (in_a[j] & in_b[i])]
-    near = pairs[_within(query_pairs(hulls, pairs, tolerance=tolerance, depth=False), reach)]
+    hull_query = query_pairs(hulls, pairs, tolerance=tolerance, depth=False, max_distance=reach)
+    near = pairs[_within(hull_query, reach)]
 
     # Convex pieces, only for parts whose hull comes within reach of another part.
     needed = np.unique(near)
@@ -178,7 +179,9 @@ def check_bodies(
     piece_count = np.zeros(n, dtype=np.int64)
     piece_count[needed] = [len(p) for p in piece_lists]
     owner = np.repeat(needed, piece_count[needed]).astype(np.int64)
-    pieces = pack_convex([p for plist in piece_lists for p in plist])
+    # Pieces may carry extra interior points (triangle cover); a support scan over a superset of
+    # the hull's vertices is still exact, so Qhull need not run again.
+    pieces = pack_convex([p for plist in piece_lists for p in plist], is_hull=True)
 
     # Piece pairs of two different parts whose hulls are near; a part pair with a piece pair within
     # reach (or undecided) may have surfaces within reach.
@@ -187,7 +190,10 @@ def check_bodies(
     keys = owners[:, 0] * n + owners[:, 1]
     near_keys = near[:, 0] * n + near[:, 1]
     piece_pairs, keys = piece_pairs[np.isin(keys, near_keys)], keys[np.isin(keys, near_keys)]
-    hit = _within(query_pairs(pieces, piece_pairs, tolerance=tolerance, depth=False), reach)
+    piece_query = query_pairs(
+        pieces, piece_pairs, tolerance=tolerance, depth=False, max_distance=reach
+    )
+    hit = _within(piece_query, reach)
     surfaces_near = set(np.unique(keys[hit]).tolist())
 
     findings = []
