@@ -30,7 +30,7 @@ import hashlib
 import os
 import warnings
 import zipfile
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from xml.etree import ElementTree
 
@@ -152,7 +152,12 @@ def _walk_meshes(root: str) -> list[str]:
 # Loading
 
 
-def load_bodies(paths: Sequence[str], *, split: bool = False) -> list[Body]:
+def load_bodies(
+    paths: Sequence[str],
+    *,
+    split: bool = False,
+    progress: Callable[[int, int], None] | None = None,
+) -> list[Body]:
     """Load every body of every file, in world coordinates.
 
     Parameters
@@ -162,6 +167,8 @@ def load_bodies(paths: Sequence[str], *, split: bool = False) -> list[Body]:
     split : bool
         Make every disconnected shell of a body its own part (cavity linings stay with the
         shell around them).
+    progress : callable, optional
+        Called as ``progress(done, total)`` after each file, counting files.
 
     Returns
     -------
@@ -176,13 +183,16 @@ def load_bodies(paths: Sequence[str], *, split: bool = False) -> list[Body]:
     """
     bodies: list[Body] = []
     seen: set[str] = set()
-    for path in expand_paths(paths):
+    files = expand_paths(paths)
+    for done, path in enumerate(files, start=1):
         for body in load_file(path):
             for part in split_body(body) if split else [body]:
                 if part.name in seen:
                     raise InputError(part.name, "given more than once")
                 seen.add(part.name)
                 bodies.append(part)
+        if progress is not None:
+            progress(done, len(files))
     return bodies
 
 

@@ -108,7 +108,8 @@ def check(
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", MeshcheckWarning)
-            bodies = load_bodies(paths, split=split)
+            with Progress("loading", 0) as bar:
+                bodies = load_bodies(paths, split=split, progress=bar.update_total)
             result = check_bodies(
                 bodies,
                 clearance=clearance,

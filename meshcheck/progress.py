@@ -55,6 +55,11 @@ class Progress:
         self.stream.flush()
         self._drawn = True
 
+    def update_total(self, done: int, total: int) -> None:
+        """Show ``done`` of ``total`` items, for stages that learn their total as they go."""
+        self.total = int(total)
+        self.update(done)
+
     def close(self) -> None:
         """Clear the line, leaving stderr as it was."""
         if self.is_enabled and self._drawn:

@@ -99,3 +99,14 @@ def test_finding_ids_are_stable_and_order_free():
     first = check_bodies([a, b], cache_dir=None).findings[0].id
     second = check_bodies([b, a], cache_dir=None).findings[0].id
     assert first == second and len(first) == 12
+
+
+def test_loading_reports_progress_per_file():
+    from meshcheck.load import load_bodies
+
+    seen = []
+    load_bodies(
+        ["sample_meshes/plate.stl", "sample_meshes/bracket.stl"],
+        progress=lambda done, total: seen.append((done, total)),
+    )
+    assert seen == [(1, 2), (2, 2)]
