@@ -198,6 +198,7 @@ def check_bodies(
     surfaces_near = set(np.unique(keys[hit]).tolist())
 
     findings = []
+    memo: dict = {}  # per-mesh data verify reuses across pairs; the bodies outlive the loop
     bar = Progress("checking", len(near))
     for count, (i, j) in enumerate(near, start=1):
         bar.update(count)
@@ -208,6 +209,7 @@ def check_bodies(
             tolerance=tolerance,
             clearance=clearance,
             surfaces_apart=int(i * n + j) not in surfaces_near,
+            memo=memo,
         )
         if verdict.status == verify.CLEAR:
             continue

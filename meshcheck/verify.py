@@ -85,6 +85,7 @@ def verify_pair(
     tolerance: float,
     clearance: float | None,
     surfaces_apart: bool = False,
+    memo: dict | None = None,
 ) -> Verdict:
     """Decide whether two meshes interfere, touch, come closer than ``clearance``, or are clear.
 
@@ -99,6 +100,10 @@ def verify_pair(
     surfaces_apart : bool
         The caller has proven that the surfaces stay farther apart than the reach
         (``tolerance + clearance``); only a part buried inside the other remains to be checked.
+    memo : dict, optional
+        Per-mesh data that does not depend on the pair (the vertices standing for the connected
+        shells), kept across calls: pass one dict, empty at first, for all the pairs of a run.
+        Meshes are keyed by ``id``, so they must stay alive and unchanged while it is in use.
 
     Returns
     -------
@@ -124,9 +129,13 @@ def verify_pair(
     vb, fb = np.asarray(b.vertices, dtype=np.float64), np.asarray(b.faces, dtype=np.int64)
     origin = _common_origin(va, vb)
     va, vb = va - origin, vb - origin
+    flipped = (False, False)
     if is_closed:  # manifold3d and the inward rays want outward winding
-        fa, fb = outward_faces(va, fa), outward_faces(vb, fb)
-    meshes = _Pair(va, fa, vb, fb, origin)
+        oa, ob = outward_faces(va, fa), outward_faces(vb, fb)
+        flipped = (oa is not fa, ob is not fb)
+        fa, fb = oa, ob
+    keys = ((id(a), flipped[0]), (id(b), flipped[1]))
+    meshes = _Pair(va, fa, vb, fb, origin, keys, {} if memo is None else memo)
 
     if surfaces_apart:
         if _is_buried(meshes):
@@ -166,6 +175,8 @@ class _Pair:
     vb: np.ndarray
     fb: np.ndarray
     origin: np.ndarray
+    keys: tuple  # per mesh: (id of the caller's mesh, faces flipped?), the key into ``memo``
+    memo: dict  # see ``verify_pair``
 
 
 @dataclass(frozen=True)
@@ -214,17 +225,22 @@ def _near_pairs(m: _Pair, reach: float) -> _Near:
     return _Near(pairs, dist, pa, pb, strength)
 
 
-def _shell_points(v: np.ndarray, f: np.ndarray) -> np.ndarray:
-    """One vertex of every connected shell of a mesh, ``(s, 3)``."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
+def _shell_points(v: np.ndarray, f: np.ndarray, memo: dict, key) -> np.ndarray:
+    """One vertex of every connected shell of a mesh, ``(s, 3)``; the choice of vertices is kept
+    in ``memo`` under ``("shells", key)``."""
+    index = memo.get(("shells", key))
+    if index is None:
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import connected_components
 
-    used = np.unique(f)
-    edges = np.concatenate([f[:, [0, 1]], f[:, [1, 2]]])
-    graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(len(v), len(v)))
-    _, labels = connected_components(graph, directed=False)
-    _, first = np.unique(labels[used], return_index=True)
-    return _strided(v[used[first]], _MAX_SHELL_PROBES)
+        used = np.unique(f)
+        edges = np.concatenate([f[:, [0, 1]], f[:, [1, 2]]])
+        n = len(v)
+        graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
+        _, labels = connected_components(graph, directed=False)
+        _, first = np.unique(labels[used], return_index=True)
+        index = memo[("shells", key)] = _strided(used[first], _MAX_SHELL_PROBES)
+    return v[index]
 
 
 def _strided(points: np.ndarray, limit: int) -> np.ndarray:
@@ -235,8 +251,11 @@ def _strided(points: np.ndarray, limit: int) -> np.ndarray:
 def _is_buried(m: _Pair) -> bool:
     """True when a shell of one mesh lies inside the other (winding number above one half, in
     magnitude: an inside-out mesh has winding number -1 inside)."""
-    for v, f, ov, of in ((m.va, m.fa, m.vb, m.fb), (m.vb, m.fb, m.va, m.fa)):
-        points = _shell_points(v, f)
+    for v, f, ov, of, key in (
+        (m.va, m.fa, m.vb, m.fb, m.keys[0]),
+        (m.vb, m.fb, m.va, m.fa, m.keys[1]),
+    ):
+        points = _shell_points(v, f, m.memo, key)
         lo, hi = ov.min(axis=0), ov.max(axis=0)
         inside_box = np.all((points >= lo) & (points <= hi), axis=1)
         if inside_box.any() and np.any(np.abs(winding_numbers(points[inside_box], ov, of)) > 0.5):
