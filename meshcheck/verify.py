@@ -24,7 +24,13 @@ import numpy as np
 import trimesh
 
 from . import results
-from .geometry.triangles import inscribed_ball, near_triangle_pairs, winding_numbers
+from .geometry.triangles import (
+    box_pairs,
+    inscribed_ball,
+    pair_distances,
+    triangle_boxes,
+    winding_numbers,
+)
 
 CLEAR = "clear"
 
@@ -204,9 +210,18 @@ def _common_origin(va: np.ndarray, vb: np.ndarray) -> np.ndarray:
 
 def _near_pairs(m: _Pair, reach: float) -> _Near:
     """Exact distances of the triangle pairs whose boxes come within ``reach`` of each other."""
-    # One compiled call: triangle boxes, a BVH over the triangles near the other mesh's box,
-    # then the exact distance of every pair of boxes within reach.
-    pairs, dist, pa, pb, strength = near_triangle_pairs(m.va, m.fa, m.vb, m.fb, reach)
+    alo, ahi = triangle_boxes(m.va, m.fa)
+    blo, bhi = triangle_boxes(m.vb, m.fb)
+    # Only triangles near the other mesh's box enter the hierarchy.
+    ia = np.flatnonzero(
+        np.all((alo <= bhi.max(axis=0) + reach) & (ahi >= blo.min(axis=0) - reach), axis=1)
+    )
+    ib = np.flatnonzero(
+        np.all((blo <= ahi.max(axis=0) + reach) & (bhi >= alo.min(axis=0) - reach), axis=1)
+    )
+    local = box_pairs(alo[ia], ahi[ia], blo[ib], bhi[ib], reach)
+    pairs = np.stack([ia[local[:, 0]], ib[local[:, 1]]], axis=1).astype(np.int64)
+    dist, pa, pb, strength = pair_distances(m.va, m.fa, m.vb, m.fb, pairs)
     return _Near(pairs, dist, pa, pb, strength)
 
 

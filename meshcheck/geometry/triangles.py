@@ -401,64 +401,6 @@ def pair_distances(va, fa, vb, fb, pairs):
     return dist, pa, pb, strength
 
 
-@njit(cache=True)
-def _near_box(lo, hi, olo, ohi, reach):
-    """Indices of the boxes ``lo, hi (m, 3)`` within ``reach`` of the box around ``olo, ohi``."""
-    bound_lo = np.empty(3)
-    bound_hi = np.empty(3)
-    for d in range(3):
-        bound_lo[d] = olo[:, d].min() - reach
-        bound_hi[d] = ohi[:, d].max() + reach
-    keep = np.empty(lo.shape[0], dtype=np.int64)
-    n = 0
-    for k in range(lo.shape[0]):
-        ok = True
-        for d in range(3):
-            if not (lo[k, d] <= bound_hi[d] and hi[k, d] >= bound_lo[d]):
-                ok = False
-        if ok:
-            keep[n] = k
-            n += 1
-    return keep[:n]
-
-
-@njit(cache=True)
-def near_triangle_pairs(va, fa, vb, fb, reach):
-    """The triangle pairs of two meshes whose boxes come within ``reach`` of each other, and their
-    exact distances, in one compiled call (``triangle_boxes``, ``box_pairs``, ``pair_distances``).
-
-    Only the triangles whose box comes within ``reach`` of the other mesh's box enter the
-    hierarchy.
-
-    Parameters
-    ----------
-    va, vb : (n, 3) float64
-        Vertices of each mesh, common frame.
-    fa, fb : (m, 3) int64
-        Faces of each mesh, at least one each.
-    reach : float
-        Largest gap between boxes along any axis.
-
-    Returns
-    -------
-    pairs : (k, 2) int64
-        Face of ``a``, face of ``b``, in the order of ``box_pairs`` over the selected triangles.
-    distance, point_a, point_b, strength
-        As ``pair_distances``.
-    """
-    alo, ahi = triangle_boxes(va, fa)
-    blo, bhi = triangle_boxes(vb, fb)
-    ia = _near_box(alo, ahi, blo, bhi, reach)
-    ib = _near_box(blo, bhi, alo, ahi, reach)
-    local = box_pairs(alo[ia], ahi[ia], blo[ib], bhi[ib], reach)
-    pairs = np.empty((local.shape[0], 2), dtype=np.int64)
-    for t in range(local.shape[0]):
-        pairs[t, 0] = ia[local[t, 0]]
-        pairs[t, 1] = ib[local[t, 1]]
-    dist, pa, pb, strength = pair_distances(va, fa, vb, fb, pairs)
-    return pairs, dist, pa, pb, strength
-
-
 # ---------------------------------------------------------------------------------------------
 # Points against a whole mesh
 
