@@ -258,11 +258,21 @@ def build_bvh(lo, hi):
     cap = max(2 * m, 1)
     node_lo = np.empty((cap, 3))
     node_hi = np.empty((cap, 3))
-    child = np.full(cap, -1, dtype=np.int64)
-    start = np.zeros(cap, dtype=np.int64)
-    count = np.zeros(cap, dtype=np.int64)
-    order = np.arange(m)
-    cent = 0.5 * (lo + hi)
+    child = np.empty(cap, dtype=np.int64)
+    start = np.empty(cap, dtype=np.int64)
+    count = np.empty(cap, dtype=np.int64)
+    for k in range(cap):
+        child[k], start[k], count[k] = -1, 0, 0
+    order = np.empty(m, dtype=np.int64)
+    for k in range(m):
+        order[k] = k
+    # Loops rather than array expressions throughout: the same arithmetic, a shorter compile.
+    cent = np.empty((m, 3))
+    for k in range(m):
+        for d in range(3):
+            cent[k, d] = 0.5 * (lo[k, d] + hi[k, d])
+    clo = np.empty(3)
+    chi = np.empty(3)
     stack = np.empty((cap, 3), dtype=np.int64)
     stack[0, 0], stack[0, 1], stack[0, 2] = 0, 0, m
     top = 1
@@ -270,8 +280,9 @@ def build_bvh(lo, hi):
     while top > 0:
         top -= 1
         node, s, e = stack[top, 0], stack[top, 1], stack[top, 2]
-        clo = np.full(3, np.inf)
-        chi = np.full(3, -np.inf)
+        for d in range(3):
+            clo[d] = np.inf
+            chi[d] = -np.inf
         for d in range(3):
             node_lo[node, d] = np.inf
             node_hi[node, d] = -np.inf
@@ -286,10 +297,18 @@ def build_bvh(lo, hi):
             start[node] = s
             count[node] = e - s
             continue
-        axis = int(np.argmax(chi - clo))
-        idx = order[s:e].copy()
-        keys = cent[idx, axis]
-        order[s:e] = idx[np.argsort(keys)]
+        axis = 0  # the first axis of largest centroid spread, as np.argmax picks it
+        for d in range(1, 3):
+            if chi[d] - clo[d] > chi[axis] - clo[axis]:
+                axis = d
+        idx = np.empty(e - s, dtype=np.int64)
+        keys = np.empty(e - s)
+        for t in range(e - s):
+            idx[t] = order[s + t]
+            keys[t] = cent[idx[t], axis]
+        perm = np.argsort(keys)
+        for t in range(e - s):
+            order[s + t] = idx[perm[t]]
         mid = (s + e) // 2
         child[node] = n_nodes
         stack[top, 0], stack[top, 1], stack[top, 2] = n_nodes, s, mid
