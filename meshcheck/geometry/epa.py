@@ -17,7 +17,7 @@ array described in :func:`write_answer`.
 from __future__ import annotations
 
 import numpy as np
-from numba import types
+from numba import njit, types
 
 from .constants import (
     DEGENERATE_SIN,
@@ -28,7 +28,7 @@ from .constants import (
     UNDECIDED,
     ZERO_REL,
 )
-from .support import B1, F1D, F2D, F8, I1D, I2D, I8, SHAPE, cso_support, typed_njit
+from .support import B1, F1D, F2D, F8, I1D, I2D, I8, SHAPE, cso_support
 
 #: Work-array sizes: the polytope gains one vertex per iteration (plus the 4-5 it starts with);
 #: a closed triangulated polytope has at most ``2 V - 4`` faces.
@@ -42,7 +42,7 @@ _EPA_SIG = types.none(
 )
 
 
-@typed_njit(types.none(F1D, I8, F8, F8, F8, F8, F8, F8, F8, F8, F8, F8, F1D), nogil=True)
+@njit(types.none(F1D, I8, F8, F8, F8, F8, F8, F8, F8, F8, F8, F8, F1D), cache=True, nogil=True)
 def write_answer(out, status, distance, ax, ay, az, bx, by, bz, nx, ny, nz, centre):
     """Store one answer, moving the witness points back to world coordinates.
 
@@ -69,13 +69,13 @@ def write_answer(out, status, distance, ax, ay, az, bx, by, bz, nx, ny, nz, cent
     out[10] = nz + 0.0
 
 
-@typed_njit(F8(F8), nogil=True)
+@njit(F8(F8), cache=True, nogil=True)
 def _neg(x):
     """``-x`` for ``x > 0``, else 0.0 (never -0.0): a depth bound as a signed distance."""
     return -x if x > 0.0 else 0.0
 
 
-@typed_njit(types.UniTuple(F8, 2)(F2D, I8, I8), nogil=True)
+@njit(types.UniTuple(F8, 2)(F2D, I8, I8), cache=True, nogil=True)
 def closest_on_segment(W, i, j):
     """Barycentric weights ``(l_i, l_j)`` of the point of segment ``W[i] W[j]`` nearest 0."""
     ax, ay, az = W[i, 0], W[i, 1], W[i, 2]
@@ -91,7 +91,7 @@ def closest_on_segment(W, i, j):
     return 1.0 - t, t
 
 
-@typed_njit(types.UniTuple(F8, 3)(F2D, I8, I8, I8), nogil=True)
+@njit(types.UniTuple(F8, 3)(F2D, I8, I8, I8), cache=True, nogil=True)
 def closest_on_triangle(W, i, j, k):
     """Weights ``(l_i, l_j, l_k)`` of the point of triangle ``W[i] W[j] W[k]`` nearest the origin.
 
@@ -160,7 +160,7 @@ def closest_on_triangle(W, i, j, k):
     return 1.0 - v - w, v, w
 
 
-@typed_njit(types.none(F2D, I2D, F2D, F1D, I8, I8, I8, I8), nogil=True)
+@njit(types.none(F2D, I2D, F2D, F1D, I8, I8, I8, I8), cache=True, nogil=True)
 def _set_face(V, FV, FN, FD, f, i, j, k):
     """Store face ``f = (i, j, k)`` with its unit normal and plane offset (inf if degenerate)."""
     FV[f, 0], FV[f, 1], FV[f, 2] = i, j, k
@@ -179,7 +179,7 @@ def _set_face(V, FV, FN, FD, f, i, j, k):
     FD[f] = (nx * V[i, 0] + ny * V[i, 1] + nz * V[i, 2]) / nn
 
 
-@typed_njit(types.none(I8, F8, I8, F2D, F2D, F2D, I2D, F2D, F8, F8, F8, F1D, F1D), nogil=True)
+@njit(types.none(I8, F8, I8, F2D, F2D, F2D, I2D, F2D, F8, F8, F8, F1D, F1D), cache=True, nogil=True)
 def _answer_face(status, distance, f, V, VA, VB, FV, FN, nx, ny, nz, centre, out):
     """Answer with the witness points of the point of face ``f`` nearest the origin."""
     i, j, k = FV[f, 0], FV[f, 1], FV[f, 2]
@@ -201,7 +201,7 @@ def _answer_face(status, distance, f, V, VA, VB, FV, FN, nx, ny, nz, centre, out
     )
 
 
-@typed_njit(types.none(F2D, F2D, F2D, I2D, I8, I8), nogil=True)
+@njit(types.none(F2D, F2D, F2D, I2D, I8, I8), cache=True, nogil=True)
 def _copy_row(V, VA, VB, VI, src, dst):
     for c in range(3):
         V[dst, c] = V[src, c]
@@ -215,7 +215,7 @@ def _copy_row(V, VA, VB, VI, src, dst):
 # every signature below: ``pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, ..., climb_b``.
 
 
-@typed_njit(F8(*SHAPE, *SHAPE, F1D, F8, F8, F8, F2D, F2D, F2D, I2D, I8), nogil=True)
+@njit(F8(*SHAPE, *SHAPE, F1D, F8, F8, F8, F2D, F2D, F2D, I2D, I8), cache=True, nogil=True)
 def _support_into(pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, nst_b, nbr_b, b0, b1, climb_b,
                   centre, dx, dy, dz, V, VA, VB, VI, slot):  # fmt: skip
     """Put the support point of ``A - B`` along ``d`` into row ``slot``; return its ``. d``."""
@@ -230,7 +230,7 @@ def _support_into(pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, nst_b, nbr_b, b0,
     return V[slot, 0] * dx + V[slot, 1] * dy + V[slot, 2] * dz
 
 
-@typed_njit(types.Tuple((F2D, I1D))(), nogil=True)
+@njit(types.Tuple((F2D, I1D))(), cache=True, nogil=True)
 def epa_workspace():
     """Work arrays for :func:`contact`: ``(floats, ints)``, allocated once per batch."""
     floats = np.empty((3 * _MAX_VERTS + _MAX_FACES + _MAX_FACES // 3 + 1, 3))
@@ -241,7 +241,7 @@ def epa_workspace():
 _VIEWS = types.Tuple((F2D, F2D, F2D, I2D, I2D, F2D, F1D, I1D, I1D, I2D))
 
 
-@typed_njit(_VIEWS(F2D, I1D), nogil=True)
+@njit(_VIEWS(F2D, I1D), cache=True, nogil=True)
 def _carve(floats, ints):
     """Views into the work arrays: polytope vertices, their sources and the faces."""
     mv, mf = _MAX_VERTS, _MAX_FACES
@@ -258,7 +258,7 @@ def _carve(floats, ints):
     return V, VA, VB, VI, FV, FN, FD, alive, free, edges
 
 
-@typed_njit(_EPA_SIG, nogil=True)
+@njit(_EPA_SIG, cache=True, nogil=True)
 def epa(pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, nst_b, nbr_b, b0, b1, climb_b,
         centre, size, tol, want_depth, V, VA, VB, VI, FV, FN, FD, alive, free, edges,
         out):  # fmt: skip
@@ -394,7 +394,7 @@ def epa(pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, nst_b, nbr_b, b0, b1, climb
         _answer_face(UNDECIDED, _neg(lower), best, V, VA, VB, FV, FN, ux, uy, uz, centre, out)
 
 
-@typed_njit(_CONTACT_SIG, nogil=True)
+@njit(_CONTACT_SIG, cache=True, nogil=True)
 def contact(pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, nst_b, nbr_b, b0, b1, climb_b,
             centre, size, tol, want_depth, k, W, SA, SB, IX, lam, floats, ints, out):  # fmt: skip
     """Classify and measure a pair whose GJK simplex holds the origin (the shapes meet).

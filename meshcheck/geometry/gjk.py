@@ -48,7 +48,7 @@ from .constants import (
     ZERO_REL,
 )
 from .epa import closest_on_segment, closest_on_triangle, contact, epa_workspace, write_answer
-from .support import B1, F1D, F2D, F8, I1D, I2D, I8, SHAPE, ConvexPack, cso_support, typed_njit
+from .support import B1, F1D, F2D, F8, I1D, I2D, I8, SHAPE, ConvexPack, cso_support
 
 __all__ = [
     "Contact",
@@ -128,7 +128,7 @@ class PairQuery(NamedTuple):
 # ---------------------------------------------------------------------------------------------
 
 
-@typed_njit(I8(F2D, F2D, F2D, I2D, F1D, I8), nogil=True)
+@njit(I8(F2D, F2D, F2D, I2D, F1D, I8), cache=True, nogil=True)
 def _compact(W, SA, SB, IX, lam, k):
     """Drop simplex points of zero weight, keeping order; return the new size."""
     n = 0
@@ -146,21 +146,21 @@ def _compact(W, SA, SB, IX, lam, k):
     return n
 
 
-@typed_njit(I8(F2D, F2D, F2D, I2D, F1D), nogil=True)
+@njit(I8(F2D, F2D, F2D, I2D, F1D), cache=True, nogil=True)
 def do_simplex2(W, SA, SB, IX, lam):
     """Segment: keep the vertex or the segment nearest the origin. Returns the new size."""
     lam[0], lam[1] = closest_on_segment(W, 0, 1)
     return _compact(W, SA, SB, IX, lam, 2)
 
 
-@typed_njit(I8(F2D, F2D, F2D, I2D, F1D), nogil=True)
+@njit(I8(F2D, F2D, F2D, I2D, F1D), cache=True, nogil=True)
 def do_simplex3(W, SA, SB, IX, lam):
     """Triangle: keep the vertex, edge or face nearest the origin. Returns the new size."""
     lam[0], lam[1], lam[2] = closest_on_triangle(W, 0, 1, 2)
     return _compact(W, SA, SB, IX, lam, 3)
 
 
-@typed_njit(types.Tuple((I8, B1))(F2D, F2D, F2D, I2D, F1D), nogil=True)
+@njit(types.Tuple((I8, B1))(F2D, F2D, F2D, I2D, F1D), cache=True, nogil=True)
 def do_simplex4(W, SA, SB, IX, lam):
     """Tetrahedron: detect that it holds the origin, else keep its feature nearest the origin.
 
@@ -226,7 +226,7 @@ def do_simplex4(W, SA, SB, IX, lam):
 # ---------------------------------------------------------------------------------------------
 
 
-@typed_njit(types.none(I8, F8, I8, F2D, F2D, F1D, F8, F8, F8, F1D, F1D), nogil=True)
+@njit(types.none(I8, F8, I8, F2D, F2D, F1D, F8, F8, F8, F1D, F1D), cache=True, nogil=True)
 def _answer_simplex(status, distance, k, SA, SB, lam, nx, ny, nz, centre, out):
     ax = ay = az = bx = by = bz = 0.0
     for r in range(k):
@@ -239,7 +239,7 @@ def _answer_simplex(status, distance, k, SA, SB, lam, nx, ny, nz, centre, out):
     write_answer(out, status, distance, ax, ay, az, bx, by, bz, nx, ny, nz, centre)
 
 
-@typed_njit(types.UniTuple(F8, 3)(F2D, F1D, I8), nogil=True)
+@njit(types.UniTuple(F8, 3)(F2D, F1D, I8), cache=True, nogil=True)
 def _nearest_point(W, lam, k):
     """The simplex point ``v`` nearest the origin.
 
@@ -280,7 +280,7 @@ def _nearest_point(W, lam, k):
 _SIMPLEX = (F2D, F2D, F2D, I2D, F1D)  # W, SA, SB, IX, lam
 
 
-@typed_njit(I8(*SHAPE, *SHAPE, F1D, F1D, F8, F8, F8, *_SIMPLEX, F1D), nogil=True)
+@njit(I8(*SHAPE, *SHAPE, F1D, F1D, F8, F8, F8, *_SIMPLEX, F1D), cache=True, nogil=True)
 def gjk(pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, nst_b, nbr_b, b0, b1, climb_b,
         centre, guess, size, tol, max_distance, W, SA, SB, IX, lam, out):  # fmt: skip
     """Run GJK on one pair; answer into ``out``, or hand over to EPA when the shapes meet.
@@ -396,7 +396,7 @@ def gjk(pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, nst_b, nbr_b, b0, b1, climb
     return 0
 
 
-@typed_njit(types.Tuple((F2D, F2D, F2D, F2D, F1D, F1D, F1D, I2D, I1D))(), nogil=True)
+@njit(types.Tuple((F2D, F2D, F2D, F2D, F1D, F1D, F1D, I2D, I1D))(), cache=True, nogil=True)
 def _workspace():
     """Work arrays of one GJK query, carved from two allocations (each costs ~0.1 us)."""
     f = np.empty((20, 3))
@@ -406,7 +406,7 @@ def _workspace():
     return f[0:4], f[4:8], f[8:12], f[12:16], f[16], f[17], lam, idx[0:4], idx[4]
 
 
-@typed_njit(B1(F2D, F1D, F1D), nogil=True)
+@njit(B1(F2D, F1D, F1D), cache=True, nogil=True)
 def _bounds(pts, lo, hi):
     """Fill the AABB ``lo, hi`` of ``pts``; return False if a coordinate is not finite."""
     for c in range(3):
@@ -425,7 +425,7 @@ def _bounds(pts, lo, hi):
     return True
 
 
-@typed_njit(types.UniTuple(F8, 2)(F2D, F8, F1D, F1D), nogil=True)
+@njit(types.UniTuple(F8, 2)(F2D, F8, F1D, F1D), cache=True, nogil=True)
 def _setup(box, tol, centre, guess):
     """Fill the common centre and first direction; return ``(size, tol)`` (default if tol < 0).
 
@@ -449,7 +449,7 @@ def _setup(box, tol, centre, guess):
     return size, tol
 
 
-@typed_njit(types.none(F2D, F2D, F8, B1, F1D), nogil=True)
+@njit(types.none(F2D, F2D, F8, B1, F1D), cache=True, nogil=True)
 def _query_points(a, b, tol, want_depth, out):
     """Compiled body of :func:`query`: linear-scan supports on the raw points, no hull.
 
@@ -600,7 +600,7 @@ def _PAIRS_SIG(*extra):
     return types.none(*_PAIRS, *extra)
 
 
-@typed_njit(_PAIRS_SIG(I8, I8), nogil=True)
+@njit(_PAIRS_SIG(I8, I8), cache=True, nogil=True)
 def _query_pairs_range(points, starts, nbr_starts, nbrs, lower, upper, pairs, tols, max_dists,
                        want_depth, status, distance, point_a, point_b, normal, q0, q1):  # fmt: skip
     """Answer pairs ``q0:q1`` (one task's share) into the output arrays."""

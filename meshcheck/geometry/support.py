@@ -203,9 +203,8 @@ def concat_packs(packs: Sequence[ConvexPack]) -> ConvexPack:
 # Every compiled function of the geometry package has one explicit signature over these types
 # (C-contiguous float64 / int64 arrays, int64, float64, bool). Without them numba compiles one
 # version per call site whenever a call passes a literal (a status constant, ``False``, ``0``),
-# which doubled the cold compile time; with them each function is compiled once. They are
-# compiled on first use (``typed_njit``), not at import: a warm run loads only the cached entry
-# point it calls, which carries every helper it calls compiled in.
+# which doubled the cold compile time; with them each function is compiled (or loaded from the
+# cache) once, when the module is imported.
 F8, I8, B1 = types.float64, types.int64, types.boolean
 F1D, F2D = types.float64[::1], types.float64[:, ::1]
 I1D, I2D = types.int64[::1], types.int64[:, ::1]
@@ -213,45 +212,7 @@ I1D, I2D = types.int64[::1], types.int64[:, ::1]
 SHAPE = (F2D, I1D, I1D, I8, I8, B1)
 
 
-def typed_njit(signature, **options):
-    """``numba.njit(signature, cache=True, **options)``, compiled on first use instead of at import.
-
-    ``njit`` with a signature compiles the function (or loads it from the cache) when the module
-    is imported and then refuses other argument types. This does the same the first time the
-    function is called from Python or typed inside another compiled function. A warm run thus
-    loads from the cache only the entry points it calls (about 12 ms each): a cached entry point
-    carries its helpers compiled in, so they are never loaded on their own; a cold compile of an
-    entry point compiles each helper once, with its signature, exactly as before.
-    """
-
-    def wrap(func):
-        disp = njit(cache=True, **options)(func)
-        typing_template = disp.get_call_template
-        compile_for_args = disp._compile_for_args
-
-        def ensure() -> None:
-            if disp._can_compile:
-                disp.compile(signature)
-                disp.disable_compile()
-
-        def get_call_template(args, kws):  # typing a call from compiled code
-            ensure()
-            return typing_template(args, kws)
-
-        def first_call(*args, **kws):  # a call from Python that matched no compiled version
-            if disp._can_compile:  # numba calls what this returns with the same arguments
-                ensure()
-                return disp
-            return compile_for_args(*args, **kws)  # raises: no matching signature
-
-        disp.get_call_template = get_call_template
-        disp._compile_for_args = first_call
-        return disp
-
-    return wrap
-
-
-@typed_njit(I8(F2D, I1D, I1D, I8, I8, B1, I8, F8, F8, F8, F8, F8, F8), nogil=True)
+@njit(I8(F2D, I1D, I1D, I8, I8, B1, I8, F8, F8, F8, F8, F8, F8), cache=True, nogil=True)
 def support_index(pts, nbr_starts, nbrs, s0, s1, climb, start, dx, dy, dz, cx, cy, cz):
     """Index of a vertex of one shape maximising ``(p - c) . d``.
 
@@ -301,7 +262,7 @@ def support_index(pts, nbr_starts, nbrs, s0, s1, climb, start, dx, dy, dz, cx, c
     return best
 
 
-@typed_njit(types.UniTuple(I8, 2)(*SHAPE, *SHAPE, F1D, F8, F8, F8, I8, I8), nogil=True)
+@njit(types.UniTuple(I8, 2)(*SHAPE, *SHAPE, F1D, F8, F8, F8, I8, I8), cache=True, nogil=True)
 def cso_support(pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, nst_b, nbr_b, b0, b1, climb_b,
                 centre, dx, dy, dz, start_a, start_b):  # fmt: skip
     """Support point of the Minkowski difference ``A - B`` in direction ``d``, by its sources.
