@@ -46,9 +46,18 @@ class Groups:
     b: tuple[str, ...]
 
     def allows(self, name_a: str, name_b: str) -> bool:
-        in_a = [any(fnmatch.fnmatchcase(n, p) for p in self.a) for n in (name_a, name_b)]
-        in_b = [any(fnmatch.fnmatchcase(n, p) for p in self.b) for n in (name_a, name_b)]
-        return (in_a[0] and in_b[1]) or (in_a[1] and in_b[0])
+        """Whether the pair of parts named ``name_a`` and ``name_b`` is checked."""
+        return bool(self.pair_mask([name_a, name_b], np.array([[0, 1]]))[0])
+
+    def pair_mask(self, names: Sequence[str], pairs: np.ndarray) -> np.ndarray:
+        """Which of ``pairs`` ((k, 2) indices into ``names``) are checked, as a (k,) bool mask.
+
+        Each name is matched against the patterns once, so the cost is linear in parts + pairs.
+        """
+        in_a = np.array([any(fnmatch.fnmatchcase(n, p) for p in self.a) for n in names], bool)
+        in_b = np.array([any(fnmatch.fnmatchcase(n, p) for p in self.b) for n in names], bool)
+        i, j = pairs[:, 0], pairs[:, 1]
+        return (in_a[i] & in_b[j]) | (in_a[j] & in_b[i])
 
 
 def approval_reason(approvals: Sequence[Approval], name_a: str, name_b: str) -> str | None:

@@ -14,7 +14,6 @@ Each stage narrows the part pairs the next one looks at:
 from __future__ import annotations
 
 import dataclasses
-import fnmatch
 import os
 import warnings
 from collections.abc import Sequence
@@ -159,11 +158,7 @@ def check_bodies(
     # Whole-part hulls: a mesh lies inside its hull, so a pair of hulls beyond reach is clear.
     pairs = candidate_pairs(hulls.lower, hulls.upper, margin=reach)
     if groups is not None:
-        # membership once per part, then one vectorised test over the candidate pairs
-        in_a = np.array([any(fnmatch.fnmatchcase(b.name, p) for p in groups.a) for b in bodies])
-        in_b = np.array([any(fnmatch.fnmatchcase(b.name, p) for p in groups.b) for b in bodies])
-        i, j = pairs[:, 0], pairs[:, 1]
-        pairs = pairs[(in_a[i] & in_b[j]) | (in_a[j] & in_b[i])]
+        pairs = pairs[groups.pair_mask([b.name for b in bodies], pairs)]
     hull_query = query_pairs(hulls, pairs, tolerance=tolerance, depth=False, max_distance=reach)
     near = pairs[_within(hull_query, reach)]
 
