@@ -16,7 +16,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -99,7 +99,10 @@ def check(
         tolerance = config.tolerance if tolerance is None else tolerance
         threshold = config.threshold if threshold is None else threshold
         approvals = (*approvals, *config.ignore)
+        approved_ids = dict(reversed(config.ignore_ids))  # the first rule for an ID wins
         groups = config.groups if groups is None else groups
+    else:
+        approved_ids = {}
     if threshold is None:
         threshold = DEFAULT_THRESHOLD
 
@@ -117,6 +120,7 @@ def check(
                 cache_dir=cache_dir,
                 jobs=jobs,
                 approvals=approvals,
+                approved_ids=approved_ids,
                 groups=groups,
                 export=export,
             )
@@ -125,14 +129,6 @@ def check(
         for w in caught:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
     messages = [str(w.message) for w in caught if issubclass(w.category, MeshcheckWarning)]
-    if config is not None and config.ignore_ids:
-        by_id = dict(reversed(config.ignore_ids))  # the first rule for an ID wins
-        findings = [
-            dataclasses.replace(f, approved=by_id[f.id])
-            if f.approved is None and f.id in by_id else f
-            for f in result.findings
-        ]
-        result = dataclasses.replace(result, findings=findings)
     return dataclasses.replace(result, warnings=[*result.warnings, *messages])
 
 
@@ -145,10 +141,15 @@ def check_bodies(
     cache_dir: str | None = None,
     jobs: int | None = None,
     approvals: Sequence[Approval] = (),
+    approved_ids: Mapping[str, str] | None = None,
     groups: Groups | None = None,
     export: str | None = None,
 ) -> CheckResult:
-    """Run the check on bodies already loaded; see ``check``."""
+    """Run the check on bodies already loaded; see ``check``.
+
+    ``approved_ids`` maps stable finding IDs to the reason they are approved; a pattern in
+    ``approvals`` that matches the pair takes precedence.
+    """
     n = len(bodies)
     hulls = pack_convex(_world_hulls(bodies), is_hull=True)
     if tolerance is None:
@@ -209,6 +210,7 @@ def check_bodies(
         if verdict.status == verify.CLEAR:
             continue
         (name_a, digest_a), (name_b, digest_b) = sorted([(a.name, a.digest), (b.name, b.digest)])
+        fid = finding_id(name_a, digest_a, name_b, digest_b)
         findings.append(
             Finding(
                 a=name_a,
@@ -218,9 +220,10 @@ def check_bodies(
                 depth=verdict.depth,
                 volume=verdict.volume,
                 location=verdict.location,
-                id=finding_id(name_a, digest_a, name_b, digest_b),
+                id=fid,
                 is_surface_only=verdict.is_surface_only,
-                approved=approval_reason(approvals, name_a, name_b),
+                approved=approval_reason(approvals, name_a, name_b)
+                or (approved_ids or {}).get(fid),
             )
         )
     bar.close()
