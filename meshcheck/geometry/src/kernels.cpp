@@ -126,7 +126,7 @@ PyObject* query_points(PyObject*, PyObject* args) {
         Simplex s;
         int k = gjk(A, B, fr, INF, s, out);
         if (k > 0) {
-            Polytope P;
+            static thread_local Polytope P;  // work space, allocated once per thread
             contact(Pair{A, B, fr, out}, s, k, want_depth != 0, P);
         }
     }
