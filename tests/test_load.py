@@ -190,7 +190,7 @@ def test_broken_3mf_is_an_input_error(tmp_path, build, reason):
 def test_3mf_component_cycle_is_an_input_error(tmp_path):
     obj = '<object id="1"><components><component objectid="1"/></components></object>'
     path = _3mf_with_model(tmp_path / "cycle.3mf", _3mf_model(obj, '<item objectid="1"/>'))
-    with pytest.raises(InputError, match="nest too deep"):
+    with pytest.raises(InputError, match="form a cycle through object 1"):
         load_bodies([path])
 
 
