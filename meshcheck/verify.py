@@ -31,6 +31,7 @@ from .geometry.triangles import (
     triangle_boxes,
     winding_numbers,
 )
+from .load.mesh import is_closed
 
 CLEAR = "clear"
 
@@ -191,7 +192,7 @@ class _Near:
 
 
 def _is_closed(mesh: trimesh.Trimesh) -> bool:
-    return bool(mesh.is_watertight and mesh.is_winding_consistent)
+    return is_closed(mesh)
 
 
 def outward_faces(v: np.ndarray, f: np.ndarray) -> np.ndarray:

@@ -67,7 +67,7 @@ from .. import units as units_
 from ..errors import ConfigError, InputError
 from .body import Body, mesh_digest
 from .gltf import read_gltf
-from .limits import Budget, Limits, check_coordinates, check_placement, read_file
+from .limits import Budget, Limits, check_placement, read_file
 from .mesh import clean_mesh, is_closed, overlapping_shells, split_shells, warn
 from .scene import read_scene
 from .threemf import read_3mf
@@ -278,10 +278,13 @@ def _read(path: str, budget: Budget) -> tuple[list[Item], str | None]:
     for node, geom, transform in sorted(items, key=lambda item: item[0]):
         name = f"{path}#{node}" if multi else path
         if id(geom) not in cleaned:
-            mesh = clean_mesh(geom.vertices, geom.faces, name)
-            check_coordinates(name, mesh.vertices, budget.limits, "its")
+            mesh = clean_mesh(
+                geom.vertices, geom.faces, name, max_coordinate=budget.limits.max_coordinate
+            )
             cleaned[id(geom)] = mesh
         mesh = cleaned[id(geom)]
+        if not is_closed(mesh):
+            warn(name, "mesh is not closed (not watertight); its findings rest on surfaces only")
         triangles += len(mesh.faces)
         out.append((node, mesh, np.asarray(transform, dtype=np.float64)))
     budget.take(path, triangles, len(out))
@@ -315,8 +318,6 @@ def _place(
             relative_name=f"{rel}#{node}" if multi else rel,
             units=report,
         )
-        if not body.is_closed:
-            warn(name, "mesh is not closed (not watertight); its findings rest on surfaces only")
         bodies.append(body)
     return bodies
 

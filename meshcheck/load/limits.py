@@ -119,28 +119,13 @@ def read_file(path: str, limits: Limits) -> bytes:
         os.close(fd)
 
 
-def check_coordinates(name: str, vertices: np.ndarray, limits: Limits, where: str) -> None:
-    """Refuse coordinates beyond ``limits.max_coordinate`` (or not finite)."""
-    if not len(vertices):
-        return
-    with np.errstate(all="ignore"):
-        largest = float(np.max(np.abs(vertices)))
-    if not np.isfinite(largest) or largest > limits.max_coordinate:
-        shown = "beyond the float range" if not np.isfinite(largest) else f"{largest:.3g}"
-        raise InputError(
-            name,
-            f"{where} coordinates reach {shown}, beyond the {limits.max_coordinate:g} "
-            "meshcheck can check exactly",
-        )
-
-
 def check_placement(name: str, vertices: np.ndarray, transform: np.ndarray, limits: Limits) -> None:
     """Refuse a placement that is not finite, flattens the part, or overflows its coordinates.
 
     Parameters
     ----------
     vertices : (n, 3) float64
-        The mesh in its own frame, already checked with ``check_coordinates``.
+        The mesh in its own frame.
     transform : (4, 4) float64
         Frame -> world, report units.
     """
@@ -148,21 +133,23 @@ def check_placement(name: str, vertices: np.ndarray, transform: np.ndarray, limi
     if not np.all(np.isfinite(transform)):
         raise InputError(name, "placement transform holds NaN or infinite values")
     with np.errstate(all="ignore"):
-        det = float(np.linalg.det(transform[:3, :3]))
-        if not np.isfinite(det) or det == 0.0:
-            raise InputError(name, "placement transform is singular (it flattens the part)")
         lo, hi = vertices.min(axis=0), vertices.max(axis=0)
         corners = np.array([[(lo, hi)[k >> d & 1][d] for d in range(3)] for k in range(8)])
-        world = corners @ transform[:3, :3].T + transform[:3, 3]
-        largest = float(np.max(np.abs(world)))
-        if np.isfinite(largest) and largest <= limits.max_coordinate:
-            return
-        world = vertices @ transform[:3, :3].T + transform[:3, 3]
-        largest = float(np.max(np.abs(world)))
-    if not np.isfinite(largest) or largest > limits.max_coordinate:
-        shown = "beyond the float range" if not np.isfinite(largest) else f"{largest:.3g}"
-        raise InputError(
-            name,
-            f"placed coordinates reach {shown}, beyond the {limits.max_coordinate:g} "
-            "meshcheck can check exactly",
-        )
+        largest = _largest(corners @ transform[:3, :3].T + transform[:3, 3])
+        if not largest <= limits.max_coordinate:  # the box's corners bound; the vertices decide
+            largest = _largest(vertices @ transform[:3, :3].T + transform[:3, 3])
+        if not largest <= limits.max_coordinate:
+            shown = "beyond the float range" if not np.isfinite(largest) else f"{largest:.3g}"
+            raise InputError(
+                name,
+                f"placed coordinates reach {shown}, beyond the {limits.max_coordinate:g} "
+                "meshcheck can check exactly",
+            )
+        linear = transform[:3, :3]
+        if np.linalg.det(linear / np.max(np.abs(linear), initial=0.0)) == 0.0:
+            raise InputError(name, "placement transform is singular (it flattens the part)")
+
+
+def _largest(points: np.ndarray) -> float:
+    value = float(np.max(np.abs(points)))
+    return value if np.isfinite(value) else np.inf

@@ -60,7 +60,7 @@ def warn(name: str, reason: str) -> None:
     warnings.warn(MeshcheckWarning(f"{name}: {reason}"), stacklevel=3)
 
 
-def clean_mesh(vertices, faces, name: str) -> trimesh.Trimesh:
+def clean_mesh(vertices, faces, name: str, *, max_coordinate: float = np.inf) -> trimesh.Trimesh:
     """Validated mesh: finite, vertices merged, triangles with a repeated vertex dropped.
 
     Triangles of zero area with three distinct vertices are kept: on a closed surface they
@@ -72,12 +72,21 @@ def clean_mesh(vertices, faces, name: str) -> trimesh.Trimesh:
     faces : (m, 3) int
     name : str
         The part name errors and warnings start with.
+    max_coordinate : float
+        Largest absolute coordinate accepted.
     """
     vertices = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
     faces = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
     if not np.all(np.isfinite(vertices)):
         bad = int(np.count_nonzero(~np.all(np.isfinite(vertices), axis=1)))
         raise InputError(name, f"{bad} vertices have NaN or infinite coordinates")
+    largest = float(np.max(np.abs(vertices))) if len(vertices) else 0.0
+    if largest > max_coordinate:
+        raise InputError(
+            name,
+            f"its coordinates reach {largest:.3g}, beyond the {max_coordinate:g} "
+            "meshcheck can check exactly",
+        )
     if faces.size and (faces.min() < 0 or faces.max() >= len(vertices)):
         raise InputError(name, "triangles refer to vertices that do not exist")
     mesh = trimesh.Trimesh(vertices, faces, process=False)

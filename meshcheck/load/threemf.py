@@ -23,6 +23,9 @@ from .scene import one_line
 
 Item = tuple[str, trimesh.Trimesh, np.ndarray]
 _SMALL_ENTRY = 16 << 20  # _rels/.rels: a few hundred bytes in practice
+# 3MF XML deflates 5 to 20 times; a model entry above _SMALL_ENTRY deflated more than this is a
+# zip bomb (it would cost time to parse even within the size limit), refused unread.
+BOMB_RATIO = 200
 
 
 class _Capped:
@@ -60,6 +63,13 @@ def read_3mf(path: str, data: bytes, budget: Budget) -> tuple[list[Item], str]:
                     path,
                     f"3MF entry {model_name} declares {_n(info.file_size)} bytes uncompressed, "
                     f"over the limit of {_n(limits.max_file_bytes)}",
+                )
+            ratio = info.file_size / max(info.compress_size, 1)
+            if info.file_size > _SMALL_ENTRY and ratio > BOMB_RATIO:
+                raise InputError(
+                    path,
+                    f"3MF entry {model_name} declares {_n(info.file_size)} bytes compressed into "
+                    f"{_n(info.compress_size)} ({ratio:.0f}:1), the ratio of a zip bomb",
                 )
             with z.open(info) as raw:
                 stream = _Capped(raw, limits.max_file_bytes, path, model_name)
