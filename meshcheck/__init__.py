@@ -4,8 +4,10 @@ Example
 -------
 >>> import meshcheck
 >>> result = meshcheck.check(["sample_meshes/plate.stl", "sample_meshes/bolt_m8_oversized.stl"])
->>> [(f.status, f.a) for f in result.findings]
+>>> [(str(f.status), f.a) for f in result.findings]
 [('interference', 'sample_meshes/bolt_m8_oversized.stl')]
+>>> result.passed
+False
 >>> meshcheck.signed_distance([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 0, 2], [1, 0, 2], [0, 1, 2]])
 2.0
 
@@ -23,7 +25,8 @@ from .errors import ConfigError, ExitStatus, InputError, MeshcheckError, Meshche
 if TYPE_CHECKING:
     from .geometry import Contact, Status, intersects, query, signed_distance
     from .pipeline import check
-    from .results import CheckResult, Finding, Location, Part
+    from .results import CheckResult, Finding, Location, Part, Verdict
+    from .settings import Settings
 
 _LAZY = {
     "Contact": ".geometry",
@@ -36,6 +39,8 @@ _LAZY = {
     "Finding": ".results",
     "Location": ".results",
     "Part": ".results",
+    "Verdict": ".results",
+    "Settings": ".settings",
 }
 
 __all__ = [
@@ -49,7 +54,9 @@ __all__ = [
     "MeshcheckError",
     "MeshcheckWarning",
     "Part",
+    "Settings",
     "Status",
+    "Verdict",
     "check",
     "intersects",
     "query",

@@ -8,6 +8,13 @@ a whole entry or none, and two runs sharing the directory at once both succeed (
 wins with an identical entry). Arrays are read with ``allow_pickle=False``; an entry that is
 truncated, garbled, of the wrong shapes, or whose checksum does not match counts as a miss and is
 rewritten.
+
+Trust: the cache is input from outside like any mesh (CI restores it from an artifact store), and
+its checksum is plain SHA-256 of public data, so anyone can forge an entry. The checksum only
+catches accidents. What keeps a forged entry from changing a verdict is that the pipeline uses a
+decomposition only after checking that its pieces cover every triangle of the mesh
+(``decompose.covers``); a forged or stale entry that does not is recomputed. Pieces that cover the
+mesh but are too big only cost time: the verify stage decides every pair they let through.
 """
 
 from __future__ import annotations
@@ -97,11 +104,13 @@ class DecompositionCache:
             Exactly the arrays given to ``put`` (bit for bit).
         """
         try:
+            if not _sizes_agree(self.path(key)):
+                return None
             with np.load(self.path(key), allow_pickle=False) as data:
                 if sorted(data.files) != ["checksum", "points", "starts"]:
                     return None
                 points, starts, checksum = data["points"], data["starts"], data["checksum"]
-        except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile):
+        except (OSError, ValueError, EOFError, KeyError, MemoryError, zipfile.BadZipFile):
             return None
         if not _valid(points, starts, checksum, key):
             return None
@@ -155,6 +164,28 @@ def _remove_stale_temporaries(directory: str) -> None:
             if entry.name.startswith(".tmp-") and entry.stat().st_mtime < cutoff:
                 with contextlib.suppress(OSError):
                     os.unlink(entry.path)
+
+
+def _sizes_agree(path: str) -> bool:
+    """True when every array in the ``.npz`` at ``path`` declares no more data than it holds.
+
+    Read before ``np.load``, so a header claiming a (2^40, 3) array is a miss, not an attempt
+    to allocate 24 TiB.
+    """
+    with zipfile.ZipFile(path) as z:
+        for info in z.infolist():
+            with z.open(info) as f:
+                version = np.lib.format.read_magic(f)
+                if version == (1, 0):
+                    shape, _, dtype = np.lib.format.read_array_header_1_0(f)
+                else:
+                    shape, _, dtype = np.lib.format.read_array_header_2_0(f)
+                if (
+                    dtype.hasobject
+                    or np.prod(shape, dtype=object) * dtype.itemsize > info.file_size
+                ):
+                    return False
+    return True
 
 
 def _checksum(points: np.ndarray, starts: np.ndarray, key: str) -> bytes:

@@ -12,83 +12,137 @@ import warnings
 
 import click
 
-from .config import FAIL_ON_CHOICES, find_config, load_config, parse_fail_on
+from .config import FAIL_ON_CHOICES, NUMBER_RANGES, checked_number, parse_fail_on
 from .errors import ConfigError, ExitStatus, MeshcheckError, MeshcheckWarning
 from .report import FORMATS, exit_status, render, summary_line
 
 
-def default_cache_dir() -> str:
-    """The user's cache directory for meshcheck (platform convention)."""
-    import platformdirs
+class FiniteFloat(click.ParamType):
+    """A float option that must be finite and in the range of its setting (NaN and inf refused)."""
 
-    return platformdirs.user_cache_dir("meshcheck")
+    name = "float"
+
+    def __init__(self, setting: str):
+        self.setting = setting
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, float):
+            return value
+        try:
+            return checked_number(f"--{self.setting}", value, *NUMBER_RANGES[self.setting])
+        except ConfigError as exc:
+            self.fail(exc.reason, param, ctx)
 
 
 def _fail_on_option(ctx, param, values):
-    """``--fail-on`` values (repeated or comma lists) -> list of statuses, or None when absent."""
+    """``--fail-on`` values (repeated or comma lists), checked; None when absent."""
     if not values:
         return None
     try:
-        return parse_fail_on(values)
+        parse_fail_on(values)
     except ConfigError as exc:
         raise click.BadParameter(exc.reason) from None
+    return values
 
 
 @click.command(context_settings={"help_option_names": ["-h", "--help"]})
 @click.argument("files", nargs=-1, required=True)
 @click.option(
-    "--format", "fmt", type=click.Choice(FORMATS), default="text", show_default=True,
+    "--format",
+    "fmt",
+    type=click.Choice(FORMATS),
+    default="text",
+    show_default=True,
     help="Report format: a table and a summary line, JSON, JUnit XML, or GitHub annotations.",
 )
 @click.option(
-    "--output", "-o", "output", type=click.Path(dir_okay=False, writable=True), default=None,
+    "--output",
+    "-o",
+    "output",
+    type=click.Path(dir_okay=False, writable=True),
+    default=None,
     help="Write the report to this file instead of stdout (the summary line goes to stderr).",
 )
 @click.option(
-    "--clearance", type=click.FloatRange(min=0.0), default=None,
+    "--clearance",
+    type=FiniteFloat("clearance"),
+    default=None,
     help="Also report part pairs closer than this distance (model units); they fail the run.",
 )
 @click.option(
-    "--tolerance", type=click.FloatRange(min=0.0), default=None,
-    help="Overlaps and gaps below this count as touching (model units). "
-    "Default: 1e-5 of the assembly's bounding-box diagonal.",
+    "--tolerance",
+    type=FiniteFloat("tolerance"),
+    default=None,
+    help="Overlaps and gaps below this count as touching (model units). Default: each pair's "
+    "own, 1e-5 of the smaller part's size (at least the float32 rounding of its coordinates).",
 )
 @click.option(
-    "--threshold", type=click.FloatRange(min=0.01, max=1.0), default=None,
+    "--threshold",
+    type=FiniteFloat("threshold"),
+    default=None,
     help="CoACD concavity threshold for the convex pieces. Default: 0.1.",
 )
 @click.option(
-    "--fail-on", "fail_on", multiple=True, callback=_fail_on_option, metavar="STATUSES",
-    help=f"Statuses that fail the run: comma list or repeated, from {', '.join(FAIL_ON_CHOICES)}, "
-    "none. Default: interference, plus clearance when a clearance is set.",
+    "--fail-on",
+    "fail_on",
+    multiple=True,
+    callback=_fail_on_option,
+    metavar="STATUSES",
+    help=f"Statuses that fail the run besides interference: comma list or repeated, from "
+    f"{', '.join(FAIL_ON_CHOICES)}; or none alone (nothing fails). "
+    "Default: interference, plus clearance when a clearance is set.",
 )
 @click.option(
-    "--split", is_flag=True,
+    "--split",
+    is_flag=True,
     help="Make each disconnected shell of a mesh its own part (NAME#1, NAME#2... in file order).",
 )
 @click.option(
-    "--config", "config_path", type=click.Path(dir_okay=False), default=None,
+    "--config",
+    "config_path",
+    type=click.Path(dir_okay=False),
+    default=None,
     help="Read settings from this file instead of the meshcheck.toml or pyproject.toml "
     "[tool.meshcheck] found from the working directory upward.",
 )
 @click.option("--no-config", is_flag=True, help="Ignore configuration files.")
 @click.option(
-    "--cache-dir", type=click.Path(file_okay=False), default=None,
+    "--cache-dir",
+    type=click.Path(file_okay=False),
+    default=None,
     help="Where decompositions are kept. Default: the user's cache directory.",
 )
 @click.option("--no-cache", is_flag=True, help="Neither read nor write cached decompositions.")
 @click.option(
-    "--jobs", "-j", type=click.IntRange(min=1), default=None,
+    "--jobs",
+    "-j",
+    type=click.IntRange(min=1),
+    default=None,
     help="Processes for decomposition. Default: all cores.",
 )
 @click.option(
-    "--export", "export_path", type=click.Path(dir_okay=False), default=None,
+    "--export",
+    "export_path",
+    type=click.Path(dir_okay=False),
+    default=None,
     help="Write the assembly with clashes marked in red to this .glb file.",
 )
 @click.version_option(package_name="meshcheck")
 def main(
-    fmt, files, output, clearance, tolerance, threshold, fail_on, split, config_path, no_config,
-    cache_dir, no_cache, jobs, export_path,
+    fmt,
+    files,
+    output,
+    clearance,
+    tolerance,
+    threshold,
+    fail_on,
+    split,
+    config_path,
+    no_config,
+    cache_dir,
+    no_cache,
+    jobs,
+    export_path,
 ):
     """Check the parts in FILES for interference, contact and clearance.
 
@@ -100,22 +154,26 @@ def main(
     and clearance violations when --clearance is given), 2 for a usage or configuration error,
     3 when an input cannot be checked.
     """
+    from .settings import Settings
+
     try:
-        if config_path is not None:
-            config = load_config(config_path)
-        elif not no_config and (found := find_config()) is not None:
-            config = load_config(found)
-        else:
+        if no_config and config_path is None:
             config = None
+        else:
+            config = "auto" if config_path is None else config_path
+        settings = Settings.from_options(
+            config=config,
+            clearance=clearance,
+            tolerance=tolerance,
+            threshold=threshold,
+            fail_on=fail_on,
+            split=split,
+            cache_dir=cache_dir,
+            use_cache=not no_cache,
+            jobs=jobs,
+        )
     except MeshcheckError as exc:
         _fail(exc)
-    if fail_on is None and config is not None:
-        fail_on = config.fail_on
-
-    if no_cache:
-        cache_dir = None
-    elif cache_dir is None:
-        cache_dir = default_cache_dir()
 
     from .pipeline import check
 
@@ -123,17 +181,11 @@ def main(
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", MeshcheckWarning)
         try:
-            result = check(
-                files,
-                clearance=clearance,
-                tolerance=tolerance,
-                threshold=threshold,
-                cache_dir=cache_dir,
-                jobs=jobs,
-                export=export_path,
-                split=split,
-                config=config,
-            )
+            result = check(files, settings)
+            if export_path is not None:
+                from .export import export_clashes
+
+                export_clashes(export_path, result.bodies, result.findings)
         except MeshcheckError as exc:
             error = exc
     for w in caught:
@@ -144,7 +196,7 @@ def main(
     if error is not None:
         _fail(error)
 
-    text = render(result, fmt, fail_on=fail_on)
+    text = render(result, fmt)
     if output is None:
         click.echo(text, nl=False)
     else:
@@ -154,11 +206,11 @@ def main(
         except OSError as exc:
             click.echo(f"error: {output}: cannot write the report ({exc.strerror})", err=True)
             sys.exit(int(ExitStatus.USAGE))
-        click.echo(f"{summary_line(result, fail_on=fail_on)}; report written to {output}", err=True)
+        click.echo(f"{summary_line(result)}; report written to {output}", err=True)
     # The report is out. Freezing the heap spares the interpreter's exit-time collections a walk
     # over the ~135k objects numpy, scipy, trimesh and numba created: 0.2 s of a 1.5 s warm run.
     gc.freeze()
-    sys.exit(int(exit_status(result, fail_on=fail_on)))
+    sys.exit(int(exit_status(result)))
 
 
 def _fail(exc: MeshcheckError):

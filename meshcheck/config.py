@@ -1,8 +1,15 @@
-"""Options, tolerances and the rules that approve findings or restrict which pairs are checked."""
+"""The configuration file, and the rules it holds: approvals and groups.
+
+Patterns are shell globs (``fnmatch``, case-sensitive, ``*`` also crosses ``/``). A pattern
+matches a part when it matches either the full name (``assembly/frame.stl#pin``) or the name
+relative to the argument it came from (``frame.stl#pin`` for ``meshcheck assembly/``; the file's
+base name for a file argument).
+"""
 
 from __future__ import annotations
 
 import fnmatch
+import math
 import os
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
@@ -10,31 +17,46 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import ConfigError
+from .results import FINDING_STATUSES
 
-# Overlaps and gaps below this fraction of the assembly's bounding-box diagonal count as touching.
-# STL stores float32 (about 7 significant digits) and CAD exporters round coordinates, so faces
-# modelled as coincident land up to ~1e-6 of the model size apart; 1e-5 leaves a 10x margin while
-# staying far below any clearance an engineer specifies (1 um on a 100 mm assembly).
-TOLERANCE_FRACTION = 1e-5
+FAIL_ON_CHOICES = tuple(str(s) for s in FINDING_STATUSES)
+# Allowed range of each number in options and the configuration file.
+NUMBER_RANGES = {
+    "tolerance": (0.0, math.inf),
+    "clearance": (0.0, math.inf),
+    "threshold": (0.01, 1.0),
+}
 
 
-def default_tolerance(lower: np.ndarray, upper: np.ndarray) -> float:
-    """Touching tolerance for an assembly with bounding box ``lower``..``upper``, model units."""
-    diagonal = float(np.linalg.norm(np.asarray(upper) - np.asarray(lower)))
-    return TOLERANCE_FRACTION * diagonal if diagonal > 0 else TOLERANCE_FRACTION
+def matches(pattern: str, names: str | Sequence[str]) -> bool:
+    """True when ``pattern`` matches one of a part's names (full or relative)."""
+    if isinstance(names, str):
+        names = (names,)
+    return any(fnmatch.fnmatchcase(n, pattern) for n in names)
 
 
 @dataclass(frozen=True)
 class Approval:
-    """An approved finding: parts matching ``a`` and ``b`` (glob patterns, either order)."""
+    """An approved finding, with the reason: by part-name patterns ``a`` and ``b`` (either order),
+    or by the finding's stable ``id`` (which lapses when either mesh changes)."""
 
-    a: str
-    b: str
+    a: str | None
+    b: str | None
     reason: str
+    id: str | None = None
 
-    def matches(self, name_a: str, name_b: str) -> bool:
-        return (fnmatch.fnmatchcase(name_a, self.a) and fnmatch.fnmatchcase(name_b, self.b)) or (
-            fnmatch.fnmatchcase(name_a, self.b) and fnmatch.fnmatchcase(name_b, self.a)
+    @property
+    def label(self) -> str:
+        return f"id {self.id}" if self.id is not None else f"{self.a!r} / {self.b!r}"
+
+    def matches(
+        self, names_a: str | Sequence[str], names_b: str | Sequence[str], finding_id: str = ""
+    ) -> bool:
+        """True when the pair (each part given by its names) or the finding ID is approved."""
+        if self.id is not None:
+            return finding_id == self.id
+        return (matches(self.a, names_a) and matches(self.b, names_b)) or (
+            matches(self.b, names_a) and matches(self.a, names_b)
         )
 
 
@@ -49,21 +71,35 @@ class Groups:
         """Whether the pair of parts named ``name_a`` and ``name_b`` is checked."""
         return bool(self.pair_mask([name_a, name_b], np.array([[0, 1]]))[0])
 
-    def pair_mask(self, names: Sequence[str], pairs: np.ndarray) -> np.ndarray:
+    def members(self, names: Sequence[str | Sequence[str]]) -> tuple[np.ndarray, np.ndarray]:
+        """Which parts (each given by its names) are in group a and in group b: two (n,) masks."""
+        in_a = np.array([any(matches(p, n) for p in self.a) for n in names], bool)
+        in_b = np.array([any(matches(p, n) for p in self.b) for n in names], bool)
+        return in_a.reshape(len(names)), in_b.reshape(len(names))
+
+    def pair_mask(self, names: Sequence[str | Sequence[str]], pairs: np.ndarray) -> np.ndarray:
         """Which of ``pairs`` ((k, 2) indices into ``names``) are checked, as a (k,) bool mask.
 
-        Each name is matched against the patterns once, so the cost is linear in parts + pairs.
+        ``names`` holds each part's name, or its names (full and relative). Each part is matched
+        against the patterns once, so the cost is linear in parts + pairs.
         """
-        in_a = np.array([any(fnmatch.fnmatchcase(n, p) for p in self.a) for n in names], bool)
-        in_b = np.array([any(fnmatch.fnmatchcase(n, p) for p in self.b) for n in names], bool)
+        in_a, in_b = self.members(names)
         i, j = pairs[:, 0], pairs[:, 1]
         return (in_a[i] & in_b[j]) | (in_a[j] & in_b[i])
 
 
-def approval_reason(approvals: Sequence[Approval], name_a: str, name_b: str) -> str | None:
-    """The reason of the first approval that matches the pair, or None."""
-    for rule in approvals:
-        if rule.matches(name_a, name_b):
+def approval_reason(
+    approvals: Sequence[Approval],
+    names_a: str | Sequence[str],
+    names_b: str | Sequence[str],
+    finding_id: str = "",
+) -> str | None:
+    """The reason of the approval that applies to a finding, or None.
+
+    Rules by part names come first, in order, then rules by finding ID, in order.
+    """
+    for rule in sorted(approvals, key=lambda r: r.id is not None):
+        if rule.matches(names_a, names_b, finding_id):
             return rule.reason
     return None
 
@@ -72,7 +108,6 @@ def approval_reason(approvals: Sequence[Approval], name_a: str, name_b: str) -> 
 # Configuration file
 
 CONFIG_NAMES = ("meshcheck.toml", "pyproject.toml")  # in one directory, meshcheck.toml wins
-FAIL_ON_CHOICES = ("interference", "touching", "clearance")
 _KEYS = ("tolerance", "clearance", "threshold", "fail_on", "ignore", "groups")
 
 
@@ -87,12 +122,10 @@ class Config:
     tolerance, clearance, threshold : float or None
         Defaults for the options of the same names.
     fail_on : tuple of str or None
-        Finding statuses that fail the run.
-    ignore : tuple of Approval
-        Approved findings, by part-name patterns.
-    ignore_ids : tuple of (str, str)
-        Approved findings by stable ID, with the reason: the approval lapses when either mesh
-        changes, since the ID hashes both meshes' content.
+        Finding statuses that fail the run, as written (``settings.resolve_fail_on`` reads them).
+    approvals : tuple of Approval
+        The ``[[ignore]]`` entries, in file order: by part-name patterns, or by stable ID (such an
+        approval lapses when either mesh changes, since the ID hashes both meshes' content).
     groups : Groups or None
         Check only pairs across two groups of parts.
     """
@@ -102,8 +135,7 @@ class Config:
     clearance: float | None = None
     threshold: float | None = None
     fail_on: tuple[str, ...] | None = None
-    ignore: tuple[Approval, ...] = ()
-    ignore_ids: tuple[tuple[str, str], ...] = ()
+    approvals: tuple[Approval, ...] = ()
     groups: Groups | None = None
 
 
@@ -210,15 +242,14 @@ def load_config(path: str | os.PathLike) -> Config:
         if key not in _KEYS:
             fail(f"unknown key {key!r} in {where} (known: {', '.join(_KEYS)})")
 
-    def number(key: str, lo: float, hi: float = float("inf")) -> float | None:
+    def number(key: str) -> float | None:
         value = doc.get(key)
         if value is None:
             return None
         if isinstance(value, bool) or not isinstance(value, int | float):
             fail(f"{key} must be a number, not {type(value).__name__}")
-        if not lo <= float(value) <= hi:
-            fail(f"{key} = {value} is out of range [{lo:g}, {hi:g}]")
-        return float(value)
+        low, high = NUMBER_RANGES[key]
+        return checked_number(key, value, low, high, path=path)
 
     fail_on = doc.get("fail_on")
     if fail_on is not None:
@@ -226,12 +257,13 @@ def load_config(path: str | os.PathLike) -> Config:
             fail_on = [fail_on]
         if not isinstance(fail_on, list) or not all(isinstance(s, str) for s in fail_on):
             fail("fail_on must be a list of strings")
-        fail_on = tuple(parse_fail_on(fail_on, path=path))
+        parse_fail_on(fail_on, path=path)  # validated here, resolved with the clearance later
+        fail_on = tuple(fail_on)
 
     ignore = doc.get("ignore", [])
     if not isinstance(ignore, list):
         fail("ignore must be an array of tables ([[ignore]] entries with a, b and reason)")
-    approvals, id_approvals = [], []
+    approvals = []
     for k, rule in enumerate(ignore, start=1):
         label = f"ignore entry {k}"
         if not isinstance(rule, dict):
@@ -248,7 +280,9 @@ def load_config(path: str | os.PathLike) -> Config:
             if not isinstance(rule[key], str) or not rule[key].strip():
                 fail(f"{label}: {key} must be a non-empty string")
         if "id" in rule:
-            id_approvals.append((rule["id"].strip().lower(), rule["reason"].strip()))
+            approvals.append(
+                Approval(None, None, rule["reason"].strip(), rule["id"].strip().lower())
+            )
         else:
             approvals.append(Approval(rule["a"], rule["b"], rule["reason"].strip()))
 
@@ -264,8 +298,10 @@ def load_config(path: str | os.PathLike) -> Config:
             value = groups.get(key)
             if isinstance(value, str):
                 value = [value]
-            if not isinstance(value, list) or not value or not all(
-                isinstance(p, str) and p for p in value
+            if (
+                not isinstance(value, list)
+                or not value
+                or not all(isinstance(p, str) and p for p in value)
             ):
                 fail(f"groups.{key} must be a non-empty list of glob patterns")
             patterns.append(tuple(value))
@@ -273,35 +309,72 @@ def load_config(path: str | os.PathLike) -> Config:
 
     return Config(
         path=path,
-        tolerance=number("tolerance", 0.0),
-        clearance=number("clearance", 0.0),
-        threshold=number("threshold", 0.01, 1.0),
+        tolerance=number("tolerance"),
+        clearance=number("clearance"),
+        threshold=number("threshold"),
         fail_on=fail_on,
-        ignore=tuple(approvals),
-        ignore_ids=tuple(id_approvals),
+        approvals=tuple(approvals),
         groups=groups,
     )
 
 
-def parse_fail_on(values: Iterable[str], *, path: str | None = None) -> list[str]:
-    """Statuses named in ``values`` (each a name or a comma list); ``none`` selects nothing.
+def parse_fail_on(values: Iterable[str], *, path: str | None = None) -> tuple[str, ...] | None:
+    """The statuses named in ``values`` (each a name or a comma list), checked.
+
+    ``none`` stands alone and means nothing fails the run (an empty tuple); no words at all give
+    None (the default applies).
 
     Raises
     ------
     ConfigError
-        For an unknown status name.
+        For an unknown word, or ``none`` beside a status.
+
+    Examples
+    --------
+    >>> parse_fail_on(["touching,clearance"])
+    ('touching', 'clearance')
+    >>> parse_fail_on(["none"])
+    ()
     """
-    out: list[str] = []
+    words: list[str] = []
     for value in values:
         for word in value.split(","):
             word = word.strip().lower()
-            if not word or word == "none":
+            if not word:
                 continue
-            if word not in FAIL_ON_CHOICES:
+            if word != "none" and word not in FAIL_ON_CHOICES:
                 raise ConfigError(
-                    path, f"unknown fail-on status {word!r} (choose from "
-                    f"{', '.join(FAIL_ON_CHOICES)}, none)"
+                    path,
+                    f"unknown fail-on status {word!r} (choose from {', '.join(FAIL_ON_CHOICES)}, "
+                    "none)",
                 )
-            if word not in out:
-                out.append(word)
-    return out
+            if word not in words:
+                words.append(word)
+    if "none" in words:
+        if len(words) > 1:
+            others = ", ".join(w for w in words if w != "none")
+            raise ConfigError(path, f"fail-on 'none' contradicts {others}: give one or the other")
+        return ()
+    return tuple(words) if words else None
+
+
+def checked_number(
+    name: str, value, low: float, high: float = math.inf, *, path: str | None = None
+) -> float:
+    """``value`` as a float, refused unless finite and within ``[low, high]``.
+
+    Raises
+    ------
+    ConfigError
+        Naming the setting and the value (NaN and infinities included).
+    """
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise ConfigError(path, f"{name} must be a number, not {value!r}") from None
+    if not math.isfinite(number):
+        raise ConfigError(path, f"{name} must be a finite number, not {value}")
+    if not low <= number <= high:
+        limits = f"at least {low:g}" if high == math.inf else f"in [{low:g}, {high:g}]"
+        raise ConfigError(path, f"{name} = {value} is out of range: must be {limits}")
+    return number

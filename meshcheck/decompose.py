@@ -163,30 +163,44 @@ def cover_triangles(
         return pieces
 
     planes = [_hull_planes(p) for p in pieces]
-    for _ in range(3):
-        inside = _excess(vertices, planes) <= tolerance
-        covered = (inside[faces[:, 0]] & inside[faces[:, 1]] & inside[faces[:, 2]]).any(axis=1)
-        missing = np.flatnonzero(~covered)
+    for attempt in range(4):
+        missing = _uncovered(vertices, faces, planes, tolerance)
         if not len(missing):
-            return pieces
+            break
         centroids = vertices[faces[missing]].mean(axis=1)
         target = np.argmin(_excess(centroids, planes), axis=1)
         for k in np.unique(target):
-            extra = vertices[np.unique(faces[missing[target == k]])]
-            pieces[k] = _hull_vertices(np.concatenate([pieces[k], extra]))
-            planes[k] = _hull_planes(pieces[k])
-    # qhull dropped a point it judged inside within its own precision: keep the raw vertices, the
-    # piece's hull then contains the triangle by definition.
+            extra = np.concatenate([pieces[k], vertices[np.unique(faces[missing[target == k]])]])
+            if attempt < 3:
+                pieces[k] = _hull_vertices(extra)
+                planes[k] = _hull_planes(pieces[k])
+            else:
+                # qhull dropped a point it judged inside within its own precision: keep the raw
+                # vertices, the piece's hull then contains the triangle by definition.
+                pieces[k] = extra
+    return pieces
+
+
+def covers(vertices: np.ndarray, faces: np.ndarray, pieces: Sequence[np.ndarray]) -> bool:
+    """True when every triangle lies inside one of the convex ``pieces`` (``cover_triangles``'
+    condition, with its tolerance): the check a cached decomposition must pass to be used."""
+    vertices = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
+    faces = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    if not len(faces):
+        return True
+    if not pieces:
+        return False
+    span = np.ptp(vertices, axis=0)
+    tolerance = COVER_TOLERANCE * max(float(np.linalg.norm(span)), 1e-300)
+    planes = [_hull_planes(np.asarray(p, dtype=np.float64).reshape(-1, 3)) for p in pieces]
+    return not len(_uncovered(vertices, faces, planes, tolerance))
+
+
+def _uncovered(vertices, faces, planes, tolerance) -> np.ndarray:
+    """Indices of the triangles no piece holds all three vertices of."""
     inside = _excess(vertices, planes) <= tolerance
     covered = (inside[faces[:, 0]] & inside[faces[:, 1]] & inside[faces[:, 2]]).any(axis=1)
-    missing = np.flatnonzero(~covered)
-    if len(missing):
-        centroids = vertices[faces[missing]].mean(axis=1)
-        target = np.argmin(_excess(centroids, planes), axis=1)
-        for k in np.unique(target):
-            extra = vertices[np.unique(faces[missing[target == k]])]
-            pieces[k] = np.concatenate([pieces[k], extra])
-    return pieces
+    return np.flatnonzero(~covered)
 
 
 def _hull_vertices(points: np.ndarray) -> np.ndarray:
@@ -357,7 +371,9 @@ def decompose_bodies(
         for digest in distinct:
             keys[digest] = cache_key(digest, settings)
             hit = cache.get(keys[digest])
-            if hit is not None:
+            # The cache is input from outside: an entry is used only when its pieces cover every
+            # triangle of the mesh, which is all the filter's exactness rests on.
+            if hit is not None and covers(*distinct[digest], hit):
                 pieces_of[digest] = hit
     done = len(pieces_of)
     if progress is not None and done:

@@ -75,7 +75,7 @@ def export_clashes(path: str, bodies: Sequence[Body], findings: Sequence[results
         The file cannot be written.
     """
     by_name = {b.name: b for b in bodies}
-    clashes = [f for f in findings if f.status == results.INTERFERENCE]
+    clashes = [f for f in findings if f.status == results.Verdict.INTERFERENCE]
     clashing = {name for f in clashes for name in (f.a, f.b)}
     scene = trimesh.Scene()
     for body in bodies:

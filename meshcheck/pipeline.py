@@ -1,14 +1,20 @@
-"""The check, stage by stage: load -> hulls -> pieces -> GJK filter -> exact verdicts -> findings.
+"""The check, stage by stage: load -> broad phase -> hulls -> pieces -> verify -> approve.
 
 Each stage narrows the part pairs the next one looks at:
 
-1. broad phase on the parts' boxes, grown by the reach (clearance + tolerance);
-2. GJK on whole-part convex hulls: a part's mesh lies inside its hull, so pairs whose hulls stay
-   beyond the reach are clear, and parts that meet nobody are never decomposed;
-3. GJK on the convex pieces of the remaining parts; the pieces cover every triangle of their part,
-   so pairs whose pieces stay beyond the reach have surfaces beyond the reach: they are clear
-   unless one part is buried inside the other, which the verify stage decides with one point;
-4. the verify stage decides the rest on the real meshes.
+1. ``candidate_pairs`` on the parts' boxes, grown by the reach (clearance + tolerance), then the
+   groups rule;
+2. ``near_pairs``: GJK on whole-part convex hulls. A part's mesh lies inside its hull, so pairs
+   whose hulls stay beyond the reach are clear, and parts that meet nobody are never decomposed;
+3. ``decompose_parts`` then ``surfaces_near``: GJK on the convex pieces of the remaining parts.
+   The pieces cover every triangle of their part, so pairs whose pieces stay beyond the reach have
+   surfaces beyond the reach: they are clear unless one part is buried inside the other, which the
+   verify stage decides with one point per shell;
+4. ``verify_pairs`` decides the rest on the real meshes;
+5. ``approve`` marks approved findings, in one place.
+
+Every pair is decided with its own tolerance (``settings.pair_tolerances``) unless the user gave
+one.
 """
 
 from __future__ import annotations
@@ -16,114 +22,87 @@ from __future__ import annotations
 import dataclasses
 import os
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
 from . import verify
 from .broadphase import candidate_pairs
-from .config import Approval, Config, Groups, approval_reason, default_tolerance, load_config
-from .decompose import DEFAULT_THRESHOLD, decompose_bodies, local_geometry
+from .config import Approval, approval_reason
+from .decompose import decompose_bodies, local_geometry
 from .errors import MeshcheckWarning
-from .geometry import Status, pack_convex, query_pairs
+from .geometry import ConvexPack, Status, pack_convex, query_pairs
 from .load import Body, load_bodies
 from .progress import Progress
-from .results import CheckResult, Finding, Part, finding_id
+from .results import CheckResult, Finding, Part, Verdict, finding_id
+from .settings import (
+    FLOAT32_ULPS,
+    TOLERANCE_FRACTION,
+    Settings,
+    pair_tolerances,
+    part_sizes,
+)
+
+_EPS32 = float(np.finfo(np.float32).eps)
 
 
 def check(
-    paths: Sequence[str],
+    paths: str | os.PathLike | Sequence[str | os.PathLike],
+    settings: Settings | None = None,
     *,
-    clearance: float | None = None,
-    tolerance: float | None = None,
-    threshold: float | None = None,
-    cache_dir: str | None = None,
-    jobs: int | None = None,
-    approvals: Sequence[Approval] = (),
-    groups: Groups | None = None,
-    export: str | None = None,
-    split: bool = False,
-    config: Config | str | os.PathLike | None = None,
+    config="auto",
+    **options,
 ) -> CheckResult:
     """Check the parts in ``paths`` for interference, contact and (optionally) clearance.
 
     Parameters
     ----------
-    paths : sequence of str or path-like (or a single one)
+    paths : path or sequence of paths
         Mesh files and directories (every supported mesh file below them). Each body becomes a
         part named by its path, ``PATH#NODE`` inside multi-body files.
-    clearance : float, optional
-        Also report part pairs whose true distance is below this, model units.
-    tolerance : float, optional
-        Overlaps and gaps below this count as touching, model units. Default: 1e-5 of the
-        assembly's bounding-box diagonal.
-    threshold : float, optional
-        CoACD concavity threshold; default ``decompose.DEFAULT_THRESHOLD``.
-    cache_dir : str, optional
-        Directory for cached decompositions; None disables the cache.
-    jobs : int, optional
-        Worker processes for decomposition; default all cores.
-    approvals : sequence of Approval
-        Findings on matching pairs are reported as approved and do not fail the run; added to
-        the configuration's ``ignore`` rules.
-    groups : Groups, optional
-        Check only pairs across the two groups; replaces the configuration's ``groups``.
-    export : str, optional
-        Write the assembly with the clashes marked to this glTF binary (.glb) file.
-    split : bool
-        Make each disconnected shell of a body its own part (``NAME#1``, ``NAME#2``...).
-    config : Config or path, optional
-        Settings from a configuration file (``config.load_config``); an option passed here
-        wins over the file. Not searched for: the command line does that (``find_config``).
-        Its ``ignore`` rules by ``id`` approve the finding with that stable ID.
+    settings : Settings, optional
+        Everything the check runs with. When not given, it is built from ``options`` and the
+        configuration file, exactly as the command line does (``Settings.from_options``).
+    config : "auto", Config, path or None
+        Only without ``settings``: ``"auto"`` (default) reads the ``meshcheck.toml`` or
+        ``pyproject.toml [tool.meshcheck]`` found from the working directory upward, as the
+        command line does; None reads none.
+    **options
+        Keyword options of ``Settings.from_options``: ``clearance``, ``tolerance``,
+        ``threshold``, ``fail_on``, ``approvals``, ``groups``, ``split``, ``units``,
+        ``cache_dir`` (default: the user's cache directory, as on the command line),
+        ``use_cache``, ``jobs``.
 
     Returns
     -------
     CheckResult
-        Its ``warnings`` list the MeshcheckWarnings raised on the way, which are also re-issued.
+        With ``passed``/``failed`` as the command line decides them. Its ``warnings`` list the
+        MeshcheckWarnings raised on the way, which are also re-issued.
 
     Raises
     ------
     InputError
         An input cannot be checked.
     ConfigError
-        The configuration file is invalid.
+        An option or the configuration file is invalid.
     """
     if isinstance(paths, str | os.PathLike):
         paths = [paths]
     paths = [os.fspath(p) for p in paths]
-    if config is not None and not isinstance(config, Config):
-        config = load_config(config)
-    if config is not None:
-        clearance = config.clearance if clearance is None else clearance
-        tolerance = config.tolerance if tolerance is None else tolerance
-        threshold = config.threshold if threshold is None else threshold
-        approvals = (*approvals, *config.ignore)
-        approved_ids = dict(reversed(config.ignore_ids))  # the first rule for an ID wins
-        groups = config.groups if groups is None else groups
-    else:
-        approved_ids = {}
-    if threshold is None:
-        threshold = DEFAULT_THRESHOLD
+    if settings is None:
+        settings = Settings.from_options(config=config, **options)
+    elif options:
+        raise TypeError("give either settings or options, not both")
 
     caught: list[warnings.WarningMessage] = []
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", MeshcheckWarning)
             with Progress("loading", 0) as bar:
-                bodies = load_bodies(paths, split=split, progress=bar.update_total)
-            result = check_bodies(
-                bodies,
-                clearance=clearance,
-                tolerance=tolerance,
-                threshold=threshold,
-                cache_dir=cache_dir,
-                jobs=jobs,
-                approvals=approvals,
-                approved_ids=approved_ids,
-                groups=groups,
-                export=export,
-            )
+                bodies = load_bodies(
+                    paths, split=settings.split, units=settings.units, progress=bar.update_total
+                )
+            result = check_bodies(bodies, settings)
     finally:
         # re-issue outside the recorder, so callers' filters (and the CLI) see them as usual
         for w in caught:
@@ -132,118 +111,264 @@ def check(
     return dataclasses.replace(result, warnings=[*result.warnings, *messages])
 
 
-def check_bodies(
-    bodies: Sequence[Body],
-    *,
-    clearance: float | None = None,
-    tolerance: float | None = None,
-    threshold: float = DEFAULT_THRESHOLD,
-    cache_dir: str | None = None,
-    jobs: int | None = None,
-    approvals: Sequence[Approval] = (),
-    approved_ids: Mapping[str, str] | None = None,
-    groups: Groups | None = None,
-    export: str | None = None,
-) -> CheckResult:
+def check_bodies(bodies: Sequence[Body], settings: Settings | None = None, **fields) -> CheckResult:
     """Run the check on bodies already loaded; see ``check``.
 
-    ``approved_ids`` maps stable finding IDs to the reason they are approved; a pattern in
-    ``approvals`` that matches the pair takes precedence.
+    ``settings`` defaults to ``Settings(**fields)`` (there ``cache_dir=None`` means no cache).
     """
-    n = len(bodies)
+    if settings is None:
+        settings = Settings(**fields)
+    names = [_names(b) for b in bodies]
+    _check_patterns(settings, names)
+
     hulls = pack_convex(_world_hulls(bodies), is_hull=True)
-    if tolerance is None:
-        tolerance = default_tolerance(hulls.lower.min(axis=0), hulls.upper.max(axis=0))
-    reach = tolerance + (clearance or 0.0)
+    diagonal, magnitude = part_sizes(hulls.lower, hulls.upper)
+    pairs = select_pairs(hulls, settings, names, diagonal, magnitude)
+    tolerance = _tolerances(settings, diagonal, magnitude, pairs)
+    reach = tolerance + (settings.clearance or 0.0)
 
-    # Whole-part hulls: a mesh lies inside its hull, so a pair of hulls beyond reach is clear.
-    pairs = candidate_pairs(hulls.lower, hulls.upper, margin=reach)
-    if groups is not None:
-        pairs = pairs[groups.pair_mask([b.name for b in bodies], pairs)]
     hull_query = query_pairs(hulls, pairs, tolerance=tolerance, depth=False, max_distance=reach)
-    near = pairs[_within(hull_query, reach)]
+    near = within(hull_query, reach)
+    pairs_near, tol_near, reach_near = pairs[near], tolerance[near], reach[near]
+    pieces, owner, piece_count = decompose_parts(bodies, np.unique(pairs_near), settings)
+    near_surfaces = surfaces_near(pieces, owner, pairs_near, tol_near, reach_near)
 
-    # Convex pieces, only for parts whose hull comes within reach of another part.
-    needed = np.unique(near)
-    with Progress("decomposing", len({id(bodies[i].mesh) for i in needed})) as bar:
-        piece_lists = decompose_bodies(
-            [bodies[i] for i in needed],
-            threshold=threshold,
-            cache_dir=cache_dir,
-            jobs=jobs,
-            progress=bar.update,
-        )
-    piece_count = np.zeros(n, dtype=np.int64)
-    piece_count[needed] = [len(p) for p in piece_lists]
-    owner = np.repeat(needed, piece_count[needed]).astype(np.int64)
-    # Pieces may carry extra interior points (triangle cover); a support scan over a superset of
-    # the hull's vertices is still exact, so Qhull need not run again.
-    pieces = pack_convex([p for plist in piece_lists for p in plist], is_hull=True)
-
-    # Piece pairs of two different parts whose hulls are near; a part pair with a piece pair within
-    # reach (or undecided) may have surfaces within reach.
-    piece_pairs = candidate_pairs(pieces.lower, pieces.upper, margin=reach, owner=owner)
-    owners = np.sort(owner[piece_pairs], axis=1)
-    keys = owners[:, 0] * n + owners[:, 1]
-    near_keys = near[:, 0] * n + near[:, 1]
-    piece_pairs, keys = piece_pairs[np.isin(keys, near_keys)], keys[np.isin(keys, near_keys)]
-    piece_query = query_pairs(
-        pieces, piece_pairs, tolerance=tolerance, depth=False, max_distance=reach
+    findings = verify_pairs(bodies, pairs_near, tol_near, near_surfaces, settings)
+    findings = approve(
+        findings, settings.approvals, dict(zip([b.name for b in bodies], names, strict=True))
     )
-    hit = _within(piece_query, reach)
-    surfaces_near = set(np.unique(keys[hit]).tolist())
-
-    findings = []
-    memo: dict = {}  # per-mesh data verify reuses across pairs; the bodies outlive the loop
-    bar = Progress("checking", len(near))
-    for count, (i, j) in enumerate(near, start=1):
-        bar.update(count)
-        a, b = bodies[i], bodies[j]
-        verdict = verify.verify_pair(
-            a.world,
-            b.world,
-            tolerance=tolerance,
-            clearance=clearance,
-            surfaces_apart=int(i * n + j) not in surfaces_near,
-            memo=memo,
-        )
-        if verdict.status == verify.CLEAR:
-            continue
-        (name_a, digest_a), (name_b, digest_b) = sorted([(a.name, a.digest), (b.name, b.digest)])
-        fid = finding_id(name_a, digest_a, name_b, digest_b)
-        findings.append(
-            Finding(
-                a=name_a,
-                b=name_b,
-                status=verdict.status,
-                distance=verdict.distance,
-                depth=verdict.depth,
-                volume=verdict.volume,
-                location=verdict.location,
-                id=fid,
-                is_surface_only=verdict.is_surface_only,
-                approved=approval_reason(approvals, name_a, name_b)
-                or (approved_ids or {}).get(fid),
-            )
-        )
-    bar.close()
-    findings.sort(key=lambda f: (f.a, f.b))
     parts = [
         Part(b.name, b.path, len(b.mesh.faces), b.is_closed, int(piece_count[k]))
         for k, b in enumerate(bodies)
     ]
-    if export is not None:
-        from .export import export_clashes
-
-        export_clashes(export, bodies, findings)
     return CheckResult(
         findings=findings,
         parts=parts,
-        tolerance=tolerance,
-        clearance=clearance,
-        pairs_checked=len(pairs),
-        checked_pairs=[(bodies[i].name, bodies[j].name) for i, j in pairs],
+        settings=settings,
+        checked_pairs=[tuple(sorted((bodies[i].name, bodies[j].name))) for i, j in pairs],
+        bodies=tuple(bodies),
     )
+
+
+# ---------------------------------------------------------------------------------------------
+# Stages
+
+
+def select_pairs(
+    hulls: ConvexPack,
+    settings: Settings,
+    names: Sequence[tuple[str, ...]],
+    diagonal: np.ndarray,
+    magnitude: np.ndarray,
+) -> np.ndarray:
+    """Part pairs whose boxes come within reach, restricted by the groups rule; ``(k, 2)``.
+
+    The boxes grow by the largest tolerance any pair can get, so no pair within its own reach is
+    pruned.
+    """
+    if settings.tolerance is not None:
+        largest = settings.tolerance
+    elif len(diagonal):
+        largest = float(
+            max(TOLERANCE_FRACTION * diagonal.max(), FLOAT32_ULPS * _EPS32 * magnitude.max())
+        )
+    else:
+        largest = 0.0
+    pairs = candidate_pairs(hulls.lower, hulls.upper, margin=largest + (settings.clearance or 0.0))
+    if settings.groups is not None:
+        pairs = pairs[settings.groups.pair_mask(names, pairs)]
+    return pairs
+
+
+def within(result, reach: np.ndarray) -> np.ndarray:
+    """Mask of the pairs of a ``query_pairs`` answer that may come within ``reach``: every pair
+    not proven separated beyond it."""
+    return (result.status != Status.SEPARATED) | (result.distance <= reach)
+
+
+def decompose_parts(
+    bodies: Sequence[Body], needed: np.ndarray, settings: Settings
+) -> tuple[ConvexPack, np.ndarray, np.ndarray]:
+    """Convex pieces of the parts in ``needed`` (indices into ``bodies``).
+
+    Returns
+    -------
+    pieces : ConvexPack
+        The pieces of all needed parts, world coordinates, grouped by part.
+    owner : (p,) int64
+        The part index of each piece.
+    count : (n,) int64
+        Pieces per part; 0 for parts not needed.
+    """
+    with Progress("decomposing", len({id(bodies[i].mesh) for i in needed})) as bar:
+        piece_lists = decompose_bodies(
+            [bodies[i] for i in needed],
+            threshold=settings.threshold,
+            cache_dir=settings.cache_dir,
+            jobs=settings.jobs,
+            progress=bar.update,
+        )
+    count = np.zeros(len(bodies), dtype=np.int64)
+    count[needed] = [len(p) for p in piece_lists]
+    owner = np.repeat(needed, count[needed]).astype(np.int64)
+    # Pieces may carry extra interior points (triangle cover); a support scan over a superset of
+    # the hull's vertices is still exact, so Qhull need not run again.
+    pieces = pack_convex([p for plist in piece_lists for p in plist], is_hull=True)
+    return pieces, owner, count
+
+
+def surfaces_near(
+    pieces: ConvexPack,
+    owner: np.ndarray,
+    pairs: np.ndarray,
+    tolerance: np.ndarray,
+    reach: np.ndarray,
+) -> np.ndarray:
+    """Which part ``pairs`` have a piece pair within their ``reach`` (or undecided), ``(k,)`` bool.
+
+    A part pair without one has surfaces beyond its reach.
+    """
+    if len(pairs) == 0:
+        return np.zeros(0, dtype=bool)
+    piece_pairs = candidate_pairs(
+        pieces.lower, pieces.upper, margin=float(reach.max()), owner=owner
+    )
+    owners = np.sort(owner[piece_pairs], axis=1)
+    n = int(max(owner.max(), pairs.max())) + 1
+    part_key = pairs[:, 0] * n + pairs[:, 1]
+    order = np.argsort(part_key)
+    index = np.searchsorted(part_key, owners[:, 0] * n + owners[:, 1], sorter=order)
+    index = np.minimum(index, len(pairs) - 1)
+    row = order[index]
+    is_pair = part_key[row] == owners[:, 0] * n + owners[:, 1]
+    piece_pairs, row = piece_pairs[is_pair], row[is_pair]
+    query = query_pairs(
+        pieces, piece_pairs, tolerance=tolerance[row], depth=False, max_distance=reach[row]
+    )
+    hit = within(query, reach[row])
+    out = np.zeros(len(pairs), dtype=bool)
+    out[row[hit]] = True
+    return out
+
+
+def verify_pairs(
+    bodies: Sequence[Body],
+    pairs: np.ndarray,
+    tolerance: np.ndarray,
+    near_surfaces: np.ndarray,
+    settings: Settings,
+) -> list[Finding]:
+    """Decide each pair on the real meshes; a finding for each pair that is not clear, sorted."""
+    findings = []
+    memo: dict = {}  # per-mesh data verify reuses across pairs; the bodies outlive the loop
+    with Progress("checking", len(pairs)) as bar:
+        for count, ((i, j), tol, is_near) in enumerate(
+            zip(pairs, tolerance, near_surfaces, strict=True), start=1
+        ):
+            a, b = bodies[i], bodies[j]
+            verdict = verify.verify_pair(
+                a.world,
+                b.world,
+                tolerance=float(tol),
+                clearance=settings.clearance,
+                surfaces_apart=not is_near,
+                memo=memo,
+            )
+            bar.update(count)
+            if verdict.status == Verdict.CLEAR:
+                continue
+            (name_a, digest_a), (name_b, digest_b) = sorted(
+                [(a.name, a.digest), (b.name, b.digest)]
+            )
+            findings.append(
+                Finding(
+                    a=name_a,
+                    b=name_b,
+                    status=verdict.status,
+                    distance=verdict.distance,
+                    depth=verdict.depth,
+                    volume=verdict.volume,
+                    location=verdict.location,
+                    id=finding_id(name_a, digest_a, name_b, digest_b),
+                    is_surface_only=verdict.is_surface_only,
+                    tolerance=float(tol),
+                )
+            )
+    findings.sort(key=lambda f: (f.a, f.b))
+    return findings
+
+
+def approve(
+    findings: Sequence[Finding],
+    approvals: Sequence[Approval],
+    names: dict[str, tuple[str, ...]],
+) -> list[Finding]:
+    """The findings with the reason of the approval that applies to each (``approval_reason``).
+
+    ``names`` maps each part's name to all its names (full and relative) for pattern matching.
+    """
+    return [
+        dataclasses.replace(
+            f, approval_reason=approval_reason(approvals, names[f.a], names[f.b], f.id)
+        )
+        for f in findings
+    ]
+
+
+# ---------------------------------------------------------------------------------------------
+# Helpers
+
+
+def _names(body: Body) -> tuple[str, ...]:
+    """The names patterns are matched against: the full name, then the relative one."""
+    relative = getattr(body, "relative_name", None)
+    return (body.name,) if not relative or relative == body.name else (body.name, relative)
+
+
+def _check_patterns(settings: Settings, names: Sequence[tuple[str, ...]]) -> None:
+    """Refuse a groups side that matches no part; warn about approvals that match no part.
+
+    A check restricted to a group that matches nothing would check nothing and pass.
+    """
+    from .config import matches
+    from .errors import ConfigError
+
+    def examples() -> str:
+        shown = ", ".join(repr(n[-1]) for n in names[:3])
+        return f"parts are named like {shown}" + (" ..." if len(names) > 3 else "")
+
+    if settings.groups is not None:
+        for side in ("a", "b"):
+            patterns = getattr(settings.groups, side)
+            if not any(matches(p, n) for p in patterns for n in names):
+                where = settings.config_path or "groups"
+                raise ConfigError(
+                    where,
+                    f"groups.{side} ({', '.join(map(repr, patterns))}) matches no part; "
+                    + examples(),
+                )
+    for rule in settings.approvals:
+        if rule.id is not None:
+            continue
+        for pattern in (rule.a, rule.b):
+            if not any(matches(pattern, n) for n in names):
+                warnings.warn(
+                    MeshcheckWarning(
+                        f"{settings.config_path or 'approvals'}: ignore rule {rule.label} "
+                        f"({rule.reason}): {pattern!r} matches no part (a stale approval?)"
+                    ),
+                    stacklevel=3,
+                )
+                break
+
+
+def _tolerances(
+    settings: Settings, diagonal: np.ndarray, magnitude: np.ndarray, pairs: np.ndarray
+) -> np.ndarray:
+    """The touching tolerance of each pair: the user's, or the pair's own."""
+    if settings.tolerance is not None:
+        return np.full(len(pairs), settings.tolerance)
+    return pair_tolerances(diagonal, magnitude, pairs)
 
 
 def _world_hulls(bodies: Sequence[Body]) -> list[np.ndarray]:
@@ -273,8 +398,3 @@ def _world_hulls(bodies: Sequence[Body]) -> list[np.ndarray]:
             hull = hull @ transform[:3, :3].T + transform[:3, 3]
         out.append(hull)
     return out
-
-
-def _within(result, reach: float) -> np.ndarray:
-    """Mask of pairs that may come within ``reach``: not proven separated beyond it."""
-    return (result.status != Status.SEPARATED) | (result.distance <= reach)

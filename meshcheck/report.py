@@ -7,61 +7,50 @@ names and the two meshes' content), so a CI history can follow one finding acros
 from __future__ import annotations
 
 import json
-from collections.abc import Collection
 
 from .errors import ExitStatus
-from .results import CLEARANCE, INTERFERENCE, STATUSES, TOUCHING, CheckResult, Finding
+from .results import FINDING_STATUSES, CheckResult, Finding, Verdict
 
 FORMATS = ("text", "json", "junit", "github")
 
 
-def default_fail_on(result: CheckResult) -> tuple[str, ...]:
-    """Interference always fails the run; clearance violations too when a clearance is set."""
-    return (INTERFERENCE, CLEARANCE) if result.clearance is not None else (INTERFERENCE,)
+def exit_status(result: CheckResult) -> ExitStatus:
+    """``FAILED`` when an unapproved finding has a status in the run's ``fail_on``, else ``OK``."""
+    return ExitStatus.FAILED if result.failed else ExitStatus.OK
 
 
-def resolve_fail_on(result: CheckResult, fail_on: Collection[str] | None) -> tuple[str, ...]:
-    """``fail_on`` as a tuple, or the default for ``result`` when it is None."""
-    return default_fail_on(result) if fail_on is None else tuple(fail_on)
-
-
-def is_failing(finding: Finding, fail_on: Collection[str]) -> bool:
-    """True when ``finding`` fails the run: its status is in ``fail_on`` and it is not approved."""
-    return finding.status in fail_on and finding.approved is None
-
-
-def exit_status(result: CheckResult, *, fail_on: Collection[str] | None = None) -> ExitStatus:
-    """``FAILED`` when an unapproved finding has a status in ``fail_on``, else ``OK``."""
-    fail_on = resolve_fail_on(result, fail_on)
-    failed = any(is_failing(f, fail_on) for f in result.findings)
-    return ExitStatus.FAILED if failed else ExitStatus.OK
-
-
-def summary(result: CheckResult, *, fail_on: Collection[str] | None = None) -> dict:
-    """Counts by status, approved findings, and whether the run passes.
+def summary(result: CheckResult) -> dict:
+    """Counts by status, approved findings, the settings that decide, and whether the run passes.
 
     The keys named by a status (``interference``, ``touching``, ``clearance``) count unapproved
-    findings; ``required_clearance`` is the --clearance setting (None when not set).
+    findings; ``required_clearance`` is the --clearance setting (None when not set);
+    ``tolerance`` is the one the user set, None when each pair had its own (then every finding
+    carries the tolerance that decided it).
     """
-    fail_on = resolve_fail_on(result, fail_on)
-    counts = {status: result.count(status) for status in STATUSES}
+    counts = {str(status): result.count(status) for status in FINDING_STATUSES}
     return {
         "parts": len(result.parts),
-        "pairs_checked": result.pairs_checked,
+        "pairs_checked": len(result.checked_pairs),
         **counts,
-        "approved": sum(1 for f in result.findings if f.approved is not None),
-        "failed": sum(1 for f in result.findings if is_failing(f, fail_on)),
-        "fail_on": list(fail_on),
+        "approved": sum(1 for f in result.findings if f.is_approved),
+        "failed": sum(1 for f in result.findings if result.is_failing(f)),
+        "fail_on": [str(s) for s in result.fail_on],
         "tolerance": result.tolerance,
+        "tolerance_rule": "given" if result.tolerance is not None else _TOLERANCE_RULE,
         "required_clearance": result.clearance,
+        "config": result.settings.config_path,
         "warnings": list(result.warnings),
-        "passed": exit_status(result, fail_on=fail_on) == ExitStatus.OK,
+        "passed": result.passed,
     }
 
 
-def render(
-    result: CheckResult, fmt: str = "text", *, fail_on: Collection[str] | None = None
-) -> str:
+_TOLERANCE_RULE = (
+    "per pair: max(1e-5 x the smaller part's bounding-box diagonal, "
+    "8 float32 ulps of the pair's largest coordinate)"
+)
+
+
+def render(result: CheckResult, fmt: str = "text") -> str:
     """Render ``result`` in ``fmt`` (one of ``FORMATS``), ending with a newline."""
     renderers = {
         "text": render_text,
@@ -71,14 +60,14 @@ def render(
     }
     if fmt not in renderers:
         raise ValueError(f"unknown format {fmt!r}; choose from {', '.join(FORMATS)}")
-    return renderers[fmt](result, fail_on=fail_on)
+    return renderers[fmt](result)
 
 
-def render_json(result: CheckResult, *, fail_on: Collection[str] | None = None) -> str:
+def render_json(result: CheckResult) -> str:
     doc = {
         "results": [f.to_dict() for f in result.findings],
         "parts": [p.to_dict() for p in result.parts],
-        "summary": summary(result, fail_on=fail_on),
+        "summary": summary(result),
     }
     return json.dumps(doc, indent=2, sort_keys=False) + "\n"
 
@@ -98,26 +87,36 @@ def describe(finding: Finding) -> str:
     return detail
 
 
-def summary_line(result: CheckResult, *, fail_on: Collection[str] | None = None) -> str:
+def summary_line(result: CheckResult) -> str:
     """``PASS: 6 parts, 1 interference, ...`` without a newline."""
-    s = summary(result, fail_on=fail_on)
+    s = summary(result)
     verdict = "PASS" if s["passed"] else "FAIL"
-    parts = [f"{s[INTERFERENCE]} interference", f"{s[TOUCHING]} touching"]
+    parts = [f"{s[Verdict.INTERFERENCE]} interference", f"{s[Verdict.TOUCHING]} touching"]
     if result.clearance is not None:
-        parts.append(f"{s[CLEARANCE]} clearance (< {result.clearance:g})")
+        parts.append(f"{s[Verdict.CLEARANCE]} clearance (< {result.clearance:g})")
     if s["approved"]:
         parts.append(f"{s['approved']} approved")
     return (
         f"{verdict}: {len(result.parts)} parts, {', '.join(parts)} "
-        f"(tolerance {result.tolerance:.3g})"
+        f"(tolerance {_tolerance_text(result)})"
     )
 
 
-def render_text(result: CheckResult, *, fail_on: Collection[str] | None = None) -> str:
+def _tolerance_text(result: CheckResult) -> str:
+    if result.tolerance is not None:
+        return f"{result.tolerance:.3g}"
+    used = [f.tolerance for f in result.findings if f.tolerance is not None]
+    if not used:
+        return "per pair"
+    low, high = min(used), max(used)
+    return f"per pair, {low:.2g}" if low == high else f"per pair, {low:.2g}-{high:.2g}"
+
+
+def render_text(result: CheckResult) -> str:
     rows = []
     for f in result.findings:
-        status = f.status + (" (approved)" if f.approved else "")
-        detail = describe(f) + (f"  approved: {f.approved}" if f.approved else "")
+        status = str(f.status) + (" (approved)" if f.approval_reason else "")
+        detail = describe(f) + (f"  approved: {f.approval_reason}" if f.approval_reason else "")
         rows.append((f.id, status, f.a, f.b, detail))
     lines = []
     if rows:
@@ -125,11 +124,11 @@ def render_text(result: CheckResult, *, fail_on: Collection[str] | None = None) 
         widths = [max(len(r[k]) for r in [header, *rows]) for k in range(4)]
         for r in [header, *rows]:
             lines.append("  ".join(r[k].ljust(widths[k]) for k in range(4)) + "  " + r[4])
-    lines.append(summary_line(result, fail_on=fail_on))
+    lines.append(summary_line(result))
     return "\n".join(lines) + "\n"
 
 
-def render_junit(result: CheckResult, *, fail_on: Collection[str] | None = None) -> str:
+def render_junit(result: CheckResult) -> str:
     """JUnit XML: one test case per finding, plus one per pair (or part) found clear.
 
     A finding that fails the run is a ``<failure>``, an approved one is ``<skipped>``, others
@@ -139,7 +138,6 @@ def render_junit(result: CheckResult, *, fail_on: Collection[str] | None = None)
     """
     from xml.etree import ElementTree as ET
 
-    fail_on = resolve_fail_on(result, fail_on)
     paths = {p.name: p.path for p in result.parts}
     cases = []
     for f in result.findings:
@@ -154,9 +152,9 @@ def render_junit(result: CheckResult, *, fail_on: Collection[str] | None = None)
         props = ET.SubElement(case, "properties")
         for key, value in (("id", f.id), ("status", f.status), ("a", f.a), ("b", f.b)):
             ET.SubElement(props, "property", name=key, value=value)
-        if f.approved is not None:
-            ET.SubElement(case, "skipped", message=f"approved: {f.approved}")
-        elif is_failing(f, fail_on):
+        if f.is_approved:
+            ET.SubElement(case, "skipped", message=f"approved: {f.approval_reason}")
+        elif result.is_failing(f):
             failure = ET.SubElement(case, "failure", message=message, type=f.status)
             failure.text = json.dumps(f.to_dict(), indent=2)
         else:
@@ -175,8 +173,11 @@ def render_junit(result: CheckResult, *, fail_on: Collection[str] | None = None)
             if part.name not in named:
                 cases.append(
                     ET.Element(
-                        "testcase", classname="meshcheck.clear",
-                        name=f"{part.name}: no findings", file=part.path, time="0",
+                        "testcase",
+                        classname="meshcheck.clear",
+                        name=f"{part.name}: no findings",
+                        file=part.path,
+                        time="0",
                     )
                 )
 
@@ -194,10 +195,10 @@ def render_junit(result: CheckResult, *, fail_on: Collection[str] | None = None)
     props = ET.SubElement(suite, "properties")
     settings = {
         "parts": len(result.parts),
-        "pairs_checked": result.pairs_checked,
+        "pairs_checked": len(result.checked_pairs),
         "tolerance": result.tolerance,
         "clearance": result.clearance,
-        "fail_on": ",".join(fail_on),
+        "fail_on": ",".join(result.fail_on),
     }
     for key, value in settings.items():
         ET.SubElement(props, "property", name=key, value="" if value is None else str(value))
@@ -219,22 +220,21 @@ def _gh_property(text: str) -> str:
     return _gh_data(text).replace(":", "%3A").replace(",", "%2C")
 
 
-def render_github(result: CheckResult, *, fail_on: Collection[str] | None = None) -> str:
+def render_github(result: CheckResult) -> str:
     """GitHub Actions workflow commands, then the summary line.
 
     ``::error`` for each finding that fails the run, ``::notice`` for approved findings and
     touching pairs that do not fail it, ``::warning`` for other findings and input warnings.
     Annotations point at the file of the pair's first part.
     """
-    fail_on = resolve_fail_on(result, fail_on)
     paths = {p.name: p.path for p in result.parts}
     lines = []
     for f in result.findings:
-        if f.approved is not None:
-            level, extra = "notice", f" (approved: {f.approved})"
-        elif is_failing(f, fail_on):
+        if f.is_approved:
+            level, extra = "notice", f" (approved: {f.approval_reason})"
+        elif result.is_failing(f):
             level, extra = "error", ""
-        elif f.status == TOUCHING:
+        elif f.status == Verdict.TOUCHING:
             level, extra = "notice", ""  # contact is usually by design: keep it out of warnings
         else:
             level, extra = "warning", ""
@@ -246,5 +246,5 @@ def render_github(result: CheckResult, *, fail_on: Collection[str] | None = None
         )
     for w in result.warnings:
         lines.append(f"::warning title=meshcheck input::{_gh_data(w)}")
-    lines.append(summary_line(result, fail_on=fail_on))
+    lines.append(summary_line(result))
     return "\n".join(lines) + "\n"

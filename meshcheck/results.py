@@ -2,15 +2,33 @@
 
 from __future__ import annotations
 
+import enum
 import hashlib
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-INTERFERENCE = "interference"
-TOUCHING = "touching"
-CLEARANCE = "clearance"
-STATUSES = (INTERFERENCE, TOUCHING, CLEARANCE)
+if TYPE_CHECKING:
+    from .settings import Settings
+
+
+class Verdict(enum.StrEnum):
+    """What the real meshes of a part pair say: the one vocabulary of statuses.
+
+    The first three are findings (they appear in reports and can fail the run); ``CLEAR`` pairs
+    are not reported. Members compare equal to their lower-case names, so JSON and the
+    configuration file use the plain words.
+    """
+
+    INTERFERENCE = "interference"
+    TOUCHING = "touching"
+    CLEARANCE = "clearance"
+    CLEAR = "clear"
+
+
+#: Statuses a finding can have, most severe first.
+FINDING_STATUSES = (Verdict.INTERFERENCE, Verdict.CLEARANCE, Verdict.TOUCHING)
 
 
 @dataclass(frozen=True)
@@ -45,8 +63,8 @@ class Finding:
     ----------
     a, b : str
         Part names, ``a < b``.
-    status : str
-        ``"interference"``, ``"touching"`` or ``"clearance"``.
+    status : Verdict
+        ``INTERFERENCE``, ``TOUCHING`` or ``CLEARANCE``.
     distance : float
         True minimum distance between the two meshes, model units; 0 when they meet.
     depth : float or None
@@ -59,33 +77,41 @@ class Finding:
         Stable identifier: sorted part names and the two meshes' content.
     is_surface_only : bool
         True when a mesh is not closed and the verdict rests on surfaces alone.
-    approved : str or None
-        The reason from the configuration when the finding is an approved exception.
+    approval_reason : str or None
+        The reason from the approval rule when the finding is an approved exception.
+    tolerance : float or None
+        The touching tolerance that decided this pair, model units.
     """
 
     a: str
     b: str
-    status: str
+    status: Verdict
     distance: float
     depth: float | None = None
     volume: float | None = None
     location: Location | None = None
     id: str = ""
     is_surface_only: bool = False
-    approved: str | None = None
+    approval_reason: str | None = None
+    tolerance: float | None = None
+
+    @property
+    def is_approved(self) -> bool:
+        return self.approval_reason is not None
 
     def to_dict(self) -> dict:
         return {
             "id": self.id,
             "a": self.a,
             "b": self.b,
-            "status": self.status,
+            "status": str(self.status),
             "distance": float(self.distance),
             "depth": None if self.depth is None else float(self.depth),
             "volume": None if self.volume is None else float(self.volume),
             "location": None if self.location is None else self.location.to_dict(),
             "surface_only": self.is_surface_only,
-            "approved": self.approved,
+            "approved": self.approval_reason,
+            "tolerance": None if self.tolerance is None else float(self.tolerance),
         }
 
 
@@ -111,24 +137,59 @@ class Part:
 
 @dataclass(frozen=True)
 class CheckResult:
-    """Everything one check found, plus the settings it ran with.
+    """Everything one check found, and the settings it ran with.
 
-    ``pairs_checked`` counts the candidate part pairs after the broad phase; ``checked_pairs``
-    names them (sorted names ``(a, b)``) when the pipeline records them, for reports that list
-    every pair checked. ``warnings`` holds the messages of the MeshcheckWarnings of the run.
+    Attributes
+    ----------
+    findings : list of Finding
+        Sorted by part names.
+    parts : list of Part
+    settings : Settings
+        What the check ran with; its ``fail_on`` decides ``passed``.
+    checked_pairs : list of (str, str)
+        The part pairs the broad phase left to check (sorted names), clear ones included.
+    warnings : list of str
+        The messages of the run's MeshcheckWarnings.
+    bodies : tuple of load.Body
+        The parts' geometry, for outputs that draw them (``--export``); not compared.
     """
 
     findings: list[Finding]
     parts: list[Part]
-    tolerance: float
-    clearance: float | None
-    pairs_checked: int = 0
-    warnings: list[str] = field(default_factory=list)
+    settings: Settings
     checked_pairs: list[tuple[str, str]] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    bodies: tuple = field(default=(), repr=False, compare=False)
+
+    @property
+    def tolerance(self) -> float | None:
+        """The touching tolerance the user set, or None when each pair had its own."""
+        return self.settings.tolerance
+
+    @property
+    def clearance(self) -> float | None:
+        return self.settings.clearance
+
+    @property
+    def fail_on(self) -> tuple[Verdict, ...]:
+        return self.settings.fail_on
 
     def count(self, status: str) -> int:
         """Number of unapproved findings with this status."""
-        return sum(1 for f in self.findings if f.status == status and f.approved is None)
+        return sum(1 for f in self.findings if f.status == status and not f.is_approved)
+
+    def is_failing(self, finding: Finding) -> bool:
+        """True when ``finding`` fails the run: unapproved, with a status in ``fail_on``."""
+        return finding.status in self.settings.fail_on and not finding.is_approved
+
+    @property
+    def failed(self) -> bool:
+        """True when an unapproved finding has a status that fails the run."""
+        return any(self.is_failing(f) for f in self.findings)
+
+    @property
+    def passed(self) -> bool:
+        return not self.failed
 
 
 def finding_id(name_a: str, digest_a: str, name_b: str, digest_b: str) -> str:

@@ -32,8 +32,7 @@ from .geometry.triangles import (
     winding_numbers,
 )
 from .load.mesh import is_closed
-
-CLEAR = "clear"
+from .results import Verdict
 
 # Faces cast inward to seed the inscribed-ball search; caps the cost on large overlaps.
 _MAX_SEEDS = 1024
@@ -44,13 +43,13 @@ _MAX_SURFACE_PROBES = 4096
 
 
 @dataclass(frozen=True)
-class Verdict:
+class PairVerdict:
     """What the real meshes of one part pair say.
 
     Attributes
     ----------
     status : str
-        ``results.INTERFERENCE``, ``results.TOUCHING``, ``results.CLEARANCE`` or ``CLEAR``.
+        ``INTERFERENCE``, ``TOUCHING``, ``CLEARANCE`` or ``CLEAR`` (``results.Verdict``).
     distance : float
         True minimum distance between the two meshes, model units; 0 when they interfere or their
         surfaces cross. For a ``CLEAR`` verdict it is the exact distance when the surfaces come
@@ -87,7 +86,7 @@ def verify_pair(
     clearance: float | None,
     surfaces_apart: bool = False,
     memo: dict | None = None,
-) -> Verdict:
+) -> PairVerdict:
     """Decide whether two meshes interfere, touch, come closer than ``clearance``, or are clear.
 
     Parameters
@@ -108,7 +107,7 @@ def verify_pair(
 
     Returns
     -------
-    Verdict
+    PairVerdict
         ``interference`` when the parts share a solid thicker than ``tolerance`` (including a part
         buried inside the other with no surfaces crossing), or, for a mesh that is not closed, when
         the surfaces cross by more than ``tolerance``; ``touching`` when they meet within
@@ -120,7 +119,7 @@ def verify_pair(
     >>> a = trimesh.creation.box(extents=[1, 1, 1])
     >>> b = trimesh.creation.box(extents=[1, 1, 1]).apply_translation([0.7, 0, 0])
     >>> v = verify_pair(a, b, tolerance=1e-6, clearance=None)
-    >>> v.status, round(v.depth, 6), round(v.volume, 6)
+    >>> str(v.status), round(v.depth, 6), round(v.volume, 6)
     ('interference', 0.3, 0.3)
     """
     tolerance = float(tolerance)
@@ -143,7 +142,7 @@ def verify_pair(
             return _interference(
                 meshes, tolerance=tolerance, is_closed=is_closed, distance=0.0, near=None
             )
-        return Verdict(CLEAR, math.inf, is_surface_only=not is_closed)
+        return PairVerdict(Verdict.CLEAR, math.inf, is_surface_only=not is_closed)
 
     near = _near_pairs(meshes, reach)
     distance = float(near.distance.min()) if len(near.distance) else math.inf
@@ -160,8 +159,10 @@ def verify_pair(
         k = int(np.argmin(near.distance))
         p, q = near.point_a[k] + origin, near.point_b[k] + origin
         where = results.Location(0.5 * (p + q), np.minimum(p, q), np.maximum(p, q))
-        return Verdict(results.CLEARANCE, distance, location=where, is_surface_only=not is_closed)
-    return Verdict(CLEAR, distance, is_surface_only=not is_closed)
+        return PairVerdict(
+            Verdict.CLEARANCE, distance, location=where, is_surface_only=not is_closed
+        )
+    return PairVerdict(Verdict.CLEAR, distance, is_surface_only=not is_closed)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -392,7 +393,7 @@ def _ascend_ball(v: np.ndarray, f: np.ndarray, x: np.ndarray, r: float) -> float
 
 def _interference(
     m: _Pair, *, tolerance: float, is_closed: bool, distance: float, near: _Near | None
-) -> Verdict:
+) -> PairVerdict:
     """Interference or touching, for meshes that meet or where one may be buried in the other."""
     if is_closed:
         solid = shared_solid(m.va, m.fa, m.vb, m.fb)
@@ -401,7 +402,7 @@ def _interference(
     return _surface_verdict(m, tolerance=tolerance, distance=distance, near=near)
 
 
-def _solid_verdict(m: _Pair, solid, *, tolerance: float, distance: float, near) -> Verdict:
+def _solid_verdict(m: _Pair, solid, *, tolerance: float, distance: float, near) -> PairVerdict:
     v, f = solid
     depth = solid_depth(v, f, at_most=tolerance)
     if depth > tolerance:
@@ -409,32 +410,32 @@ def _solid_verdict(m: _Pair, solid, *, tolerance: float, distance: float, near) 
         where = results.Location(
             centroid + m.origin, v.min(axis=0) + m.origin, v.max(axis=0) + m.origin
         )
-        return Verdict(results.INTERFERENCE, 0.0, depth=depth, volume=volume, location=where)
-    return Verdict(results.TOUCHING, distance, location=_contact_region(m, near, tolerance))
+        return PairVerdict(Verdict.INTERFERENCE, 0.0, depth=depth, volume=volume, location=where)
+    return PairVerdict(Verdict.TOUCHING, distance, location=_contact_region(m, near, tolerance))
 
 
-def _surface_verdict(m: _Pair, *, tolerance: float, distance: float, near) -> Verdict:
+def _surface_verdict(m: _Pair, *, tolerance: float, distance: float, near) -> PairVerdict:
     """Verdict from surfaces alone: they interfere when they pass through each other by more
     than the tolerance, or when a surface lies deeper than that inside the other mesh."""
     if near is None:  # surfaces apart: only a buried shell brings us here
         lo = np.maximum(m.va.min(axis=0), m.vb.min(axis=0)) + m.origin
         hi = np.minimum(m.va.max(axis=0), m.vb.max(axis=0)) + m.origin
         where = results.Location(0.5 * (lo + hi), lo, hi)
-        return Verdict(results.INTERFERENCE, 0.0, location=where, is_surface_only=True)
+        return PairVerdict(Verdict.INTERFERENCE, 0.0, location=where, is_surface_only=True)
     crossing = near.strength > tolerance
     if crossing.any():
         points = np.concatenate([near.point_a[crossing], near.point_b[crossing]]) + m.origin
         where = results.Location(points.mean(axis=0), points.min(axis=0), points.max(axis=0))
-        return Verdict(results.INTERFERENCE, 0.0, location=where, is_surface_only=True)
+        return PairVerdict(Verdict.INTERFERENCE, 0.0, location=where, is_surface_only=True)
     deep = _deep_points(m, near, tolerance)
     if len(deep) or _is_buried(m):
         where = None
         if len(deep):
             deep = deep + m.origin
             where = results.Location(deep.mean(axis=0), deep.min(axis=0), deep.max(axis=0))
-        return Verdict(results.INTERFERENCE, 0.0, location=where, is_surface_only=True)
-    return Verdict(
-        results.TOUCHING,
+        return PairVerdict(Verdict.INTERFERENCE, 0.0, location=where, is_surface_only=True)
+    return PairVerdict(
+        Verdict.TOUCHING,
         distance,
         location=_contact_region(m, near, tolerance),
         is_surface_only=True,

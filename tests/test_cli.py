@@ -68,7 +68,20 @@ def test_no_files_is_a_usage_error():
 
 @pytest.mark.parametrize(
     ("option", "value"),
-    [("--format", "yaml"), ("--fail-on", "interference,overlap"), ("--clearance", "-1")],
+    [
+        ("--format", "yaml"),
+        ("--fail-on", "interference,overlap"),
+        ("--fail-on", "none,touching"),
+        ("--clearance", "-1"),
+        ("--clearance", "nan"),
+        ("--clearance", "inf"),
+        ("--tolerance", "nan"),
+        ("--tolerance", "inf"),
+        ("--tolerance", "-0.1"),
+        ("--threshold", "nan"),
+        ("--threshold", "2"),
+        ("--jobs", "0"),
+    ],
 )
 def test_bad_option_is_a_usage_error(tmp_path, option, value):
     result = run([option, value, tmp_path / "a.stl"])
@@ -293,7 +306,9 @@ def test_clearance_violation_fails(in_root, cache_dir):
     assert finding["distance"] == pytest.approx(10.83, abs=0.01)
     assert (doc["summary"]["clearance"], doc["summary"]["required_clearance"]) == (1, 11.0)
     assert run([*args, "--clearance", "10"]).exit_code == 0
-    assert run([*args, "--clearance", "11", "--fail-on", "interference"]).exit_code == 0
+    # --fail-on adds to the default: a clearance that is set still fails the run
+    assert run([*args, "--clearance", "11", "--fail-on", "interference"]).exit_code == 1
+    assert run([*args, "--clearance", "11", "--fail-on", "none"]).exit_code == 0
 
 
 # ------------------------------------------------------------------------------------------

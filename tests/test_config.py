@@ -11,7 +11,6 @@ from meshcheck.config import (
     Config,
     Groups,
     approval_reason,
-    default_tolerance,
     find_config,
     load_config,
     parse_fail_on,
@@ -56,11 +55,11 @@ def test_full_meshcheck_toml(tmp_path):
         clearance=0.2,
         threshold=0.05,
         fail_on=("interference", "touching"),
-        ignore=(
+        approvals=(
             Approval("frame.stl", "bearing_*.stl", "press fit by design"),
             Approval("*#pin", "*#hub", "keyed"),
+            Approval(None, None, "reviewed", id="e0ffa4dd810d"),
         ),
-        ignore_ids=(("e0ffa4dd810d", "reviewed"),),
         groups=Groups(("frame.stl",), ("bolts/*",)),
     )
 
@@ -103,6 +102,10 @@ INVALID = {
     "bool number": ("tolerance = true\n", "tolerance must be a number"),
     "negative": ("clearance = -1\n", "out of range"),
     "threshold range": ("threshold = 2\n", "out of range"),
+    "nan tolerance": ("tolerance = nan\n", "tolerance must be a finite number"),
+    "inf tolerance": ("tolerance = inf\n", "tolerance must be a finite number"),
+    "inf clearance": ("clearance = inf\n", "clearance must be a finite number"),
+    "fail_on none and more": ('fail_on = ["none", "touching"]\n', "'none' contradicts"),
     "bad toml": ("clearance = \n", "invalid TOML"),
     "fail_on word": ('fail_on = ["collision"]\n', "unknown fail-on status 'collision'"),
     "fail_on type": ("fail_on = 3\n", "fail_on must be a list of strings"),
@@ -149,10 +152,13 @@ def test_missing_config_file_is_a_config_error(tmp_path):
 
 
 def test_parse_fail_on_accepts_comma_lists_and_repeats():
-    assert parse_fail_on(["touching,interference", "touching", " clearance "]) == [
+    assert parse_fail_on(["touching,interference", "touching", " clearance "]) == (
         "touching", "interference", "clearance",
-    ]
-    assert parse_fail_on(["none"]) == []
+    )
+    assert parse_fail_on(["none"]) == ()
+    assert parse_fail_on([]) is None
+    with pytest.raises(ConfigError, match="'none' contradicts touching"):
+        parse_fail_on(["none,touching"])
     with pytest.raises(ConfigError, match="unknown fail-on status 'overlap'"):
         parse_fail_on(["interference,overlap"])
 
@@ -172,9 +178,19 @@ def test_groups_allow_only_pairs_across():
     assert not groups.allows("frame.stl", "frame2.stl")
 
 
-def test_default_tolerance_scales_with_the_diagonal():
-    assert default_tolerance([0, 0, 0], [3, 4, 0]) == pytest.approx(5e-5)
-    assert default_tolerance([1, 1, 1], [1, 1, 1]) > 0
+def test_default_tolerance_comes_from_the_pair():
+    import numpy as np
+
+    from meshcheck.settings import pair_tolerances, part_sizes
+
+    lower = np.array([[0, 0, 0], [0, 0, 0], [50e3, 0, 0]], float)
+    upper = np.array([[300, 400, 0], [3000, 4000, 0], [70e3, 10, 10]], float)
+    diagonal, magnitude = part_sizes(lower, upper)
+    tol = pair_tolerances(diagonal, magnitude, np.array([[0, 1], [1, 2]]))
+    assert tol[0] == pytest.approx(5e-3)  # the smaller part's diagonal, not the assembly's
+    assert tol[1] == pytest.approx(8 * np.finfo(np.float32).eps * 70e3)  # float32 rounding
+    point = np.zeros((1, 3))
+    assert pair_tolerances(*part_sizes(point, point), np.array([[0, 0]]))[0] > 0
 
 
 names = st.text(alphabet="abc_.#/", min_size=1, max_size=8)
@@ -214,11 +230,11 @@ def test_check_applies_the_config_file(tmp_path):
     (finding,) = result.findings
     assert result.tolerance == 0.2
     assert (finding.a, finding.b) == (str(a), str(b))
-    assert (finding.status, finding.approved) == ("touching", "shim")  # 0.1 overlap < 0.2
+    assert (finding.status, finding.approval_reason) == ("touching", "shim")  # 0.1 overlap < 0.2
 
     explicit = check([a, b], config=config, tolerance=0.01)
     assert explicit.tolerance == 0.01
-    assert [(f.status, f.approved) for f in explicit.findings] == [("interference", "shim")]
+    assert [(f.status, f.approval_reason) for f in explicit.findings] == [("interference", "shim")]
 
     plain = check(str(a))  # one path as a string is one part, not one per character
     assert [p.name for p in plain.parts] == [str(a)]
@@ -232,21 +248,25 @@ def test_check_approves_findings_by_stable_id(tmp_path):
     a, b = _two_overlapping_cubes(tmp_path)
     (finding,) = check([a, b]).findings
     config = load_config_text(tmp_path, f'[[ignore]]\nid = "{finding.id}"\nreason = "ok"\n')
-    assert [f.approved for f in check([a, b], config=config).findings] == ["ok"]
+    assert [f.approval_reason for f in check([a, b], config=config).findings] == ["ok"]
     # the ID hashes the meshes: once a part changes, the approval no longer applies
     trimesh.creation.box().apply_translation((0.8, 0, 0)).export(str(b))
     (moved,) = check([a, b], config=config).findings
     assert moved.id != finding.id
-    assert moved.approved is None
+    assert moved.approval_reason is None
 
 
 def test_check_groups_from_config_skip_other_pairs(tmp_path):
+    import trimesh
+
     from meshcheck.pipeline import check
 
     a, b = _two_overlapping_cubes(tmp_path)
+    c = tmp_path / "c.stl"
+    trimesh.creation.box().apply_translation((5, 0, 0)).export(str(c))
     config = load_config_text(tmp_path, '[groups]\na = ["*a.stl"]\nb = ["*c.stl"]\n')
-    assert check([a, b], config=config).findings == []
-    assert len(check([a, b]).findings) == 1
+    assert check([a, b, c], config=config).findings == []
+    assert len(check([a, b, c]).findings) == 1
 
 
 def load_config_text(tmp_path, text):

@@ -90,7 +90,7 @@ def test_approved_interference_is_reported_but_does_not_fail():
     approvals = [Approval("hub", "sha*", "press fit")]
     result = check_bodies(bodies, cache_dir=None, approvals=approvals)
     (finding,) = result.findings
-    assert finding.approved == "press fit"
+    assert finding.approval_reason == "press fit"
     assert exit_status(result) == 0
 
 

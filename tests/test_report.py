@@ -13,17 +13,21 @@ from hypothesis import strategies as st
 from meshcheck.errors import ExitStatus
 from meshcheck.report import FORMATS, exit_status, render, summary
 from meshcheck.results import CheckResult, Finding, Location, Part, finding_id
+from meshcheck.settings import Settings, resolve_fail_on
 
 HYPOTHESIS = settings(derandomize=True, deadline=None, max_examples=50)
 
 
-def make_result(*findings: Finding, clearance=None, checked_pairs=(), warnings=()) -> CheckResult:
+def make_result(
+    *findings: Finding, clearance=None, checked_pairs=(), warnings=(), fail_on=None
+) -> CheckResult:
     names = sorted({n for f in findings for n in (f.a, f.b)} | {"spare.stl"})
     parts = [Part(n, n.split("#")[0], 12, True, 1) for n in names]
+    fail_on = resolve_fail_on(fail_on, clearance=clearance)
+    settings = Settings(tolerance=1e-5, clearance=clearance, fail_on=fail_on)
     return CheckResult(
-        findings=list(findings), parts=parts, tolerance=1e-5, clearance=clearance,
-        pairs_checked=len(checked_pairs) or len(findings), warnings=list(warnings),
-        checked_pairs=list(checked_pairs),
+        findings=list(findings), parts=parts, settings=settings, checked_pairs=list(checked_pairs),
+        warnings=list(warnings),
     )
 
 
@@ -33,7 +37,7 @@ def finding(a, b, status, *, approved=None, distance=0.0) -> Finding:
         a=a, b=b, status=status, distance=distance,
         depth=0.7 if interfering else None, volume=2.5 if interfering else None,
         location=Location(np.array([1.0, 2, 3]), np.zeros(3), np.ones(3)),
-        id=finding_id(a, "da", b, "db"), approved=approved,
+        id=finding_id(a, "da", b, "db"), approval_reason=approved,
     )
 
 
@@ -54,14 +58,15 @@ APPROVED = finding("nut.stl", "plate.stl", "interference", approved="press fit")
         ((APPROVED, TOUCH), None, ("interference", "touching"), ExitStatus.FAILED),
         ((NEAR,), None, None, ExitStatus.OK),
         ((NEAR,), 0.2, None, ExitStatus.FAILED),
-        ((NEAR,), 0.2, ("interference",), ExitStatus.OK),
-        ((CLASH,), None, (), ExitStatus.OK),
+        ((NEAR,), 0.2, ("interference",), ExitStatus.FAILED),  # --fail-on adds to the default
+        ((CLASH,), None, ("touching",), ExitStatus.FAILED),  # interference always fails...
+        ((CLASH,), None, (), ExitStatus.OK),  # ...unless `none` is given
     ],
 )
 def test_exit_status(findings, clearance, fail_on, expected):
-    result = make_result(*findings, clearance=clearance)
-    assert exit_status(result, fail_on=fail_on) == expected
-    assert summary(result, fail_on=fail_on)["passed"] == (expected == ExitStatus.OK)
+    result = make_result(*findings, clearance=clearance, fail_on=fail_on)
+    assert exit_status(result) == expected
+    assert summary(result)["passed"] == (expected == ExitStatus.OK)
 
 
 def test_finding_id_is_stable_and_order_free():
@@ -147,7 +152,7 @@ def test_github_annotations():
 def test_github_escapes_properties_and_data():
     odd = finding("dir,x/a:b.stl", "c.stl", "interference")
     part = Part(odd.a, odd.a, 12, True, 1)
-    result = CheckResult([odd], [part], tolerance=1.0, clearance=None)
+    result = CheckResult([odd], [part], Settings(tolerance=1.0))
     line = render(result, "github").splitlines()[0]
     assert line.startswith("::error file=dir%2Cx/a%3Ab.stl,title=meshcheck interference")
 
@@ -171,10 +176,11 @@ def test_every_format_agrees_with_the_exit_status(spec, fail_on, fmt):
         finding(f"p{k}.stl", f"q{k}.stl", status, approved="ok" if approved else None)
         for k, (status, approved) in enumerate(spec)
     ]
-    result = make_result(*findings, clearance=0.5)
-    failing = sum(1 for s, approved in spec if s in fail_on and not approved)
-    assert (exit_status(result, fail_on=fail_on) == ExitStatus.FAILED) == (failing > 0)
-    out = render(result, fmt, fail_on=fail_on)
+    result = make_result(*findings, clearance=0.5, fail_on=fail_on or None)
+    failing_statuses = {"interference", "clearance", *fail_on}
+    failing = sum(1 for s, approved in spec if s in failing_statuses and not approved)
+    assert (exit_status(result) == ExitStatus.FAILED) == (failing > 0)
+    out = render(result, fmt)
     for f in findings:
         assert f.id in out
     if fmt == "junit":

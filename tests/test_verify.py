@@ -13,7 +13,10 @@ from scipy.optimize import linprog, minimize
 
 from meshcheck import results
 from meshcheck.geometry.triangles import box_pairs, pair_distances, triangle_distance
-from meshcheck.verify import CLEAR, solid_depth, verify_pair
+from meshcheck.results import Verdict
+from meshcheck.verify import solid_depth, verify_pair
+
+CLEAR = Verdict.CLEAR
 
 TOL = 1e-6
 
@@ -53,7 +56,7 @@ def open_box(offset=(0, 0, 0)) -> trimesh.Trimesh:
 
 def test_boxes_face_to_face_touch_at_distance_zero():
     v = verify_pair(unit(), unit((1, 0, 0)), tolerance=TOL, clearance=None)
-    assert v.status == results.TOUCHING
+    assert v.status == Verdict.TOUCHING
     assert v.distance == pytest.approx(0.0, abs=1e-12)
     assert v.depth is None and not v.is_surface_only
     assert v.location.lower[0] == pytest.approx(1.0, abs=1e-5)
@@ -62,14 +65,14 @@ def test_boxes_face_to_face_touch_at_distance_zero():
 
 def test_boxes_offset_sideways_touch_on_the_shared_face_part():
     v = verify_pair(unit(), unit((1, 0.5, 0.25)), tolerance=TOL, clearance=0.1)
-    assert v.status == results.TOUCHING
+    assert v.status == Verdict.TOUCHING
     np.testing.assert_allclose(v.location.lower, [1, 0.5, 0.25], atol=1e-5)
     np.testing.assert_allclose(v.location.upper, [1, 1, 1], atol=1e-5)
 
 
 def test_boxes_overlapping_by_0_3_interfere_with_exact_depth_and_volume():
     v = verify_pair(unit(), unit((0.7, 0, 0)), tolerance=TOL, clearance=None)
-    assert v.status == results.INTERFERENCE
+    assert v.status == Verdict.INTERFERENCE
     assert v.distance == 0.0
     assert v.depth == pytest.approx(0.3, rel=1e-4)
     assert v.volume == pytest.approx(0.3, rel=1e-9)
@@ -80,7 +83,7 @@ def test_boxes_overlapping_by_0_3_interfere_with_exact_depth_and_volume():
 
 def test_corner_overlap_depth_is_the_cube_side():
     v = verify_pair(unit(), unit((0.6, 0.6, 0.6)), tolerance=TOL, clearance=None)
-    assert v.status == results.INTERFERENCE
+    assert v.status == Verdict.INTERFERENCE
     assert v.depth == pytest.approx(0.4, rel=1e-4)
     assert v.volume == pytest.approx(0.4**3, rel=1e-9)
 
@@ -89,7 +92,7 @@ def test_box_buried_in_box_interferes_with_the_inner_volume():
     outer, inner = box([0, 0, 0], [4, 4, 4]), box([1, 1, 1], [2, 3, 2.5])
     for a, b in ((outer, inner), (inner, outer)):
         v = verify_pair(a, b, tolerance=TOL, clearance=0.1)
-        assert v.status == results.INTERFERENCE
+        assert v.status == Verdict.INTERFERENCE
         assert v.volume == pytest.approx(1 * 2 * 1.5, rel=1e-9)
         assert v.depth == pytest.approx(1.0, rel=1e-3)
 
@@ -97,7 +100,7 @@ def test_box_buried_in_box_interferes_with_the_inner_volume():
 def test_surfaces_apart_finds_a_buried_part_and_clears_the_rest():
     outer, inner = box([0, 0, 0], [4, 4, 4]), box([1, 1, 1], [2, 2, 2])
     v = verify_pair(inner, outer, tolerance=TOL, clearance=None, surfaces_apart=True)
-    assert v.status == results.INTERFERENCE and v.volume == pytest.approx(1.0)
+    assert v.status == Verdict.INTERFERENCE and v.volume == pytest.approx(1.0)
     far = box([10, 10, 10], [11, 11, 11])
     v = verify_pair(far, outer, tolerance=TOL, clearance=None, surfaces_apart=True)
     assert v.status == CLEAR
@@ -107,24 +110,24 @@ def test_inside_out_meshes_give_the_same_verdicts():
     outer, inner = box([0, 0, 0], [4, 4, 4]), box([1, 1, 1], [2, 2, 2])
     inner.invert()
     v = verify_pair(inner, outer, tolerance=TOL, clearance=None)
-    assert v.status == results.INTERFERENCE and v.volume == pytest.approx(1.0)
+    assert v.status == Verdict.INTERFERENCE and v.volume == pytest.approx(1.0)
     flipped = unit((0.7, 0, 0))
     flipped.invert()
     v = verify_pair(unit(), flipped, tolerance=TOL, clearance=None)
-    assert v.status == results.INTERFERENCE and v.volume == pytest.approx(0.3)
+    assert v.status == Verdict.INTERFERENCE and v.volume == pytest.approx(0.3)
 
 
 def test_second_shell_buried_is_found():
     """A part made of two shells, one far away and one inside the other part."""
     two = trimesh.util.concatenate([box([10, 0, 0], [11, 1, 1]), box([1, 1, 1], [2, 2, 2])])
     v = verify_pair(two, box([0, 0, 0], [4, 4, 4]), tolerance=TOL, clearance=None)
-    assert v.status == results.INTERFERENCE
+    assert v.status == Verdict.INTERFERENCE
     assert v.volume == pytest.approx(1.0)
 
 
 def test_boxes_0_05_apart_are_a_clearance_finding_at_0_05():
     v = verify_pair(unit(), unit((1.05, 0.2, 0)), tolerance=TOL, clearance=0.1)
-    assert v.status == results.CLEARANCE
+    assert v.status == Verdict.CLEARANCE
     assert v.distance == pytest.approx(0.05, abs=1e-12)
     assert v.location.lower[0] == pytest.approx(1.0)
     assert v.location.upper[0] == pytest.approx(1.05)
@@ -135,7 +138,7 @@ def test_boxes_0_05_apart_are_a_clearance_finding_at_0_05():
 @pytest.mark.parametrize("shift", [-0.5e-6, 0.5e-6])
 def test_overlap_or_gap_within_tolerance_is_touching(shift):
     v = verify_pair(unit(), unit((1 + shift, 0, 0)), tolerance=TOL, clearance=0.1)
-    assert v.status == results.TOUCHING
+    assert v.status == Verdict.TOUCHING
     assert v.distance == pytest.approx(max(shift, 0.0), abs=1e-12)
 
 
@@ -144,7 +147,7 @@ def test_block_in_l_bracket_corner_touches():
         [box([0, 0, 0], [10, 5, 2]), box([8, 0, 2], [10, 5, 10])], engine="manifold"
     )
     v = verify_pair(bracket, box([4, 1, 2], [8, 4, 5]), tolerance=TOL, clearance=0.5)
-    assert v.status == results.TOUCHING
+    assert v.status == Verdict.TOUCHING
     np.testing.assert_allclose(v.location.lower, [4, 1, 2], atol=1e-5)
     np.testing.assert_allclose(v.location.upper, [8, 4, 5], atol=1e-5)
 
@@ -156,7 +159,7 @@ def test_bolt_in_hole_distance_is_the_polygon_gap(sections):
         [cylinder(3.0, -4, 10, sections), cylinder(5, 11, 14, sections)], engine="manifold"
     )
     v = verify_pair(plate, bolt, tolerance=1e-4, clearance=0.2)
-    assert v.status == results.CLEARANCE
+    assert v.status == Verdict.CLEARANCE
     # Aligned regular polygons: the gap is the difference of the apothems (the boolean that made
     # the plate rounds its vertices to float32, hence 1e-6).
     assert v.distance == pytest.approx(0.1 * math.cos(math.pi / sections), abs=1e-6)
@@ -165,7 +168,7 @@ def test_bolt_in_hole_distance_is_the_polygon_gap(sections):
 def test_oversized_bolt_depth_is_the_radial_excess():
     plate = plate_with_hole(3.0)
     v = verify_pair(plate, cylinder(3.2, -4, 14), tolerance=1e-4, clearance=None)
-    assert v.status == results.INTERFERENCE
+    assert v.status == Verdict.INTERFERENCE
     assert v.depth == pytest.approx(0.2, rel=0.02)
     ring = math.pi * (3.2**2 - 3.0**2) * 10  # nominal circles; the polygons differ by ~0.6 %
     assert v.volume == pytest.approx(ring * math.sin(2 * math.pi / 32) / (2 * math.pi / 32))
@@ -178,14 +181,14 @@ def test_units_and_far_from_origin(scale, offset):
 
     tol = 1e-5 * scale
     touching = verify_pair(place(unit()), place(unit((1, 0, 0))), tolerance=tol, clearance=None)
-    assert touching.status == results.TOUCHING
+    assert touching.status == Verdict.TOUCHING
     v = verify_pair(place(unit()), place(unit((0.7, 0, 0))), tolerance=tol, clearance=None)
-    assert v.status == results.INTERFERENCE
+    assert v.status == Verdict.INTERFERENCE
     assert v.depth == pytest.approx(0.3 * scale, rel=1e-3)
     assert v.volume == pytest.approx(0.3 * scale**3, rel=1e-6)
     assert v.location.centroid[0] == pytest.approx(0.85 * scale + offset, abs=1e-6 * scale)
     v = verify_pair(place(unit()), place(unit((1.05, 0, 0))), tolerance=tol, clearance=0.1 * scale)
-    assert v.status == results.CLEARANCE
+    assert v.status == Verdict.CLEARANCE
     assert v.distance == pytest.approx(0.05 * scale, rel=1e-6)
 
 
@@ -207,20 +210,20 @@ def test_solid_depth_of_a_slab_and_a_ball():
 
 def test_open_surface_crossing_a_box_interferes_surface_only():
     v = verify_pair(open_box(), unit((0.5, 0.3, 0.2)), tolerance=TOL, clearance=None)
-    assert v.status == results.INTERFERENCE
+    assert v.status == Verdict.INTERFERENCE
     assert v.is_surface_only and v.volume is None and v.depth is None
     assert v.location is not None
 
 
 def test_open_surface_resting_on_a_box_touches_surface_only():
     v = verify_pair(open_box((0, 0, 1)), unit((0.2, 0.1, 0)), tolerance=TOL, clearance=None)
-    assert v.status == results.TOUCHING
+    assert v.status == Verdict.TOUCHING
     assert v.is_surface_only
 
 
 def test_open_surfaces_apart_are_clear_or_clearance():
     v = verify_pair(open_box(), open_box((1.02, 0, 0)), tolerance=TOL, clearance=0.05)
-    assert v.status == results.CLEARANCE and v.is_surface_only
+    assert v.status == Verdict.CLEARANCE and v.is_surface_only
     assert v.distance == pytest.approx(0.02)
     assert verify_pair(open_box(), open_box((1.2, 0, 0)), tolerance=TOL, clearance=0.05).status == (
         CLEAR
@@ -237,15 +240,15 @@ def _open(m: trimesh.Trimesh, axis: int, side: int) -> trimesh.Trimesh:
     [
         # Surfaces that meet only along mesh edges and coplanar faces: no edge passes strictly
         # through a triangle, the probes inside the other mesh decide.
-        (_open(unit(), 2, 1), unit((0.7, 0, 0)), results.INTERFERENCE),
-        (_open(unit(), 2, 1), _open(unit((0.7, 0, 0)), 2, 1), results.INTERFERENCE),
-        (_open(unit(), 0, 0), _open(unit((0.7, 0, 0)), 0, 1), results.INTERFERENCE),
+        (_open(unit(), 2, 1), unit((0.7, 0, 0)), Verdict.INTERFERENCE),
+        (_open(unit(), 2, 1), _open(unit((0.7, 0, 0)), 2, 1), Verdict.INTERFERENCE),
+        (_open(unit(), 0, 0), _open(unit((0.7, 0, 0)), 0, 1), Verdict.INTERFERENCE),
         (
             _open(box([0, 0, 0], [3, 3, 3]), 2, 1),
             _open(box([1, 1, 1], [2, 2, 2]), 2, 1),
-            results.INTERFERENCE,
+            Verdict.INTERFERENCE,
         ),
-        (_open(unit(), 2, 1), unit((1 - 1e-7, 0, 0)), results.TOUCHING),
+        (_open(unit(), 2, 1), unit((1 - 1e-7, 0, 0)), Verdict.TOUCHING),
     ],
 )
 def test_open_surfaces_aligned_with_each_other(a, b, status):
@@ -257,7 +260,7 @@ def test_box_buried_in_an_open_box_interferes():
     v = verify_pair(
         open_box(), box([0.3, 0.3, 0.2], [0.6, 0.6, 0.5]), tolerance=TOL, clearance=None
     )
-    assert v.status == results.INTERFERENCE and v.is_surface_only
+    assert v.status == Verdict.INTERFERENCE and v.is_surface_only
 
 
 # --- triangles -------------------------------------------------------------------------------
@@ -370,12 +373,12 @@ def test_mesh_distance_matches_brute_force_and_is_symmetric(ka, kb, ra, rb, off)
     brute = _brute_distance(a, b)
     assert v.status == w.status
     if brute > TOL:
-        assert v.status in (results.CLEARANCE, results.INTERFERENCE)  # buried: interference
-        if v.status == results.CLEARANCE:
+        assert v.status in (Verdict.CLEARANCE, Verdict.INTERFERENCE)  # buried: interference
+        if v.status == Verdict.CLEARANCE:
             assert v.distance == pytest.approx(brute, abs=1e-12)
             assert w.distance == pytest.approx(brute, abs=1e-12)
     else:
-        assert v.status in (results.TOUCHING, results.INTERFERENCE)
+        assert v.status in (Verdict.TOUCHING, Verdict.INTERFERENCE)
 
 
 @settings(derandomize=True, deadline=None, max_examples=40)
@@ -394,13 +397,13 @@ def test_mesh_distance_matches_fcl(ka, kb, ra, rb, off):
     is_hit = fcl.collide(obj(a), obj(b), fcl.CollisionRequest(), fcl.CollisionResult()) > 0
     v = verify_pair(a, b, tolerance=TOL, clearance=10.0)
     if is_hit:
-        assert v.status in (results.TOUCHING, results.INTERFERENCE)
+        assert v.status in (Verdict.TOUCHING, Verdict.INTERFERENCE)
         return
     expected = fcl.distance(obj(a), obj(b), fcl.DistanceRequest(), fcl.DistanceResult())
-    if v.status == results.CLEARANCE:
+    if v.status == Verdict.CLEARANCE:
         assert v.distance == pytest.approx(expected, abs=1e-6)
     else:  # fcl sees surfaces only: a part inside the other has a positive distance there
-        assert v.status == results.INTERFERENCE
+        assert v.status == Verdict.INTERFERENCE
 
 
 @settings(derandomize=True, deadline=None, max_examples=40)
@@ -455,7 +458,7 @@ def test_export_writes_parts_and_a_red_node_per_interference(tmp_path):
         location=v.location,
         id="0123456789ab",
     )
-    touching = results.Finding(a="b.stl", b="c.stl", status=results.TOUCHING, distance=0.0)
+    touching = results.Finding(a="b.stl", b="c.stl", status=Verdict.TOUCHING, distance=0.0)
     path = tmp_path / "clashes.glb"
     export_clashes(str(path), bodies, [finding, touching])
 
@@ -504,5 +507,5 @@ def test_depth_of_two_overlapping_boxes_matches_an_lp(ra, rb, off):
     thickness = -2 * lp.fun
     assume(thickness > 1e-3)
     v = verify_pair(a, b, tolerance=TOL, clearance=None)
-    assert v.status == results.INTERFERENCE
+    assert v.status == Verdict.INTERFERENCE
     assert v.depth == pytest.approx(thickness, rel=1e-4)

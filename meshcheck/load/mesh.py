@@ -179,7 +179,7 @@ def overlapping_shells(mesh: trimesh.Trimesh) -> tuple[int, int] | None:
     if _shell_labels(mesh)[1] == 1:
         return None
     from ..broadphase import candidate_pairs
-    from ..results import INTERFERENCE
+    from ..results import Verdict
     from ..verify import verify_pair
 
     shells = split_shells(mesh)
@@ -192,7 +192,7 @@ def overlapping_shells(mesh: trimesh.Trimesh) -> tuple[int, int] | None:
         a, b = shells[solid[i]], shells[solid[j]]
         size = float(np.linalg.norm(np.maximum(a.extents, b.extents)))
         verdict = verify_pair(a, b, tolerance=1e-6 * size, clearance=None)
-        if verdict.status == INTERFERENCE:
+        if verdict.status == Verdict.INTERFERENCE:
             return solid[i] + 1, solid[j] + 1
     return None
 

@@ -1,0 +1,258 @@
+"""One frozen ``Settings`` for a run: every option, validated once, carried through the stages.
+
+The command line and the Python API both build it with ``Settings.from_options``, which merges the
+configuration file in (an option given explicitly wins over the file), checks every number
+(finite, in range), and resolves the statuses that fail the run.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from .config import (
+    NUMBER_RANGES,
+    Approval,
+    Config,
+    Groups,
+    checked_number,
+    find_config,
+    load_config,
+    parse_fail_on,
+)
+from .errors import ConfigError
+from .results import Verdict
+
+DEFAULT_THRESHOLD = 0.1  # CoACD concavity threshold; see decompose.DEFAULT_OPTIONS
+
+# ---------------------------------------------------------------------------------------------
+# The touching tolerance of a pair, when none is given. It comes from the pair alone, never from
+# other parts: a far, large part must not loosen the verdict on a small pair.
+
+#: Overlaps and gaps below this fraction of the smaller part's bounding-box diagonal count as
+#: touching. CAD exporters round coordinates, so faces modelled as coincident land up to ~1e-6 of
+#: a part's size apart; 1e-5 leaves a 10x margin while staying far below any clearance an
+#: engineer specifies (1 um on a 100 mm part).
+TOLERANCE_FRACTION = 1e-5
+
+#: ... and never below this many float32 units in the last place at the pair's largest coordinate:
+#: STL stores float32, so a face at coordinate x is only known to 2^-24 |x|, and two coincident
+#: faces of two files can be that far apart for each vertex.
+FLOAT32_ULPS = 8.0
+_FLOAT32_EPS = float(np.finfo(np.float32).eps)
+
+
+def part_sizes(lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Bounding-box diagonal and largest absolute coordinate of each part, two ``(n,)`` arrays.
+
+    Parameters
+    ----------
+    lower, upper : (n, 3) float64
+        Each part's axis-aligned bounding box, world coordinates, model units.
+    """
+    lower, upper = np.asarray(lower, dtype=np.float64), np.asarray(upper, dtype=np.float64)
+    diagonal = np.linalg.norm(upper - lower, axis=1)
+    magnitude = np.maximum(np.abs(lower), np.abs(upper)).max(axis=1)
+    return diagonal, magnitude
+
+
+def pair_tolerances(diagonal: np.ndarray, magnitude: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+    """Default touching tolerance of each pair, from the two parts alone, model units, ``(k,)``.
+
+    ``max(TOLERANCE_FRACTION * smaller diagonal, FLOAT32_ULPS * eps32 * largest coordinate)``;
+    parts without extent fall back to the coordinate term (and to ``TOLERANCE_FRACTION`` units at
+    the origin).
+
+    Examples
+    --------
+    >>> d, m = np.array([100.0, 10.0, 40000.0]), np.array([50.0, 50.0, 50000.0])
+    >>> pair_tolerances(d, m, np.array([[0, 1]])).round(9).tolist()
+    [0.0001]
+    """
+    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    i, j = pairs[:, 0], pairs[:, 1]
+    size = TOLERANCE_FRACTION * np.minimum(diagonal[i], diagonal[j])
+    rounding = FLOAT32_ULPS * _FLOAT32_EPS * np.maximum(magnitude[i], magnitude[j])
+    tol = np.maximum(size, rounding)
+    return np.where(tol > 0.0, tol, TOLERANCE_FRACTION)
+
+
+def default_cache_dir() -> str:
+    """The user's cache directory for meshcheck (platform convention)."""
+    import platformdirs
+
+    return platformdirs.user_cache_dir("meshcheck")
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Everything a check runs with. Build it with ``from_options``; the fields are validated.
+
+    Attributes
+    ----------
+    clearance : float or None
+        Report pairs whose true distance is below this, model units.
+    tolerance : float or None
+        Overlaps and gaps below this count as touching, model units; None: each pair's own
+        (``pair_tolerances``).
+    threshold : float
+        CoACD concavity threshold of the convex pieces.
+    fail_on : tuple of Verdict
+        Statuses of unapproved findings that fail the run.
+    approvals : tuple of Approval
+        Approved findings (by part-name patterns or stable ID), in the order they were given.
+    groups : Groups or None
+        Check only pairs across the two groups.
+    split : bool
+        Each disconnected shell of a mesh is a part.
+    units : str or None
+        Unit of files that declare none, and of the report; None: see ``meshcheck.units``.
+    cache_dir : str or None
+        Cache directory; None neither reads nor writes a cache.
+    jobs : int or None
+        Worker processes; None: all cores.
+    config_path : str or None
+        The configuration file the settings came from, if any.
+    """
+
+    clearance: float | None = None
+    tolerance: float | None = None
+    threshold: float = DEFAULT_THRESHOLD
+    fail_on: tuple[Verdict, ...] = (Verdict.INTERFERENCE,)
+    approvals: tuple[Approval, ...] = ()
+    groups: Groups | None = None
+    split: bool = False
+    units: str | None = None
+    cache_dir: str | None = None
+    jobs: int | None = None
+    config_path: str | None = None
+
+    def __post_init__(self):
+        for name in NUMBER_RANGES:
+            value = getattr(self, name)
+            if value is not None:
+                object.__setattr__(self, name, checked_number(name, value, *NUMBER_RANGES[name]))
+        if self.jobs is not None and (
+            isinstance(self.jobs, bool) or not isinstance(self.jobs, int) or self.jobs < 1
+        ):
+            raise ConfigError(None, f"jobs must be a whole number of at least 1, not {self.jobs!r}")
+        object.__setattr__(self, "fail_on", tuple(Verdict(s) for s in self.fail_on))
+        object.__setattr__(self, "approvals", tuple(self.approvals))
+
+    @classmethod
+    def from_options(
+        cls,
+        *,
+        config: Config | str | os.PathLike | None = None,
+        clearance: float | None = None,
+        tolerance: float | None = None,
+        threshold: float | None = None,
+        fail_on: Iterable[str] | None = None,
+        approvals: Sequence[Approval] = (),
+        groups: Groups | None = None,
+        split: bool = False,
+        units: str | None = None,
+        cache_dir: str | os.PathLike | None = None,
+        use_cache: bool = True,
+        jobs: int | None = None,
+    ) -> Settings:
+        """Merge options (None: not given) with a configuration file, and validate.
+
+        Parameters
+        ----------
+        config : Config or path, optional
+            Settings from a configuration file; an option given here wins over it. Its approvals
+            come after ``approvals``. Pass ``"auto"`` to search from the working directory as the
+            command line does (``config.find_config``).
+        fail_on : iterable of str, optional
+            Status words (``interference``, ``touching``, ``clearance``, ``none``; comma lists
+            allowed). Interference always fails unless ``none`` is given; the words add to the
+            default, which is interference plus clearance when a clearance is set.
+        cache_dir : path, optional
+            Cache directory; default the user's cache directory. ``use_cache=False`` disables it.
+
+        Raises
+        ------
+        ConfigError
+            An invalid value or configuration file.
+        """
+        if isinstance(config, str) and config == "auto":
+            found = find_config()
+            config = None if found is None else found
+        if config is not None and not isinstance(config, Config):
+            config = load_config(config)
+        file = config or Config()
+
+        def pick(value, from_file):
+            return from_file if value is None else value
+
+        clearance = pick(clearance, file.clearance)
+        words = parse_fail_on(fail_on) if fail_on is not None else None
+        if words is None and file.fail_on is not None:
+            words = parse_fail_on(file.fail_on, path=file.path)
+        if not use_cache:
+            cache = None
+        else:
+            cache = os.fspath(cache_dir) if cache_dir is not None else default_cache_dir()
+        return cls(
+            clearance=clearance,
+            tolerance=pick(tolerance, file.tolerance),
+            threshold=pick(threshold, pick(file.threshold, DEFAULT_THRESHOLD)),
+            fail_on=resolve_fail_on(words, clearance=clearance),
+            approvals=(*approvals, *file.approvals),
+            groups=pick(groups, file.groups),
+            split=split,
+            units=units,
+            cache_dir=cache,
+            jobs=jobs,
+            config_path=file.path,
+        )
+
+    def replace(self, **changes) -> Settings:
+        """A copy with some fields changed (validated again)."""
+        return dataclasses.replace(self, **changes)
+
+
+def resolve_fail_on(words: Sequence[str] | None, *, clearance: float | None) -> tuple[Verdict, ...]:
+    """Statuses that fail the run: interference, plus clearance when a clearance is set, plus
+    ``words``; an empty ``words`` (``none``) means nothing fails.
+
+    Examples
+    --------
+    >>> [str(s) for s in resolve_fail_on(None, clearance=0.5)]
+    ['interference', 'clearance']
+    >>> [str(s) for s in resolve_fail_on(("touching",), clearance=None)]
+    ['interference', 'touching']
+    >>> resolve_fail_on((), clearance=0.5)
+    ()
+    """
+    if words is not None and len(words) == 0:
+        return ()
+    chosen = {Verdict.INTERFERENCE, *(Verdict(w) for w in words or ())}
+    if clearance is not None:
+        chosen.add(Verdict.CLEARANCE)
+    order = (Verdict.INTERFERENCE, Verdict.CLEARANCE, Verdict.TOUCHING)
+    return tuple(s for s in order if s in chosen)
+
+
+def describe_tolerance(tolerance: float | None) -> str:
+    """How the touching tolerance is chosen, for reports."""
+    if tolerance is not None:
+        return f"{tolerance:.3g}"
+    return "per pair"
+
+
+__all__ = [
+    "DEFAULT_THRESHOLD",
+    "FLOAT32_ULPS",
+    "TOLERANCE_FRACTION",
+    "Settings",
+    "default_cache_dir",
+    "pair_tolerances",
+    "part_sizes",
+    "resolve_fail_on",
+]
