@@ -14,7 +14,7 @@ import click
 
 from .config import FAIL_ON_CHOICES, NUMBER_RANGES, checked_number, parse_fail_on
 from .errors import ConfigError, ExitStatus, MeshcheckError, MeshcheckWarning
-from .report import FORMATS, exit_status, render, summary_line
+from .reports import FORMATS, exit_status, render, summary_line
 
 
 class FiniteFloat(click.ParamType):
