@@ -208,4 +208,5 @@ def finding_id(name_a: str, digest_a: str, name_b: str, digest_b: str) -> str:
     """Stable 12-hex-digit ID of a part pair: sorted names and the meshes' content digests."""
     (na, da), (nb, db) = sorted([(name_a, digest_a), (name_b, digest_b)])
     text = "\0".join((na, da, nb, db))
-    return hashlib.sha256(text.encode()).hexdigest()[:12]
+    # surrogateescape: a file name that is not UTF-8 keeps its bytes
+    return hashlib.sha256(text.encode("utf-8", "surrogateescape")).hexdigest()[:12]

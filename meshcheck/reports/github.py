@@ -39,29 +39,29 @@ def level(result: CheckResult, finding: Finding) -> str:
 
 
 def render(result: CheckResult) -> str:
-    # (level, properties, message) per annotation, most severe first within each level
-    annotations: dict[str, list[tuple[str, str]]] = {name: [] for name in LEVELS}
+    # (properties, title, message) per annotation, most severe first within each level
+    annotations: dict[str, list[tuple[str, str, str]]] = {name: [] for name in LEVELS}
     for f in sorted(result.findings, key=lambda f: severity(result, f)):
         extra = f" (approved: {f.approval_reason})" if f.is_approved else ""
         state = result.baseline_state(f)
         title = f"meshcheck {f.status} [{f.id}]" + (f" {state}" if state else "")
         props = f"file={_property(part_file(result, f.a))},title={_property(title)}"
         message = f"{f.a} and {f.b}: {f.status}, {describe(f, resolution(result, f))}{extra}"
-        annotations[level(result, f)].append((props, message))
+        annotations[level(result, f)].append((props, title, message))
     for w in result.warnings:
-        annotations["warning"].append(("title=meshcheck input", w))
+        annotations["warning"].append(("title=meshcheck input", "meshcheck input", w))
 
     lines, overflow = [], []
     for name in LEVELS:
         entries = annotations[name]
         shown = entries if len(entries) <= LIMIT else entries[: LIMIT - 1]
-        for props, message in shown:
+        for props, _, message in shown:
             lines.append(f"::{name} {props}::{_data(message)}")
         rest = entries[len(shown) :]
         if rest:
             more = f"{plural(len(rest), 'more ' + name)} not annotated (GitHub shows {LIMIT})"
             lines.append(f"::{name} title=meshcheck::{more}: see the log of this step")
-            overflow += [f"meshcheck: {name}: {printable(message)}" for _, message in rest]
+            overflow += [f"meshcheck: {name}: {t}: {printable(m)}" for _, t, m in rest]
     if result.baseline is not None:
         for r in result.baseline.resolved(result.findings):
             overflow.append(
