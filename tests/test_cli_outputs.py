@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import stat
 import subprocess
 import sys
@@ -290,3 +291,25 @@ def test_a_hostile_baseline_is_one_line_and_exit_2(tmp_path, clash, no_check):
     result = run([*clash, "--baseline", bad])
     assert result.exit_code == ExitStatus.USAGE
     one_error_line(result, "bad\\n.json")
+
+
+# ------------------------------------------------------------------------------------------
+# Packaged for CI: the action's command line is one this meshcheck accepts
+
+
+def test_the_action_runs_options_that_exist_and_saves_the_cache_always():
+    from meshcheck.reports import FORMATS
+
+    action = (ROOT / "action.yml").read_text()
+    formats = re.findall(r'--report "(\w+):', action)
+    assert sorted(formats) == ["json", "junit", "markdown", "sarif"]
+    assert set(formats) <= set(FORMATS)
+    known = {opt for param in main.params for opt in param.opts}
+    command = action.split("meshcheck $FILES", 1)[1].split("status=$?")[0]
+    for option in re.findall(r"(--[a-z-]+)", command):
+        assert option in known, option
+    save = action.index("uses: actions/cache/save@")
+    assert "if: always()" in action[action.rindex("- name:", 0, save) : save]
+    assert "uses: actions/cache/restore@" in action
+    hooks = (ROOT / ".pre-commit-hooks.yaml").read_text()
+    assert "entry: meshcheck" in hooks and "pass_filenames: false" in hooks
