@@ -220,6 +220,7 @@ def _run(
             from .export import export_type
 
             export_type(export_path)
+        _refuse_inputs_as_outputs(files, [p for _, p in targets] + [export_path])
         baseline = None
         if baseline_path is not None:
             from .baseline import load_baseline
@@ -310,6 +311,14 @@ def _targets(ctx, fmt, output, reports) -> list[tuple[str, str]]:
             raise ConfigError(None, f"two reports would be written to {where}")
         seen.add(key)
     return targets
+
+
+def _refuse_inputs_as_outputs(files, outputs) -> None:
+    """A ConfigError when an output path is one of the input files (``-o part.stl``)."""
+    inputs = {os.path.realpath(f) for f in files if os.path.isfile(f)}
+    for path in outputs:
+        if path is not None and path != STDOUT and os.path.realpath(path) in inputs:
+            raise ConfigError(path, "is an input file: meshcheck does not write over its inputs")
 
 
 def _fail(exc: MeshcheckError):

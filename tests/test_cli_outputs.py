@@ -78,6 +78,7 @@ def one_error_line(result, *fragments):
         (["--report", "json:{tmp}/r", "--report", "junit:{tmp}/r"], "two reports would be"),
         (["--baseline", "{tmp}/missing.json"], "cannot read the baseline"),
         (["--baseline", "{tmp}/fifo"], "regular file"),
+        (["--report", "json:{tmp}/a.stl"], "is an input file"),
     ],
 )
 def test_outputs_are_checked_before_any_work(tmp_path, clash, no_check, args, fragment):

@@ -175,12 +175,9 @@ def describe(finding: Finding, tolerance: float | None = None) -> str:
     return detail
 
 
-def part_file(result: CheckResult, name: str) -> str:
-    """The file a part came from (``PATH`` of ``PATH#NODE``)."""
-    for part in result.parts:
-        if part.name == name:
-            return part.path
-    return name.split("#")[0]
+def part_file(paths: dict[str, str], name: str) -> str:
+    """The file a part came from (``PATH`` of ``PATH#NODE``), from ``part_files(result)``."""
+    return paths.get(name, name.split("#")[0])
 
 
 def part_files(result: CheckResult) -> dict[str, str]:

@@ -13,7 +13,16 @@ annotation of that type says how many more there are, and those are printed as p
 from __future__ import annotations
 
 from ..results import CheckResult, Finding, Verdict
-from .common import describe, part_file, plural, printable, resolution, severity, summary_line
+from .common import (
+    describe,
+    part_file,
+    part_files,
+    plural,
+    printable,
+    resolution,
+    severity,
+    summary_line,
+)
 
 #: Annotations GitHub shows per type (error, warning, notice) from one step.
 LIMIT = 10
@@ -41,11 +50,12 @@ def level(result: CheckResult, finding: Finding) -> str:
 def render(result: CheckResult) -> str:
     # (properties, title, message) per annotation, most severe first within each level
     annotations: dict[str, list[tuple[str, str, str]]] = {name: [] for name in LEVELS}
+    paths = part_files(result)
     for f in sorted(result.findings, key=lambda f: severity(result, f)):
         extra = f" (approved: {f.approval_reason})" if f.is_approved else ""
         state = result.baseline_state(f)
         title = f"meshcheck {f.status} [{f.id}]" + (f" {state}" if state else "")
-        props = f"file={_property(part_file(result, f.a))},title={_property(title)}"
+        props = f"file={_property(part_file(paths, f.a))},title={_property(title)}"
         message = f"{f.a} and {f.b}: {f.status}, {describe(f, resolution(result, f))}{extra}"
         annotations[level(result, f)].append((props, title, message))
     for w in result.warnings:

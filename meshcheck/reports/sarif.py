@@ -15,7 +15,7 @@ import urllib.parse
 from importlib import metadata
 
 from ..results import FINDING_STATUSES, CheckResult, Finding, Verdict
-from .common import describe, part_file, printable, resolution, summary_line
+from .common import describe, part_file, part_files, printable, resolution, summary_line
 
 SCHEMA = "https://json.schemastore.org/sarif-2.1.0.json"
 FINGERPRINT = "meshcheckFindingId/v1"
@@ -48,7 +48,7 @@ def _level(result: CheckResult, finding: Finding) -> str:
     return "note" if finding.is_approved or finding.status == Verdict.TOUCHING else "warning"
 
 
-def _result(result: CheckResult, f: Finding) -> dict:
+def _result(result: CheckResult, f: Finding, paths: dict[str, str]) -> dict:
     detail = describe(f, resolution(result, f))
     text = f"{printable(f.a)} and {printable(f.b)}: {f.status}, {detail}"
     entry = {
@@ -56,11 +56,11 @@ def _result(result: CheckResult, f: Finding) -> dict:
         "ruleIndex": FINDING_STATUSES.index(f.status),
         "level": _level(result, f),
         "message": {"text": text},
-        "locations": [{"physicalLocation": {"artifactLocation": uri(part_file(result, f.a))}}],
+        "locations": [{"physicalLocation": {"artifactLocation": uri(part_file(paths, f.a))}}],
         "relatedLocations": [
             {
                 "id": 1,
-                "physicalLocation": {"artifactLocation": uri(part_file(result, f.b))},
+                "physicalLocation": {"artifactLocation": uri(part_file(paths, f.b))},
                 "message": {"text": printable(f.b)},
             }
         ],
@@ -92,7 +92,8 @@ def document(result: CheckResult) -> dict:
         }
         for status in FINDING_STATUSES
     ]
-    results = [_result(result, f) for f in result.findings]
+    paths = part_files(result)
+    results = [_result(result, f, paths) for f in result.findings]
     if result.baseline is not None:
         for r in result.baseline.resolved(result.findings):
             results.append(
