@@ -393,3 +393,13 @@ def test_a_json_report_is_a_baseline(tmp_path):
     again = compare(result, baseline)
     assert {again.baseline_state(f) for f in again.findings} == {"active"}
     assert baseline.resolved(result.findings) == []
+
+
+def test_fail_on_new_from_the_configuration_file(tmp_path):
+    config = tmp_path / "meshcheck.toml"
+    config.write_text('fail_on = ["new", "touching"]\n')
+    settings = Settings.from_options(config=config)
+    assert settings.fail_on_new
+    assert [str(s) for s in settings.fail_on] == ["interference", "touching"]
+    only_new = Settings.from_options(fail_on=["new"], clearance=0.5)
+    assert [str(s) for s in only_new.fail_on] == ["interference", "clearance"]
