@@ -140,12 +140,23 @@ def test_files_are_replaced_atomically_keeping_their_mode(tmp_path):
 
 def test_every_report_from_one_run(tmp_path, clash):
     out = {name: tmp_path / name for name in ("r.xml", "r.sarif", "summary.md", "r.json")}
-    result = run([
-        *clash, "--no-cache", "--no-config",
-        "--report", f"junit:{out['r.xml']}", "--report", f"sarif:{out['r.sarif']}",
-        "--report", f"markdown:{out['summary.md']}", "--report", f"json:{out['r.json']}",
-        "--report", "github:-",
-    ])
+    result = run(
+        [
+            *clash,
+            "--no-cache",
+            "--no-config",
+            "--report",
+            f"junit:{out['r.xml']}",
+            "--report",
+            f"sarif:{out['r.sarif']}",
+            "--report",
+            f"markdown:{out['summary.md']}",
+            "--report",
+            f"json:{out['r.json']}",
+            "--report",
+            "github:-",
+        ]
+    )
     assert result.exit_code == ExitStatus.FAILED, result.stderr
     lines = result.stdout.splitlines()
     assert lines[0].startswith("::error file=") and lines[-1].startswith("FAIL: 2 parts")
@@ -185,7 +196,12 @@ def test_stdout_to_a_full_device_is_one_line_and_exit_5(clash):
     with open("/dev/full", "w") as full:
         proc = subprocess.run(
             [sys.executable, "-m", "meshcheck", *clash, "--no-cache", "--no-config"],
-            stdout=full, stderr=subprocess.PIPE, text=True, timeout=300, check=False, cwd=ROOT,
+            stdout=full,
+            stderr=subprocess.PIPE,
+            text=True,
+            timeout=300,
+            check=False,
+            cwd=ROOT,
         )
     assert proc.returncode == ExitStatus.OUTPUT, proc.stderr
     assert proc.stderr.splitlines() == [
@@ -268,8 +284,19 @@ def test_baseline_and_fail_on_new(tmp_path, clash):
     first = run([*clash, "--no-cache", "--no-config", "--report", f"json:{old}"])
     assert first.exit_code == ExitStatus.FAILED
     # the same clash again: active, and --fail-on new lets it pass
-    again = run([*clash, "--no-cache", "--no-config", "--baseline", old, "--fail-on", "new",
-                 "--format", "json"])
+    again = run(
+        [
+            *clash,
+            "--no-cache",
+            "--no-config",
+            "--baseline",
+            old,
+            "--fail-on",
+            "new",
+            "--format",
+            "json",
+        ]
+    )
     assert again.exit_code == ExitStatus.OK, again.stderr
     doc = json.loads(again.stdout)
     assert [r["baseline"] for r in doc["results"]] == ["active"]

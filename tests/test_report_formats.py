@@ -25,7 +25,7 @@ DATA = Path(__file__).parent / "data"
 HOSTILE = {
     "forged line": "x\nPASS: 2 parts, 0 interference\n.stl",
     "terminal escapes": "evil\x1b[2J\x1b]0;owned\x07\r.glb#node",
-    "markup": 'a&#10;b</script><img src=x onerror=alert(1)>"\',:|*_[l](http://u).3mf',
+    "markup": "a&#10;b</script><img src=x onerror=alert(1)>\"',:|*_[l](http://u).3mf",
     "not utf-8": "caf\udce9.stl",
     "bidi": "rtl\u202egnp.stl\u2028",
     "workflow command": "::error::fake\n::set-output name=x::y",
@@ -36,10 +36,16 @@ def finding(a, b, status="interference", *, approved=None, tolerance=1e-4, centr
     a, b = sorted((a, b))
     interfering = status == "interference"
     return Finding(
-        a=a, b=b, status=status, distance=0.0 if status != "clearance" else 0.1,
-        depth=0.25 if interfering else None, volume=2.5 if interfering else None,
+        a=a,
+        b=b,
+        status=status,
+        distance=0.0 if status != "clearance" else 0.1,
+        depth=0.25 if interfering else None,
+        volume=2.5 if interfering else None,
         location=Location(np.array(centroid, float), np.zeros(3), np.ones(3)),
-        id=finding_id(a, "da", b, "db"), approval_reason=approved, tolerance=tolerance,
+        id=finding_id(a, "da", b, "db"),
+        approval_reason=approved,
+        tolerance=tolerance,
     )
 
 
@@ -47,8 +53,10 @@ def result_of(*findings, settings=None, warnings=(), parts=None, baseline=None) 
     names = sorted({n for f in findings for n in (f.a, f.b)})
     parts = parts or [Part(n, n.split("#")[0], 12, True, 1) for n in names]
     result = CheckResult(
-        findings=sorted(findings, key=lambda f: (f.a, f.b)), parts=parts,
-        settings=settings or Settings(), warnings=list(warnings),
+        findings=sorted(findings, key=lambda f: (f.a, f.b)),
+        parts=parts,
+        settings=settings or Settings(),
+        warnings=list(warnings),
     )
     return result if baseline is None else compare(result, baseline)
 
@@ -179,8 +187,11 @@ def test_sarif_meets_the_schema():
     near = finding("a.glb#pin", "a.glb#hub", "clearance")
     approved = finding("nut.stl", "plate.stl", approved="press fit")
     result = result_of(
-        finding("/abs/dir/bolt.stl", "plate.stl"), near, approved,
-        finding("bracket.stl", "plate.stl", "touching"), warnings=["odd.stl: not closed"],
+        finding("/abs/dir/bolt.stl", "plate.stl"),
+        near,
+        approved,
+        finding("bracket.stl", "plate.stl", "touching"),
+        warnings=["odd.stl: not closed"],
         settings=Settings.from_options(clearance=0.5),
     )
     doc = json.loads(render(result, "sarif"))
@@ -188,13 +199,16 @@ def test_sarif_meets_the_schema():
     assert not errors, errors[0]
     run = doc["runs"][0]
     assert [r["id"] for r in run["tool"]["driver"]["rules"]] == [
-        "interference", "clearance", "touching",
+        "interference",
+        "clearance",
+        "touching",
     ]
     by_id = {r["partialFingerprints"]["meshcheckFindingId/v1"]: r for r in run["results"]}
     assert set(by_id) == {f.id for f in result.findings}
     assert by_id[near.id]["level"] == "error"
     assert by_id[near.id]["locations"][0]["physicalLocation"]["artifactLocation"] == {
-        "uri": "a.glb", "uriBaseId": "%SRCROOT%",
+        "uri": "a.glb",
+        "uriBaseId": "%SRCROOT%",
     }
     assert by_id[approved.id]["suppressions"][0]["justification"] == "press fit"
     absolute = next(r for r in run["results"] if "bolt" in r["message"]["text"])
@@ -303,7 +317,9 @@ def test_baseline_marks_new_active_and_resolved():
         {"id": "0123456789ab", "a": "g.stl", "b": "h.stl", "status": "clearance"}
     ]
     assert (doc["summary"]["new"], doc["summary"]["active"], doc["summary"]["resolved"]) == (
-        2, 1, 1,
+        2,
+        1,
+        1,
     )
     for fmt in ("text", "github", "markdown", "junit"):
         out = render(result, fmt)
@@ -355,12 +371,18 @@ def write(tmp_path, content: bytes | str) -> str:
         ("[]", "no 'results' list"),
         ('{"results": {}}', "no 'results' list"),
         ('{"results": [1]}', "results[0] is not an object"),
-        ('{"results": [{"id": "0123456789ab", "a": "x", "b": 1, "status": "touching"}]}',
-         "lacks a string"),
-        ('{"results": [{"id": "../../etc", "a": "x", "b": "y", "status": "touching"}]}',
-         "12 hex digits"),
-        ('{"results": [{"id": "0123456789ab", "a": "x", "b": "y", "status": "boom"}]}',
-         "unknown status"),
+        (
+            '{"results": [{"id": "0123456789ab", "a": "x", "b": 1, "status": "touching"}]}',
+            "lacks a string",
+        ),
+        (
+            '{"results": [{"id": "../../etc", "a": "x", "b": "y", "status": "touching"}]}',
+            "12 hex digits",
+        ),
+        (
+            '{"results": [{"id": "0123456789ab", "a": "x", "b": "y", "status": "boom"}]}',
+            "unknown status",
+        ),
     ],
 )
 def test_a_hostile_baseline_is_one_config_error(tmp_path, content, reason):
