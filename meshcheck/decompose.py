@@ -25,7 +25,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from .errors import MeshcheckWarning
-from .load import Body
+from .load import Body, is_closed
 
 # CoACD settings, measured with bench/coacd_settings.py on CAD-like parts of 4,400-7,900 triangles
 # (plates with 40-60 holes, a slotted bracket, a pocketed housing, a 48-tooth gear). The verify
@@ -65,7 +65,7 @@ NEAR_COPY_TOLERANCE = 1e-4
 
 def is_convex(mesh) -> bool:
     """True when a closed mesh fills its convex hull (volumes equal within 1e-6)."""
-    if not mesh.is_watertight or not mesh.is_winding_consistent:
+    if not is_closed(mesh):
         return False
     try:
         hull = mesh.convex_hull

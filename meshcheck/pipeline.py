@@ -99,7 +99,9 @@ def check(
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", MeshcheckWarning)
             with Progress("loading", 0) as bar:
-                bodies = load_bodies(paths, split=settings.split, progress=bar.update_total)
+                bodies = load_bodies(
+                    paths, split=settings.split, units=settings.units, progress=bar.update_total
+                )
             result = check_bodies(bodies, settings)
     finally:
         # re-issue outside the recorder, so callers' filters (and the CLI) see them as usual

@@ -31,6 +31,7 @@ from .geometry.triangles import (
     triangle_boxes,
     winding_numbers,
 )
+from .load.mesh import is_closed
 from .results import Verdict
 
 # Faces cast inward to seed the inscribed-ball search; caps the cost on large overlaps.
@@ -192,7 +193,7 @@ class _Near:
 
 
 def _is_closed(mesh: trimesh.Trimesh) -> bool:
-    return bool(mesh.is_watertight and mesh.is_winding_consistent)
+    return is_closed(mesh)
 
 
 def outward_faces(v: np.ndarray, f: np.ndarray) -> np.ndarray:

@@ -41,17 +41,25 @@ def write_gltf(path, nodes) -> str:
         "scenes": [{"nodes": list(range(len(nodes)))}],
         "nodes": [{"name": n, "mesh": 0, "translation": list(t)} for n, t in nodes],
         "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
-        "buffers": [{
-            "byteLength": len(data),
-            "uri": "data:application/octet-stream;base64," + base64.b64encode(data).decode(),
-        }],
+        "buffers": [
+            {
+                "byteLength": len(data),
+                "uri": "data:application/octet-stream;base64," + base64.b64encode(data).decode(),
+            }
+        ],
         "bufferViews": [
             {"buffer": 0, "byteOffset": 0, "byteLength": v.nbytes},
             {"buffer": 0, "byteOffset": v.nbytes, "byteLength": f.nbytes},
         ],
         "accessors": [
-            {"bufferView": 0, "componentType": 5126, "count": len(v), "type": "VEC3",
-             "min": v.min(axis=0).tolist(), "max": v.max(axis=0).tolist()},
+            {
+                "bufferView": 0,
+                "componentType": 5126,
+                "count": len(v),
+                "type": "VEC3",
+                "min": v.min(axis=0).tolist(),
+                "max": v.max(axis=0).tolist(),
+            },
             {"bufferView": 1, "componentType": 5125, "count": f.size, "type": "SCALAR"},
         ],
     }
@@ -66,15 +74,17 @@ def write_3mf(path, items) -> str:
     tris = "".join(f'<triangle v1="{a}" v2="{b}" v3="{c}"/>' for a, b, c in cube.faces)
     objects, build = [], []
     for k, (name, (x, y, z)) in enumerate(items, start=1):
-        objects.append(f'<object id="{k}" name="{name}" type="model"><components>'
-                       f'<component objectid="100"/></components></object>')
+        objects.append(
+            f'<object id="{k}" name="{name}" type="model"><components>'
+            f'<component objectid="100"/></components></object>'
+        )
         build.append(f'<item objectid="{k}" transform="1 0 0 0 1 0 0 0 1 {x} {y} {z}"/>')
     model = (
         '<?xml version="1.0" encoding="UTF-8"?>'
         '<model unit="millimeter" xmlns="http://schemas.microsoft.com/3dmanufacturing/core/2015/02">'
         f'<resources><object id="100" name="cube" type="model"><mesh><vertices>{verts}</vertices>'
-        f'<triangles>{tris}</triangles></mesh></object>{"".join(objects)}</resources>'
-        f'<build>{"".join(build)}</build></model>'
+        f"<triangles>{tris}</triangles></mesh></object>{''.join(objects)}</resources>"
+        f"<build>{''.join(build)}</build></model>"
     )
     rels = (
         '<?xml version="1.0" encoding="UTF-8"?>'
@@ -190,7 +200,7 @@ def test_broken_3mf_is_an_input_error(tmp_path, build, reason):
 def test_3mf_component_cycle_is_an_input_error(tmp_path):
     obj = '<object id="1"><components><component objectid="1"/></components></object>'
     path = _3mf_with_model(tmp_path / "cycle.3mf", _3mf_model(obj, '<item objectid="1"/>'))
-    with pytest.raises(InputError, match="nest too deep"):
+    with pytest.raises(InputError, match="form a cycle through object 1"):
         load_bodies([path])
 
 
@@ -205,7 +215,9 @@ def test_directory_expands_to_sorted_mesh_files(tmp_path):
     (root / "notes.txt").write_text("not a mesh")
     arg = str(root)
     assert expand_paths([arg]) == [
-        os.path.join(arg, "A.STL"), os.path.join(arg, "b.stl"), os.path.join(arg, "sub", "a.stl"),
+        os.path.join(arg, "A.STL"),
+        os.path.join(arg, "b.stl"),
+        os.path.join(arg, "sub", "a.stl"),
     ]
     assert [b.name for b in load_bodies([arg])] == expand_paths([arg])
 
@@ -350,3 +362,222 @@ def test_split_finds_every_disjoint_shell_in_file_order(order, gaps):
     assert len(shells) == 4
     got = [float(s.volume) for s in shells]
     np.testing.assert_allclose(got, [sizes[k] ** 3 for k in order], rtol=1e-9)
+
+
+# ------------------------------------------------------------------------------------------
+# Names: a function of the files alone, the same in every process (issue 19.1)
+
+
+def _two_primitive_gltf(path) -> str:
+    """A glTF whose one node has no name and a mesh of two primitives (as CesiumMilkTruck)."""
+    doc = json.loads(open(write_gltf(path, [("x", (0, 0, 0))])).read())
+    del doc["nodes"][0]["name"]
+    prim = doc["meshes"][0]["primitives"][0]
+    doc["meshes"][0]["primitives"] = [prim, dict(prim)]
+    path.write_text(json.dumps(doc))
+    return str(path)
+
+
+NAMES_SCRIPT = """
+import json, sys
+from meshcheck.load import load_bodies
+out = {}
+for arg in sys.argv[1:]:
+    split = arg.startswith("split:")
+    path = arg.removeprefix("split:")
+    out[arg] = [b.name for b in load_bodies([path], split=split)]
+print(json.dumps(out))
+"""
+
+
+def test_names_are_the_same_in_every_process(tmp_path):
+    import subprocess
+    import sys
+
+    gltf = _two_primitive_gltf(tmp_path / "truck.gltf")
+    threemf = write_3mf(tmp_path / "assy.3mf", [("base", (0, 0, 0)), ("base", (0, 0, 2))])
+    obj = tmp_path / "groups.obj"
+    lines = []
+    for k, name in enumerate(["housing", "lid"]):
+        lines.append(f"g {name}")
+        cube = box(at=(3 * k, 0, 0))
+        lines += [f"v {x} {y} {z}" for x, y, z in cube.vertices]
+        lines += [f"f {a + 1 + 8 * k} {b + 1 + 8 * k} {c + 1 + 8 * k}" for a, b, c in cube.faces]
+    obj.write_text("\n".join(lines) + "\n")
+    solid = box().export(file_type="stl_ascii")
+    stl = tmp_path / "solids.stl"
+    stl.write_text(solid.replace("solid", "solid top", 1) + solid + solid)
+    shells = write_stl(
+        tmp_path / "shells.stl", trimesh.util.concatenate([box(), box(at=(3, 0, 0))])
+    )
+    args = [gltf, threemf, str(obj), str(stl), f"split:{shells}"]
+    runs = []
+    for seed in ("1", "2", "12345"):
+        env = {**os.environ, "PYTHONHASHSEED": seed}
+        proc = subprocess.run(
+            [sys.executable, "-c", NAMES_SCRIPT, *args],
+            capture_output=True,
+            text=True,
+            env=env,
+            timeout=300,
+            check=True,
+        )
+        runs.append(json.loads(proc.stdout))
+    assert runs[0] == runs[1] == runs[2]
+    names = runs[0]
+    assert names[gltf] == [f"{gltf}#0/0", f"{gltf}#0/1"]
+    assert names[threemf] == [f"{threemf}#base/cube", f"{threemf}#base/cube_2"]
+    assert names[str(obj)] == [f"{obj}#housing", f"{obj}#lid"]
+    assert names[str(stl)] == [f"{stl}#geometry_1", f"{stl}#geometry_2", f"{stl}#top"]
+    assert names[f"split:{shells}"] == [f"{shells}#1", f"{shells}#2"]
+
+
+def test_relative_names_are_relative_to_the_argument(tmp_path):
+    root = tmp_path / "assy"
+    (root / "sub").mkdir(parents=True)
+    write_stl(root / "sub" / "a.stl", box())
+    gltf = write_gltf(tmp_path / "two.gltf", [("left", (0, 0, 0)), ("right", (3, 0, 0))])
+    bodies = load_bodies([str(root), gltf], units="m")  # both files in metres
+    assert [b.name for b in bodies] == [
+        os.path.join(str(root), "sub", "a.stl"),
+        f"{gltf}#left",
+        f"{gltf}#right",
+    ]
+    assert [b.relative_name for b in bodies] == [
+        os.path.join("sub", "a.stl"),
+        "two.gltf#left",
+        "two.gltf#right",
+    ]
+    split = load_bodies([str(root)], split=True)
+    assert [b.relative_name for b in split] == [os.path.join("sub", "a.stl")]
+
+
+# ------------------------------------------------------------------------------------------
+# Closedness on the mesh as given (issue 19.2)
+
+
+def _t_vertex_box(extents) -> trimesh.Trimesh:
+    """A closed box with one edge split by its midpoint on one side only, stitched by a
+    zero-area triangle (a, b, midpoint): closed, but holding a triangle of no area."""
+    cube = box(extents)
+    v, f = cube.vertices.copy(), cube.faces.copy()
+    a, b, c = f[0]
+    m = len(v)
+    v = np.vstack([v, 0.5 * (v[a] + v[b])])
+    faces = np.vstack([[[a, m, c], [m, b, c]], f[1:], [[a, b, m]]])
+    return trimesh.Trimesh(v, faces, process=False)
+
+
+def test_a_zero_area_triangle_that_closes_the_surface_is_kept(tmp_path):
+    mesh = _t_vertex_box((4, 4, 4))
+    assert mesh.area == pytest.approx(96.0)
+    path = write_stl(tmp_path / "t.stl", mesh)
+    (body,) = load_bodies([path])  # no warning: filterwarnings = error
+    assert body.is_closed
+    assert len(body.mesh.faces) == 14
+    assert float(body.mesh.volume) == pytest.approx(64.0)
+
+
+@pytest.mark.parametrize("at", [(0.5, 0.0, 0.0), (1.8, 0.3, 0.0)], ids=["buried", "crossing"])
+def test_t_vertex_mesh_gives_the_clean_meshs_verdict_depth_and_volume(tmp_path, at):
+    import meshcheck
+
+    probe = write_stl(tmp_path / "probe.stl", box((1, 1, 1), at=at))
+    results = []
+    for name, mesh in [("clean.stl", box((4, 4, 4))), ("t.stl", _t_vertex_box((4, 4, 4)))]:
+        big = write_stl(tmp_path / name, mesh)
+        result = meshcheck.check([big, probe])
+        (finding,) = result.findings
+        results.append(finding)
+    clean, t = results
+    assert (t.status, t.is_surface_only) == (clean.status, clean.is_surface_only)
+    assert (clean.status, clean.is_surface_only) == ("interference", False)
+    assert t.depth == pytest.approx(clean.depth, rel=1e-9)
+    assert t.volume == pytest.approx(clean.volume, rel=1e-9)
+    assert clean.volume == pytest.approx(1.0 if at[0] == 0.5 else 0.7, rel=1e-6)
+
+
+# ------------------------------------------------------------------------------------------
+# Units (issue 9.5)
+
+
+def test_gltf_metres_are_converted_to_the_mm_of_an_stl_beside_it(tmp_path):
+    stl = write_stl(tmp_path / "frame.stl", box((1000, 1000, 1000)))  # mm, no unit declared
+    gltf = write_gltf(tmp_path / "pin.gltf", [("pin", (2, 0, 0))])  # a 1 m cube 2 m away
+    frame, pin = load_bodies([stl, gltf])
+    assert frame.units == pin.units == "mm"
+    np.testing.assert_allclose(pin.world.bounds, [[1500, -500, -500], [2500, 500, 500]])
+    np.testing.assert_allclose(pin.mesh.bounds, [[-0.5] * 3, [0.5] * 3])  # local: the file's
+
+
+def test_files_that_all_declare_one_unit_are_reported_in_it(tmp_path):
+    gltf = write_gltf(tmp_path / "a.gltf", [("a", (0, 0, 0)), ("b", (2, 0, 0))])
+    bodies = load_bodies([gltf])
+    assert {b.units for b in bodies} == {"m"}
+    np.testing.assert_array_equal(bodies[1].transform[:3, :3], np.eye(3))
+
+
+def test_3mf_unit_attribute_is_read(tmp_path):
+    obj = f'<object id="1">{_3mf_mesh(box())}</object>'
+    model = _3mf_model(obj, '<item objectid="1"/>').replace("<model ", '<model unit="inch" ', 1)
+    path = _3mf_with_model(tmp_path / "inch.3mf", model)
+    (alone,) = load_bodies([path])
+    assert alone.units == "in"
+    np.testing.assert_allclose(alone.world.extents, [1, 1, 1])
+    stl = write_stl(tmp_path / "mm.stl", box((25.4, 25.4, 25.4), at=(100, 0, 0)))
+    inch, mm = load_bodies([path, stl])
+    assert inch.units == mm.units == "mm"
+    np.testing.assert_allclose(inch.world.extents, [25.4] * 3)
+
+
+def test_units_name_the_undeclared_files_and_the_report(tmp_path):
+    stl = write_stl(tmp_path / "frame.stl", box((40, 40, 40)))  # inches
+    gltf = write_gltf(tmp_path / "pin.gltf", [("pin", (0, 0, 0))])  # 1 m = 39.37 in
+    frame, pin = load_bodies([stl, gltf], units="inch")
+    assert frame.units == pin.units == "in"
+    np.testing.assert_allclose(frame.world.extents, [40] * 3)
+    np.testing.assert_allclose(pin.world.extents, [1 / 0.0254] * 3)
+
+
+def test_unknown_units_are_a_config_error(tmp_path):
+    from meshcheck.errors import ConfigError
+
+    stl = write_stl(tmp_path / "a.stl", box())
+    with pytest.raises(ConfigError, match="unknown length unit 'furlong'"):
+        load_bodies([stl], units="furlong")
+
+
+def test_parts_a_thousand_times_apart_in_size_warn_of_mixed_units(tmp_path):
+    mm = write_stl(tmp_path / "frame_mm.stl", box((40, 40, 40)))
+    m = write_stl(tmp_path / "pin_in_metres.stl", box((0.01, 0.01, 0.01), at=(0.01, 0, 0)))
+    with pytest.warns(MeshcheckWarning, match="mixed units") as caught:
+        load_bodies([mm, m])
+    (message,) = [str(w.message) for w in caught]
+    assert message.startswith(f"{mm}: is 4000 times the size of {m}")
+
+
+def _3mf_mesh(mesh) -> str:
+    verts = "".join(f'<vertex x="{x}" y="{y}" z="{z}"/>' for x, y, z in mesh.vertices)
+    tris = "".join(f'<triangle v1="{a}" v2="{b}" v3="{c}"/>' for a, b, c in mesh.faces)
+    return f"<mesh><vertices>{verts}</vertices><triangles>{tris}</triangles></mesh>"
+
+
+# ------------------------------------------------------------------------------------------
+# Several shells in one file (issue 9.6)
+
+
+def test_overlapping_closed_shells_warn_and_suggest_split(tmp_path):
+    path = write_stl(tmp_path / "assy.stl", trimesh.util.concatenate([box(), box(at=(0.5, 0, 0))]))
+    with pytest.warns(MeshcheckWarning, match=r"assy\.stl: closed shells 1 and 2 .* --split"):
+        (body,) = load_bodies([path])
+    assert len(body.mesh.faces) == 24
+    assert len(load_bodies([path], split=True)) == 2  # no warning: the clash is checked
+
+
+def test_touching_or_apart_shells_do_not_warn(tmp_path):
+    # 1e-6 apart: touching within the 1e-6 relative tolerance (exactly shared corners would be
+    # merged into one vertex, making the file one non-manifold shell)
+    touching = trimesh.util.concatenate([box(), box(at=(1 + 1e-6, 0, 0)), box(at=(5, 0, 0))])
+    path = write_stl(tmp_path / "assy.stl", touching)
+    (body,) = load_bodies([path])  # filterwarnings = error: any warning fails
+    assert len(body.mesh.faces) == 36

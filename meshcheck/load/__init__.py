@@ -1,0 +1,387 @@
+"""Files -> bodies: every body in world coordinates and one report unit, with the name reports use.
+
+Naming
+------
+Names are a function of the arguments and of each file's content and structure only (never of
+hash seeds, random numbers or the order of a dict), so they and the finding IDs built from them
+are the same on every run.
+
+- A part's name is the path exactly as given (``plate.stl``).
+- A body inside a file that holds several is named ``PATH#NODE``; bodies of one file are listed
+  sorted by NODE. NODE is:
+
+  - glTF/GLB: the node's ``name``, else its index in the file's node list; a name an earlier
+    node already has gets ``_2``, ``_3``... A node whose mesh has several triangle primitives
+    gives one body per primitive, ``NODE/0``, ``NODE/1``... by primitive index.
+  - 3MF: the build item's object ``name``, else ``object<ID>``; an object made of components
+    gives one body per mesh it reaches, ``ITEM/COMPONENT`` (the component object's ``name``,
+    else ``component<k>`` counting from 1); a name used twice gets ``_2``, ``_3``... in build order.
+  - OBJ: the ``o``/``g`` name; STL: the ``solid`` name; unnamed ones ``geometry_<k>`` in file
+    order (trimesh's names, made unique in file order).
+  - STEP: the names its reader gives, by the same rules (``load.step``, when present).
+
+  A geometry instanced by two nodes gives two parts that share one local mesh (``Body.mesh``)
+  and differ by ``Body.transform``.
+- A directory argument stands for every supported mesh file below it, recursively, sorted by
+  relative path, hidden files and folders skipped; each is named ``os.path.join(ARG, RELPATH)``.
+- With ``split=True`` a body made of several disconnected shells becomes one part per shell,
+  named ``NAME#1``, ``NAME#2``... in the order of each shell's first triangle in the file. A closed
+  inward-facing shell (a cavity lining) inside another shell stays with that shell.
+- ``Body.relative_name`` is the name relative to its argument: ``RELPATH[#NODE]`` below a
+  directory argument, ``basename(PATH)[#NODE]`` for a file argument (for pattern matching).
+- Two inputs giving the same part name are an error.
+
+Units
+-----
+Every body is converted to one report unit (``Body.units``) by a scale folded into
+``Body.transform``; ``Body.mesh`` stays in the file's unit. The rule is ``meshcheck.units``'s:
+``units`` names the unit of files that declare none and the report unit; without it undeclared
+files are millimetres and the report unit is the one all files declare, when all declare the same,
+else millimetres. Files whose sizes differ by ``MIXED_UNITS_RATIO`` or more raise a warning
+(likely mixed units).
+
+Validation
+----------
+Every input problem the user can fix is an ``InputError`` (``error: PATH: reason``, one line):
+missing or unreadable paths, unknown extensions, empty or truncated files, files or declared
+sizes beyond the run's ``Limits`` (checked before reading: file sizes, 3MF entry sizes and
+component fan-out, glTF buffers and accessors, STL/PLY/OFF counts, triangles and parts per run),
+glTF nodes that do not form a tree, files without triangles (point clouds), NaN or infinite
+coordinates, and placements that flatten a part or take its coordinates beyond
+``Limits.max_coordinate``. Triangles with a repeated vertex are dropped with a warning; triangles
+of zero area with three distinct vertices are kept (they keep a closed surface closed). Meshes
+that are not closed are kept; a file whose closed shells overlap each other (without ``split``)
+is kept. Each of those raises a ``MeshcheckWarning`` whose message starts with the part name.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from collections.abc import Callable, Iterable, Sequence
+
+import numpy as np
+import trimesh
+
+from .. import units as units_
+from ..errors import ConfigError, InputError
+from .body import Body, mesh_digest
+from .gltf import read_gltf
+from .limits import Budget, Limits, check_placement, read_file
+from .mesh import clean_mesh, is_closed, overlapping_shells, split_shells, warn
+from .scene import read_scene
+from .threemf import read_3mf
+
+__all__ = [
+    "SUPPORTED_EXTENSIONS",
+    "Body",
+    "Limits",
+    "expand_paths",
+    "is_closed",
+    "load_bodies",
+    "load_file",
+    "mesh_digest",
+    "split_body",
+    "split_shells",
+]
+
+SUPPORTED_EXTENSIONS = (".stl", ".obj", ".ply", ".off", ".glb", ".gltf", ".3mf")
+
+#: Files whose bounding-box diagonals differ by this factor or more get a "mixed units?" warning.
+MIXED_UNITS_RATIO = 500.0
+
+Item = tuple[str, trimesh.Trimesh, np.ndarray]  # (node, local mesh, placement in the file's unit)
+
+
+# --------------------------------------------------------------------------------------------
+# Paths
+
+
+def expand_paths(paths: Iterable[str]) -> list[str]:
+    """Replace each directory in ``paths`` by the supported mesh files below it.
+
+    Parameters
+    ----------
+    paths : iterable of str
+        Files and directories, as the user gave them.
+
+    Returns
+    -------
+    files : list of str
+        Files in argument order; a directory's files sorted by relative path and joined to it.
+
+    Raises
+    ------
+    InputError
+        A path does not exist, or a directory holds no supported mesh file.
+    """
+    return [path for path, _ in _expand(paths)]
+
+
+def _expand(paths: Iterable[str]) -> list[tuple[str, str]]:
+    """(file, name relative to its argument) of every file the arguments stand for."""
+    files: list[tuple[str, str]] = []
+    for path in paths:
+        if os.path.isdir(path):
+            found = sorted(_walk_meshes(path))
+            if not found:
+                exts = ", ".join(SUPPORTED_EXTENSIONS)
+                raise InputError(path, f"directory holds no mesh files ({exts})")
+            files.extend((os.path.join(path, rel), rel) for rel in found)
+        elif os.path.exists(path):
+            files.append((path, os.path.basename(path) or path))
+        else:
+            raise InputError(path, "no such file or directory")
+    return files
+
+
+def _walk_meshes(root: str) -> list[str]:
+    """Relative paths of supported mesh files below ``root``, skipping hidden entries."""
+    out = []
+    for dirpath, dirnames, filenames in os.walk(root):
+        dirnames[:] = [d for d in dirnames if not d.startswith(".")]
+        rel_dir = os.path.relpath(dirpath, root)
+        for name in filenames:
+            ext = os.path.splitext(name)[1].lower()
+            if name.startswith(".") or ext not in SUPPORTED_EXTENSIONS:
+                continue
+            out.append(name if rel_dir == os.curdir else os.path.join(rel_dir, name))
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# Loading
+
+
+def load_bodies(
+    paths: Sequence[str],
+    *,
+    split: bool = False,
+    units: str | None = None,
+    limits: Limits | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> list[Body]:
+    """Load every body of every file, in world coordinates and one report unit.
+
+    Parameters
+    ----------
+    paths : sequence of str
+        Mesh files and directories, as the user gave them.
+    split : bool
+        Make every disconnected shell of a body its own part (cavity linings stay with the
+        shell around them).
+    units : str, optional
+        Unit of the files that declare none, and the report unit (``meshcheck.units``).
+    limits : Limits, optional
+        Budgets for the run; default ``Limits()``.
+    progress : callable, optional
+        Called as ``progress(done, total)`` after each file, counting files.
+
+    Returns
+    -------
+    bodies : list of Body
+        In the order of ``paths``, bodies of one file sorted by node name; every ``Body.units``
+        is the report unit.
+
+    Raises
+    ------
+    InputError
+        An input cannot be checked; see the module docstring.
+    ConfigError
+        ``units`` is not a known unit.
+    """
+    if units is not None:
+        try:
+            units = units_.unit_name(units)
+        except ValueError as exc:
+            raise ConfigError(None, str(exc)) from None
+    budget = Budget(limits or Limits())
+    files = _expand(paths)
+    read = []
+    for done, (path, rel) in enumerate(files, start=1):
+        items, declared = _read(path, budget)
+        read.append((path, rel, items, declared))
+        if progress is not None:
+            progress(done, len(files))
+    report = units_.report_unit([declared for *_, declared in read], units)
+
+    bodies: list[Body] = []
+    seen: set[str] = set()
+    sizes = []
+    for path, rel, items, declared in read:
+        file_bodies = _place(path, rel, items, declared, report, units, budget.limits)
+        sizes.append((_diagonal(file_bodies), path))
+        for body in file_bodies:
+            for part in split_body(body) if split else [body]:
+                if part.name in seen:
+                    raise InputError(part.name, "given more than once")
+                seen.add(part.name)
+                bodies.append(part)
+        if not split:
+            _warn_overlapping_shells(file_bodies)
+    _warn_mixed_units(sizes, report)
+    return bodies
+
+
+def load_file(path: str, *, units: str | None = None, limits: Limits | None = None) -> list[Body]:
+    """Load the bodies of one mesh file; raise ``InputError`` naming the file when it is unusable.
+
+    Parameters
+    ----------
+    path : str
+        A mesh file with one of ``SUPPORTED_EXTENSIONS``.
+    units, limits
+        As for ``load_bodies``.
+
+    Returns
+    -------
+    bodies : list of Body
+        One body (named ``path``) or, when the file holds several, one per node (``path#NODE``),
+        sorted by node name.
+    """
+    units = None if units is None else units_.unit_name(units)
+    budget = Budget(limits or Limits())
+    items, declared = _read(path, budget)
+    report = units_.report_unit([declared], units)
+    return _place(path, os.path.basename(path), items, declared, report, units, budget.limits)
+
+
+def _read(path: str, budget: Budget) -> tuple[list[Item], str | None]:
+    """Cleaned (node, mesh, placement) items of one file, sorted by node, and its declared unit."""
+    if not os.path.exists(path):
+        raise InputError(path, "no such file or directory")
+    if os.path.isdir(path):
+        raise InputError(path, "is a directory")
+    ext = os.path.splitext(path)[1].lower()
+    if ext not in SUPPORTED_EXTENSIONS:
+        raise InputError(
+            path,
+            f"unsupported file type {ext or '(no extension)'}; "
+            f"supported: {', '.join(SUPPORTED_EXTENSIONS)}",
+        )
+    data = read_file(path, budget.limits)
+    declared = None
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # refused below with the real reason
+        if ext == ".3mf":
+            items, declared = read_3mf(path, data, budget)
+        elif ext in (".glb", ".gltf"):
+            items, declared = read_gltf(path, data, ext, budget), "m"
+        else:
+            items = read_scene(path, data, ext, budget)
+    del data
+
+    multi = len(items) > 1
+    cleaned: dict[int, trimesh.Trimesh] = {}  # once per geometry, shared by its instances
+    out = []
+    triangles = 0
+    for node, geom, transform in sorted(items, key=lambda item: item[0]):
+        name = f"{path}#{node}" if multi else path
+        if id(geom) not in cleaned:
+            mesh = clean_mesh(
+                geom.vertices, geom.faces, name, max_coordinate=budget.limits.max_coordinate
+            )
+            cleaned[id(geom)] = mesh
+        mesh = cleaned[id(geom)]
+        if not is_closed(mesh):
+            warn(name, "mesh is not closed (not watertight); its findings rest on surfaces only")
+        triangles += len(mesh.faces)
+        out.append((node, mesh, np.asarray(transform, dtype=np.float64)))
+    budget.take(path, triangles, len(out))
+    return out, declared
+
+
+def _place(
+    path: str,
+    rel: str,
+    items: list[Item],
+    declared: str | None,
+    report: str,
+    units: str | None,
+    limits: Limits,
+) -> list[Body]:
+    """Bodies of one file's items, placed in world coordinates in the report unit."""
+    file_unit = declared or units or units_.DEFAULT_UNIT
+    factor = units_.scale(file_unit, report)
+    to_report = np.diag([factor, factor, factor, 1.0])
+    multi = len(items) > 1
+    bodies = []
+    for node, mesh, placement in items:
+        name = f"{path}#{node}" if multi else path
+        transform = placement if factor == 1.0 else to_report @ placement
+        check_placement(name, mesh.vertices, transform, limits)
+        body = Body(
+            name,
+            path,
+            mesh,
+            transform,
+            relative_name=f"{rel}#{node}" if multi else rel,
+            units=report,
+        )
+        bodies.append(body)
+    return bodies
+
+
+def _diagonal(bodies: list[Body]) -> float:
+    """Bounding-box diagonal of a file's bodies, world coordinates."""
+    lower, upper = np.full(3, np.inf), np.full(3, -np.inf)
+    for body in bodies:
+        lo, hi = body.mesh.bounds
+        corners = np.array([[(lo, hi)[k >> d & 1][d] for d in range(3)] for k in range(8)])
+        world = corners @ body.transform[:3, :3].T + body.transform[:3, 3]
+        lower, upper = np.minimum(lower, world.min(axis=0)), np.maximum(upper, world.max(axis=0))
+    return float(np.linalg.norm(upper - lower))
+
+
+def _warn_mixed_units(sizes: list[tuple[float, str]], report: str) -> None:
+    """Warn when the largest file is ``MIXED_UNITS_RATIO`` times the smallest or more."""
+    sizes = [s for s in sizes if s[0] > 0.0]
+    if len(sizes) < 2:
+        return
+    small, big = min(sizes), max(sizes)
+    if big[0] >= MIXED_UNITS_RATIO * small[0]:
+        warn(
+            big[1],
+            f"is {big[0] / small[0]:.0f} times the size of {small[1]} "
+            f"({big[0]:.4g} against {small[0]:.4g} {report} across): mixed units? "
+            "(files that declare no unit are read in --units, default mm)",
+        )
+
+
+def _warn_overlapping_shells(bodies: list[Body]) -> None:
+    """Warn once per mesh whose closed shells overlap each other (they are checked as one part)."""
+    seen = set()
+    for body in bodies:
+        if id(body.mesh) in seen:
+            continue
+        seen.add(id(body.mesh))
+        overlap = overlapping_shells(body.mesh)
+        if overlap is not None:
+            i, j = overlap
+            warn(
+                body.name,
+                f"closed shells {i} and {j} of this part overlap each other; they are checked as "
+                "one part, so their clash is not reported (use --split to check shells as parts)",
+            )
+
+
+# --------------------------------------------------------------------------------------------
+# Splitting bodies into shells
+
+
+def split_body(body: Body) -> list[Body]:
+    """One body per disconnected shell of ``body`` (see ``split_shells``), named ``NAME#k``."""
+    shells = split_shells(body.mesh)
+    if len(shells) == 1:
+        return [body]
+    return [
+        Body(
+            f"{body.name}#{k}",
+            body.path,
+            shell,
+            body.transform,
+            relative_name=f"{body.relative_name}#{k}",
+            units=body.units,
+        )
+        for k, shell in enumerate(shells, start=1)
+    ]

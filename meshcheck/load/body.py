@@ -1,0 +1,72 @@
+"""The part type every reader produces."""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+from dataclasses import dataclass, field
+
+import numpy as np
+import trimesh
+
+from .mesh import is_closed
+
+
+@dataclass(frozen=True, eq=False)
+class Body:
+    """One part of the assembly.
+
+    Attributes
+    ----------
+    name : str
+        ``PATH`` or ``PATH#NODE`` (see the ``meshcheck.load`` docstring).
+    path : str
+        The file the body came from, as given.
+    mesh : trimesh.Trimesh
+        Geometry in its own frame and the file's unit, as stored in the file (shared between
+        instances).
+    transform : (4, 4) float64
+        Homogeneous transform from the mesh's frame to world coordinates in the report unit: the
+        placement in the file, then the conversion from the file's unit.
+    relative_name : str
+        The name relative to the argument the body came from: ``RELPATH[#NODE]`` below a
+        directory argument, ``basename(PATH)[#NODE]`` for a file argument. Defaults to ``name``.
+    units : str
+        The report unit (``meshcheck.units``) of the world coordinates.
+    """
+
+    name: str
+    path: str
+    mesh: trimesh.Trimesh
+    transform: np.ndarray = field(default_factory=lambda: np.eye(4))
+    relative_name: str = ""
+    units: str = "mm"
+
+    def __post_init__(self):
+        if not self.relative_name:
+            object.__setattr__(self, "relative_name", self.name)
+
+    @functools.cached_property
+    def world(self) -> trimesh.Trimesh:
+        """The mesh in world coordinates, report units."""
+        if np.array_equal(self.transform, np.eye(4)):
+            return self.mesh
+        return self.mesh.copy().apply_transform(self.transform)
+
+    @functools.cached_property
+    def digest(self) -> str:
+        """Hex SHA-256 of the body's own geometry (vertices and faces, frame-local)."""
+        return mesh_digest(self.mesh)
+
+    @property
+    def is_closed(self) -> bool:
+        """True when the mesh bounds a volume (see ``meshcheck.load.mesh.is_closed``)."""
+        return is_closed(self.mesh)
+
+
+def mesh_digest(mesh: trimesh.Trimesh) -> str:
+    """Hash a mesh's vertices and faces (float64 / int64 bytes) into a hex SHA-256."""
+    h = hashlib.sha256()
+    h.update(np.ascontiguousarray(mesh.vertices, dtype=np.float64).tobytes())
+    h.update(np.ascontiguousarray(mesh.faces, dtype=np.int64).tobytes())
+    return h.hexdigest()

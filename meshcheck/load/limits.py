@@ -1,0 +1,155 @@
+"""Budgets on what a run reads, checked before reading wherever a file declares a size."""
+
+from __future__ import annotations
+
+import os
+import stat
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Bounds on the input of one run; anything beyond them is refused with an ``InputError``.
+
+    Each bound is checked before the data it bounds is read or allocated where the file declares
+    a size (STL and PLY headers, zip entries, glTF buffers and accessors, 3MF component trees),
+    and once more on what was actually read. The defaults admit real assemblies of a few
+    million triangles with room to spare; raise them for giant ones.
+
+    Attributes
+    ----------
+    max_triangles : int
+        Triangles in the whole run, every placed instance counted (a screw placed 200 times
+        counts 200 times: each is checked on its own). Default 50 million.
+    max_file_bytes : int
+        Bytes of one input file, of one 3MF archive member once decompressed, and of one glTF
+        buffer. Default 4 GiB.
+    max_parts : int
+        Parts in the whole run, after instancing (3MF build items times the meshes their
+        components reach, glTF mesh nodes times their primitives). Default 1 million.
+    max_coordinate : float
+        Largest absolute coordinate allowed, in the file's unit before placement and in the
+        report unit after it. Far beyond any real part (1e12 mm is a million kilometres), and far
+        enough below the float64 range that products of coordinates in the exact kernels never
+        overflow. Default 1e12.
+    """
+
+    max_triangles: int = 50_000_000
+    max_file_bytes: int = 4 << 30
+    max_parts: int = 1_000_000
+    max_coordinate: float = 1e12
+
+
+class Budget:
+    """What a run has used of its ``Limits`` so far."""
+
+    def __init__(self, limits: Limits):
+        self.limits = limits
+        self.triangles = 0
+        self.parts = 0
+
+    def check_triangles(self, path: str, count: int, what: str = "triangles") -> None:
+        """Refuse ``count`` more triangles when they would exceed the run's limit."""
+        limit = self.limits.max_triangles
+        if count > limit - self.triangles:
+            before = f" after {self.triangles} in earlier files" if self.triangles else ""
+            raise InputError(
+                path,
+                f"{_n(count)} {what}{before} exceed the limit of {_n(limit)} triangles per run "
+                "(raise it with --max-triangles)",
+            )
+
+    def check_parts(self, path: str, count: int, what: str = "parts") -> None:
+        """Refuse ``count`` more parts when they would exceed the run's limit."""
+        limit = self.limits.max_parts
+        if count > limit - self.parts:
+            raise InputError(path, f"{_n(count)} {what} exceed the limit of {_n(limit)} per run")
+
+    def take(self, path: str, triangles: int, parts: int) -> None:
+        """Count what a file added, refusing it when it exceeds a limit."""
+        self.check_triangles(path, triangles)
+        self.check_parts(path, parts)
+        self.triangles += triangles
+        self.parts += parts
+
+
+def _n(count: int) -> str:
+    return f"{count:,}".replace(",", "_") if count >= 100_000 else str(count)
+
+
+def read_file(path: str, limits: Limits) -> bytes:
+    """The bytes of a regular file, refusing what cannot be read or is over ``max_file_bytes``.
+
+    The file is opened once and checked through its descriptor, so what is checked is what is
+    read; a FIFO or device is refused without blocking on it.
+    """
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0))
+    except OSError as exc:
+        raise InputError(path, f"cannot be read ({exc.strerror or exc})") from None
+    try:
+        info = os.fstat(fd)
+        if stat.S_ISDIR(info.st_mode):
+            raise InputError(path, "is a directory")
+        if not stat.S_ISREG(info.st_mode):
+            raise InputError(path, "is not a regular file")
+        size = info.st_size
+        if size == 0:
+            raise InputError(path, "empty file")
+        if size > limits.max_file_bytes:
+            raise InputError(
+                path, f"file has {_n(size)} bytes, over the limit of {_n(limits.max_file_bytes)}"
+            )
+        chunks = []
+        left = size
+        while left > 0:
+            chunk = os.read(fd, min(left, 1 << 24))
+            if not chunk:
+                break
+            chunks.append(chunk)
+            left -= len(chunk)
+        return b"".join(chunks)
+    except OSError as exc:
+        raise InputError(path, f"cannot be read ({exc.strerror or exc})") from None
+    finally:
+        os.close(fd)
+
+
+def check_placement(name: str, vertices: np.ndarray, transform: np.ndarray, limits: Limits) -> None:
+    """Refuse a placement that is not finite, flattens the part, or overflows its coordinates.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float64
+        The mesh in its own frame.
+    transform : (4, 4) float64
+        Frame -> world, report units.
+    """
+    transform = np.asarray(transform, dtype=np.float64)
+    if not np.all(np.isfinite(transform)):
+        raise InputError(name, "placement transform holds NaN or infinite values")
+    with np.errstate(all="ignore"):
+        lo, hi = vertices.min(axis=0), vertices.max(axis=0)
+        corners = np.array([[(lo, hi)[k >> d & 1][d] for d in range(3)] for k in range(8)])
+        largest = _largest(corners @ transform[:3, :3].T + transform[:3, 3])
+        if not largest <= limits.max_coordinate:  # the box's corners bound; the vertices decide
+            largest = _largest(vertices @ transform[:3, :3].T + transform[:3, 3])
+        if not largest <= limits.max_coordinate:
+            shown = "beyond the float range" if not np.isfinite(largest) else f"{largest:.3g}"
+            raise InputError(
+                name,
+                f"placed coordinates reach {shown}, beyond the {limits.max_coordinate:g} "
+                "meshcheck can check exactly",
+            )
+        linear = transform[:3, :3]
+        if np.linalg.det(linear / np.max(np.abs(linear), initial=0.0)) == 0.0:
+            raise InputError(name, "placement transform is singular (it flattens the part)")
+
+
+def _largest(points: np.ndarray) -> float:
+    value = float(np.max(np.abs(points)))
+    return value if np.isfinite(value) else np.inf

@@ -1,0 +1,111 @@
+"""Length units: the names meshcheck accepts, their sizes, and which unit a report uses.
+
+Every part is converted at load to one *report unit*, the unit of every length meshcheck reports
+(distances, depths, locations, tolerances; volumes in its cube). The rule:
+
+- ``units`` given (the command line's ``--units``): it is the unit of every file that declares
+  none (STL, OBJ, PLY, OFF) and the report unit;
+- ``units`` not given: files that declare none are millimetres; the report unit is the unit all
+  the files declare when every file declares one and they agree, else millimetres.
+
+Files that declare a unit: glTF/GLB (always metres, by the glTF specification), 3MF (its
+``unit`` attribute, millimetre when absent), STEP (the unit in its header).
+
+Examples
+--------
+>>> unit_name("Millimeter"), unit_name("inch")
+('mm', 'in')
+>>> scale("in", "mm")
+25.4
+>>> report_unit(["m", "m"], None), report_unit(["m", None], None), report_unit(["m"], "in")
+('m', 'mm', 'in')
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+#: Size of each unit in metres, by canonical name.
+METRES = {
+    "um": 1e-6,
+    "mm": 1e-3,
+    "cm": 1e-2,
+    "m": 1.0,
+    "in": 0.0254,
+    "ft": 0.3048,
+}
+
+#: Other spellings (lower case) of the canonical names, including the 3MF and STEP words.
+ALIASES = {
+    "micron": "um",
+    "microns": "um",
+    "micrometer": "um",
+    "micrometers": "um",
+    "micrometre": "um",
+    "micrometres": "um",
+    "µm": "um",
+    "millimeter": "mm",
+    "millimeters": "mm",
+    "millimetre": "mm",
+    "millimetres": "mm",
+    "centimeter": "cm",
+    "centimeters": "cm",
+    "centimetre": "cm",
+    "centimetres": "cm",
+    "meter": "m",
+    "meters": "m",
+    "metre": "m",
+    "metres": "m",
+    "inch": "in",
+    "inches": "in",
+    "foot": "ft",
+    "feet": "ft",
+}
+
+#: Unit of files that declare none, when the caller names no unit.
+DEFAULT_UNIT = "mm"
+
+
+def unit_name(name: str) -> str:
+    """Canonical name (``um``, ``mm``, ``cm``, ``m``, ``in``, ``ft``) of a unit name or alias.
+
+    Raises
+    ------
+    ValueError
+        The name is not a known length unit; the message lists the known ones.
+    """
+    key = str(name).strip().lower()
+    if key in METRES:
+        return key
+    if key in ALIASES:
+        return ALIASES[key]
+    known = ", ".join(METRES)
+    raise ValueError(f"unknown length unit {name!r}; known: {known} (or their full names)")
+
+
+def scale(from_unit: str, to_unit: str) -> float:
+    """Factor turning lengths in ``from_unit`` into lengths in ``to_unit``."""
+    a, b = METRES[unit_name(from_unit)], METRES[unit_name(to_unit)]
+    if a == b:
+        return 1.0
+    ratio = a / b
+    rounded = round(ratio, 9)  # 0.0254 / 0.001 is 25.400000000000002 in binary
+    return rounded if rounded and abs(rounded - ratio) <= 1e-12 * ratio else ratio
+
+
+def report_unit(declared: Iterable[str | None], units: str | None = None) -> str:
+    """The unit every length is reported in (see the module docstring for the rule).
+
+    Parameters
+    ----------
+    declared : iterable of str or None
+        The unit each input file declares, None for a file that declares none.
+    units : str, optional
+        The caller's unit: of undeclared files, and of the report.
+    """
+    if units is not None:
+        return unit_name(units)
+    names = [None if d is None else unit_name(d) for d in declared]
+    if names and None not in names and len(set(names)) == 1:
+        return names[0]
+    return DEFAULT_UNIT

@@ -1,0 +1,423 @@
+"""Hostile inputs (issue 18): every one refused before it costs time or memory, in one line.
+
+Each case is a file an attacker (or a broken exporter) could hand to a CI job. The loader must
+refuse it with one ``InputError`` naming the file and the real reason, within a bounded time and
+memory, never with a traceback, a numpy warning, or an exit status that reads as a finding.
+
+The cases that cost the most on 0.1 (zip bomb, component fan-out, deep node chains) also run in a
+subprocess, measuring exit status, stderr lines, wall time and peak RSS (``os.wait4``).
+"""
+
+from __future__ import annotations
+
+import base64
+import json
+import os
+import stat
+import struct
+import subprocess
+import sys
+import time
+import zipfile
+import zlib
+
+import numpy as np
+import pytest
+import trimesh
+from click.testing import CliRunner
+
+from meshcheck.cli import main
+from meshcheck.errors import ExitStatus, InputError
+from meshcheck.load import Limits, load_bodies
+
+CORE = "http://schemas.microsoft.com/3dmanufacturing/core/2015/02"
+
+
+def box(extents=(1.0, 1.0, 1.0), at=(0.0, 0.0, 0.0)) -> trimesh.Trimesh:
+    return trimesh.creation.box(extents=extents).apply_translation(at)
+
+
+def write_3mf(path, model: str, *, member: str = "3D/3dmodel.model") -> str:
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as z:
+        z.writestr(member, model)
+    return str(path)
+
+
+def mesh_xml(mesh: trimesh.Trimesh) -> str:
+    verts = "".join(f'<vertex x="{x}" y="{y}" z="{z}"/>' for x, y, z in mesh.vertices)
+    tris = "".join(f'<triangle v1="{a}" v2="{b}" v3="{c}"/>' for a, b, c in mesh.faces)
+    return f"<mesh><vertices>{verts}</vertices><triangles>{tris}</triangles></mesh>"
+
+
+def model_xml(objects: str, build: str, unit: str | None = None) -> str:
+    unit_attr = f' unit="{unit}"' if unit else ""
+    return (
+        f'<model xmlns="{CORE}"{unit_attr}><resources>{objects}</resources>'
+        f"<build>{build}</build></model>"
+    )
+
+
+def gltf_doc(nodes, scene_nodes, *, byte_length=None, uri=None) -> dict:
+    """A glTF document with one unit-cube mesh, data embedded as a base64 data URI."""
+    cube = box()
+    v = np.asarray(cube.vertices, dtype=np.float32)
+    f = np.asarray(cube.faces, dtype=np.uint32)
+    data = v.tobytes() + f.tobytes()
+    return {
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": scene_nodes}],
+        "nodes": nodes,
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+        "buffers": [{
+            "byteLength": len(data) if byte_length is None else byte_length,
+            "uri": uri or "data:application/octet-stream;base64," + base64.b64encode(data).decode(),
+        }],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": v.nbytes},
+            {"buffer": 0, "byteOffset": v.nbytes, "byteLength": f.nbytes},
+        ],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": len(v), "type": "VEC3",
+             "min": v.min(axis=0).tolist(), "max": v.max(axis=0).tolist()},
+            {"bufferView": 1, "componentType": 5125, "count": f.size, "type": "SCALAR"},
+        ],
+    }  # fmt: skip
+
+
+def write_json(path, doc) -> str:
+    path.write_text(json.dumps(doc))
+    return str(path)
+
+
+def cli(args):
+    """Run the command in-process; return (exit status, stderr lines)."""
+    result = CliRunner().invoke(main, [*map(str, args), "--no-cache"])
+    assert "Traceback" not in result.stderr, result.stderr
+    assert result.exception is None or isinstance(result.exception, SystemExit), result.exception
+    return result.exit_code, result.stderr.splitlines()
+
+
+def refused(path, reason: str, **kwargs) -> InputError:
+    """Load ``path``; assert one InputError naming it and giving ``reason``."""
+    with pytest.raises(InputError) as info:
+        load_bodies([str(path)], **kwargs)
+    assert info.value.path == str(path), info.value
+    assert reason in info.value.reason, info.value.reason
+    assert "\n" not in str(info.value)
+    return info.value
+
+
+def measured(args, tmp_path) -> tuple[int, list[str], float, float]:
+    """Run ``python -m meshcheck ARGS`` in a subprocess: (exit, stderr lines, seconds, peak MiB)."""
+    err = tmp_path / "stderr.txt"
+    start = time.perf_counter()
+    with open(err, "wb") as fh:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "meshcheck", *map(str, args), "--no-cache"],
+            stdout=subprocess.DEVNULL,
+            stderr=fh,
+        )
+        _, status, usage = os.wait4(proc.pid, 0)
+    seconds = time.perf_counter() - start
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    lines = err.read_text(errors="replace").splitlines()
+    return proc.returncode, lines, seconds, usage.ru_maxrss / 1024.0
+
+
+# ------------------------------------------------------------------------------------------
+# 3MF
+
+
+def test_3mf_zip_bomb_is_refused_from_its_declared_sizes(tmp_path):
+    # 200 MB of XML whitespace deflates to ~200 KB: the ratio of a bomb, refused unread.
+    comp = zlib.compressobj(9, zlib.DEFLATED, -15)
+    head = f'<model xmlns="{CORE}"><resources>'.encode()
+    chunk = b" " * (1 << 20)
+    body = [comp.compress(head)] + [comp.compress(chunk) for _ in range(200)]
+    body.append(comp.compress(b"</resources><build/></model>") + comp.flush())
+    raw = b"".join(body)
+    size = len(head) + 200 * len(chunk) + len(b"</resources><build/></model>")
+    crc = zlib.crc32(head)
+    for _ in range(200):
+        crc = zlib.crc32(chunk, crc)
+    crc = zlib.crc32(b"</resources><build/></model>", crc)
+    path = tmp_path / "bomb.3mf"
+    _write_raw_member(path, "3D/3dmodel.model", raw, size, crc)
+    assert os.path.getsize(path) < 1 << 20
+    refused(path, "the ratio of a zip bomb")
+    status, lines, seconds, peak = measured([path], tmp_path)
+    assert (status, len(lines)) == (ExitStatus.INPUT, 1), lines
+    assert peak < 400, peak  # MiB; 0.1 read the whole entry (MemoryError at 2 GB)
+    assert seconds < 60, seconds  # mostly interpreter start-up on a loaded machine
+
+
+def _write_raw_member(path, name: str, raw: bytes, size: int, crc: int) -> None:
+    """Rewrite ``path`` as a zip whose member ``name`` holds the deflated bytes ``raw``."""
+    local = (
+        struct.pack("<IHHHHHIIIHH", 0x04034B50, 20, 0, 8, 0, 0, crc, len(raw), size, len(name), 0)
+        + name.encode()
+    )
+    central = (
+        struct.pack(
+            "<IHHHHHHIIIHHHHHII",
+            0x02014B50,
+            20,
+            20,
+            0,
+            8,
+            0,
+            0,
+            crc,
+            len(raw),
+            size,
+            len(name),
+            0,
+            0,
+            0,
+            0,
+            0,
+            0,
+        )
+        + name.encode()
+    )
+    start = len(local) + len(raw)
+    end = struct.pack("<IHHHHIIH", 0x06054B50, 0, 0, 1, 1, len(central), start, 0)
+    with open(path, "wb") as fh:
+        fh.write(local + raw + central + end)
+
+
+def test_3mf_entry_declared_over_the_limit_is_refused_before_reading(tmp_path):
+    model = model_xml(f'<object id="1">{mesh_xml(box())}</object>', '<item objectid="1"/>')
+    path = write_3mf(tmp_path / "big.3mf", model)
+    limits = Limits(max_file_bytes=len(model) - 1)
+    refused(path, f"declares {len(model)} bytes uncompressed, over the limit", limits=limits)
+
+
+def test_3mf_component_fan_out_is_counted_before_expanding(tmp_path):
+    # 20 components per level, 8 levels: 20^8 = 2.56e10 placed cubes from a few kilobytes
+    objects = [f'<object id="1">{mesh_xml(box())}</object>']
+    for level in range(2, 10):
+        comps = "".join(f'<component objectid="{level - 1}"/>' for _ in range(20))
+        objects.append(f'<object id="{level}"><components>{comps}</components></object>')
+    path = write_3mf(tmp_path / "fan.3mf", model_xml("".join(objects), '<item objectid="9"/>'))
+    assert os.path.getsize(path) < 8192
+    refused(path, "25_600_000_000 placed meshes exceed the limit")
+    status, lines, seconds, peak = measured([path], tmp_path)
+    assert (status, len(lines)) == (ExitStatus.INPUT, 1), lines
+    assert peak < 400, peak  # 0.1: 21 s, 1.7 GB, MemoryError
+    assert seconds < 60, seconds  # mostly interpreter start-up on a loaded machine
+
+
+def test_3mf_transform_that_overflows_once_applied_is_refused(tmp_path):
+    # finite in the file, 1e300 once applied: 0.1 passed this (exit 0) with 26 warnings
+    big = "1e300 0 0 0 1e300 0 0 0 1e300 0 0 0"
+    objects = f'<object id="1">{mesh_xml(box())}</object>'
+    build = f'<item objectid="1" transform="{big}"/><item objectid="1" transform="{big}"/>'
+    path = write_3mf(tmp_path / "huge.3mf", model_xml(objects, build))
+    with pytest.raises(InputError) as info:
+        load_bodies([path])
+    assert info.value.path == f"{path}#object1"
+    assert "placed coordinates reach 5e+299" in info.value.reason
+    status, lines = cli([path])
+    assert (status, len(lines)) == (ExitStatus.INPUT, 1), lines
+    assert "Warning" not in lines[0]
+
+
+def test_3mf_unknown_unit_is_refused(tmp_path):
+    objects = f'<object id="1">{mesh_xml(box())}</object>'
+    path = write_3mf(tmp_path / "u.3mf", model_xml(objects, '<item objectid="1"/>', "parsec"))
+    refused(path, "unknown unit 'parsec'")
+
+
+# ------------------------------------------------------------------------------------------
+# glTF
+
+
+def test_gltf_node_cycle_is_refused(tmp_path):
+    nodes = [{"mesh": 0, "children": [1]}, {"mesh": 0, "children": [0]}]
+    path = write_json(tmp_path / "cycle.gltf", gltf_doc(nodes, [0]))
+    refused(path, "node 0 is reached twice: the nodes do not form a tree")
+    status, lines = cli([path])  # 0.1: "Iteration limit exceeded!" traceback, exit 1
+    assert (status, len(lines)) == (ExitStatus.INPUT, 1), lines
+
+
+def test_gltf_shared_child_is_refused(tmp_path):
+    nodes = [{"children": [2]}, {"children": [2]}, {"mesh": 0}]
+    path = write_json(tmp_path / "dag.gltf", gltf_doc(nodes, [0, 1]))
+    refused(path, "node 2 is reached twice")
+
+
+def test_gltf_deep_node_chain_loads_in_bounded_time(tmp_path):
+    depth = 100_000
+    nodes = [{"children": [k + 1], "translation": [1e-6, 0, 0]} for k in range(depth - 1)]
+    nodes.append({"mesh": 0, "name": "tip"})
+    path = write_json(tmp_path / "chain.gltf", gltf_doc(nodes, [0]))
+    start = time.perf_counter()
+    (body,) = load_bodies([path])
+    seconds = time.perf_counter() - start
+    assert body.name == path  # one body in the file
+    # the chain's translations add up: (depth - 1) micrometres along x (glTF: metres)
+    assert body.units == "m"
+    assert body.transform[0, 3] == pytest.approx((depth - 1) * 1e-6, rel=1e-9)
+    assert seconds < 15, seconds  # 0.1: 41 s
+
+
+def test_gltf_data_uri_shorter_than_its_byte_length_is_refused(tmp_path):
+    # 0.1 said a bare "AssertionError"
+    nodes = [{"mesh": 0}]
+    path = write_json(tmp_path / "short.gltf", gltf_doc(nodes, [0], byte_length=10**12))
+    refused(path, "glTF buffer 0 declares 1000000000000 bytes, over the limit")
+    path = write_json(tmp_path / "short2.gltf", gltf_doc(nodes, [0], byte_length=10**6))
+    refused(path, "glTF buffer 0 declares 1000000 bytes, its data holds only")
+
+
+def test_gltf_accessor_beyond_its_buffer_view_is_refused(tmp_path):
+    doc = gltf_doc([{"mesh": 0}], [0])
+    doc["accessors"][0]["count"] = 10**9
+    refused(write_json(tmp_path / "acc.gltf", doc), "glTF accessor 0 needs")
+
+
+def test_gltf_accessor_without_buffer_is_bounded(tmp_path):
+    doc = gltf_doc([{"mesh": 0}], [0])
+    del doc["accessors"][0]["bufferView"]
+    doc["accessors"][0]["count"] = 10**12
+    refused(write_json(tmp_path / "zeros.gltf", doc), "without a buffer, over the limit")
+
+
+def test_gltf_infinite_matrix_is_refused_without_warnings(tmp_path, recwarn):
+    text = json.dumps(gltf_doc([{"mesh": 0, "scale": [1.0, 1.0, 1.0]}], [0]))
+    text = text.replace('"scale": [1.0, 1.0, 1.0]', '"scale": [1e400, 1, 1]')
+    path = tmp_path / "inf.gltf"
+    path.write_text(text)
+    refused(path, "holds NaN or infinite values")
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
+
+
+def test_glb_bin_chunk_shorter_than_its_buffer_is_refused(tmp_path):
+    scene = trimesh.Scene([box()])
+    data = bytearray(scene.export(file_type="glb"))
+    json_length = struct.unpack_from("<I", data, 12)[0]
+    header = json.loads(data[20 : 20 + json_length])
+    header["buffers"][0]["byteLength"] += 10**6
+    text = json.dumps(header).encode()
+    text += b" " * (-len(text) % 4)
+    rest = data[20 + json_length :]
+    glb = b"glTF" + struct.pack("<II", 2, 20 + len(text) + len(rest))
+    glb += struct.pack("<II", len(text), 0x4E4F534A) + text + rest
+    path = tmp_path / "short.glb"
+    path.write_bytes(glb)
+    refused(path, "its data holds only")
+
+
+# ------------------------------------------------------------------------------------------
+# STL, PLY, OFF
+
+
+def test_binary_stl_with_a_solid_header_and_a_huge_count_is_a_binary_stl_error(tmp_path):
+    # 0.1: "No module named 'charset_normalizer'"
+    data = (
+        b"solid evil" + b"\0" * 70 + struct.pack("<I", 2**31) + box().export(file_type="stl")[84:]
+    )
+    path = tmp_path / "solid.stl"
+    path.write_bytes(data)
+    refused(path, "binary STL: header says 2147483648 triangles")
+
+
+def test_ascii_stl_with_latin1_names_loads(tmp_path):
+    text = box().export(file_type="stl_ascii").replace("solid", "solid caf\xe9", 1)
+    path = tmp_path / "latin1.stl"
+    path.write_bytes(text.encode("latin-1"))
+    (body,) = load_bodies([str(path)])
+    assert len(body.mesh.faces) == 12
+
+
+def test_coordinates_of_1e300_are_refused_with_the_real_reason(tmp_path, recwarn):
+    # 0.1: "every triangle is degenerate (zero area)" and numpy overflow warnings
+    path = tmp_path / "huge.stl"
+    path.write_text(box().apply_scale(1e300).export(file_type="stl_ascii"))
+    recwarn.clear()  # trimesh warns while writing the file
+    refused(path, "its coordinates reach 5e+299")
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
+
+
+def test_binary_ply_header_claiming_more_than_the_file_holds_is_refused(tmp_path):
+    header = (
+        b"ply\nformat binary_little_endian 1.0\nelement vertex 1099511627776\n"
+        b"property float x\nproperty float y\nproperty float z\n"
+        b"element face 1\nproperty list uchar int vertex_indices\nend_header\n"
+    )
+    path = tmp_path / "liar.ply"
+    path.write_bytes(header + b"\0" * 64)
+    refused(path, "PLY header declares 1099511627776 vertex, 1 face")
+
+
+def test_off_header_claiming_more_than_the_file_holds_is_refused(tmp_path):
+    path = tmp_path / "liar.off"
+    path.write_text("OFF\n3000000000 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+    refused(path, "OFF header declares 3000000000 vertices")
+
+
+def test_triangles_per_run_are_bounded(tmp_path):
+    a, b = tmp_path / "a.stl", tmp_path / "b.stl"
+    box().export(str(a))
+    box(at=(3, 0, 0)).export(str(b))
+    with pytest.raises(InputError) as info:
+        load_bodies([str(a), str(b)], limits=Limits(max_triangles=20))
+    assert info.value.path == str(b)
+    assert "12 triangles after 12 in earlier files exceed the limit of 20" in info.value.reason
+
+
+def test_file_over_the_byte_limit_is_refused_before_reading(tmp_path):
+    path = tmp_path / "a.stl"
+    box().export(str(path))
+    refused(path, "file has 684 bytes, over the limit of 100", limits=Limits(max_file_bytes=100))
+
+
+# ------------------------------------------------------------------------------------------
+# The file system
+
+
+def test_fifo_is_refused_without_blocking(tmp_path):
+    path = tmp_path / "pipe.stl"
+    os.mkfifo(path)
+    refused(path, "is not a regular file")
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root reads mode-000 files; see the next test")
+def test_unreadable_file_is_refused(tmp_path):
+    path = tmp_path / "secret.stl"
+    box().export(str(path))
+    path.chmod(0)
+    refused(path, "cannot be read (Permission denied)")
+
+
+def test_unreadable_file_is_refused_even_as_root(tmp_path):
+    # Tests run as root in CI containers, where chmod 000 does not stop reading. A write-only
+    # sysctl file refuses reads even to root (procfs checks its own mode bits): the same
+    # PermissionError path as a mode-000 file for a normal user.
+    target = "/proc/sys/vm/compact_memory"
+    try:
+        with open(target, "rb"):
+            pytest.skip("this kernel lets root read a write-only sysctl file")
+    except PermissionError:
+        pass
+    except OSError:
+        pytest.skip(f"{target} is not available here")
+    path = tmp_path / "secret.stl"
+    path.symlink_to(target)
+    refused(path, "cannot be read (Permission denied)")
+    status, lines = cli([path])
+    assert (status, len(lines)) == (ExitStatus.INPUT, 1), lines
+
+
+def test_non_utf8_file_name_loads(tmp_path):
+    # 0.1: UnicodeEncodeError in trimesh's transform hashing
+    raw = os.fsencode(tmp_path) + b"/caf\xe9.stl"
+    with open(raw, "wb") as fh:
+        fh.write(box().export(file_type="stl"))
+    path = os.fsdecode(raw)
+    (body,) = load_bodies([path])
+    assert body.name == path
+    assert body.relative_name == os.fsdecode(b"caf\xe9.stl")
+    assert stat.S_ISREG(os.stat(raw).st_mode)
