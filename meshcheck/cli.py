@@ -7,14 +7,19 @@ errors stay quick.
 from __future__ import annotations
 
 import gc
+import os
 import sys
 import warnings
 
 import click
 
 from .config import FAIL_ON_CHOICES, NUMBER_RANGES, checked_number, parse_fail_on
-from .errors import ConfigError, ExitStatus, MeshcheckError, MeshcheckWarning
-from .report import FORMATS, exit_status, render, summary_line
+from .errors import ConfigError, ExitStatus, MeshcheckError, MeshcheckWarning, OutputError
+from .output import STDOUT, check_output, write_output
+from .reports import FORMATS, exit_status, printable, render, summary_line
+
+#: Set (to anything) to print an unexpected error's traceback on stderr instead of to a file.
+DEBUG_ENV = "MESHCHECK_DEBUG"
 
 
 class FiniteFloat(click.ParamType):
@@ -45,6 +50,19 @@ def _fail_on_option(ctx, param, values):
     return values
 
 
+def _report_option(ctx, param, values):
+    """``--report FORMAT:PATH`` values as (format, path) pairs, checked."""
+    pairs = []
+    for value in values:
+        fmt, sep, path = value.partition(":")
+        if not sep or not path:
+            raise click.BadParameter(f"{value!r} is not FORMAT:PATH (e.g. junit:meshcheck.xml)")
+        if fmt not in FORMATS:
+            raise click.BadParameter(f"unknown format {fmt!r}; choose from {', '.join(FORMATS)}")
+        pairs.append((fmt, path))
+    return pairs
+
+
 @click.command(context_settings={"help_option_names": ["-h", "--help"]})
 @click.argument("files", nargs=-1, required=True)
 @click.option(
@@ -53,15 +71,33 @@ def _fail_on_option(ctx, param, values):
     type=click.Choice(FORMATS),
     default="text",
     show_default=True,
-    help="Report format: a table and a summary line, JSON, JUnit XML, or GitHub annotations.",
+    help="Report format for stdout (or -o): text (a table and a summary line), json, junit "
+    "(XML), github (annotations), sarif (2.1.0, for code scanning), markdown (a step summary).",
 )
 @click.option(
     "--output",
     "-o",
     "output",
-    type=click.Path(dir_okay=False, writable=True),
     default=None,
-    help="Write the report to this file instead of stdout (the summary line goes to stderr).",
+    metavar="PATH",
+    help="Write the --format report to this file instead of stdout (the summary line goes to "
+    "stderr).",
+)
+@click.option(
+    "--report",
+    "reports",
+    multiple=True,
+    callback=_report_option,
+    metavar="FORMAT:PATH",
+    help="Also write a report in FORMAT to PATH (- for stdout); repeatable, e.g. "
+    "--report junit:meshcheck.xml --report sarif:meshcheck.sarif --report github:-.",
+)
+@click.option(
+    "--baseline",
+    "baseline_path",
+    default=None,
+    metavar="REPORT.json",
+    help="A previous JSON report: mark each finding new or active and list the resolved ones.",
 )
 @click.option(
     "--clearance",
@@ -89,7 +125,8 @@ def _fail_on_option(ctx, param, values):
     callback=_fail_on_option,
     metavar="STATUSES",
     help=f"Statuses that fail the run besides interference: comma list or repeated, from "
-    f"{', '.join(FAIL_ON_CHOICES)}; or none alone (nothing fails). "
+    f"{', '.join(FAIL_ON_CHOICES)}; or none alone (nothing fails); new fails only the findings "
+    "of those statuses that --baseline does not hold. "
     "Default: interference, plus clearance when a clearance is set.",
 )
 @click.option(
@@ -125,13 +162,41 @@ def _fail_on_option(ctx, param, values):
     "export_path",
     type=click.Path(dir_okay=False),
     default=None,
-    help="Write the assembly with clashes marked in red to this .glb file.",
+    help="Write the assembly with clashes marked in red to this .glb or .gltf file.",
 )
 @click.version_option(package_name="meshcheck")
-def main(
+def main(**options):
+    """Check the parts in FILES for interference, contact and clearance.
+
+    FILES are mesh files (STL, OBJ, PLY, OFF, GLB/GLTF, 3MF) or directories (every mesh file
+    below them). A part is named by its path as given; a body inside a file holding several is
+    PATH#NODE.
+
+    Exit status: 0 when nothing fails, 1 when a finding fails the run (interference by default,
+    and clearance violations when --clearance is given), 2 for a usage or configuration error
+    (output paths and the baseline are checked before any work), 3 when an input cannot be
+    checked, 4 for a bug in meshcheck (the traceback goes to a file named on stderr, or to stderr
+    when MESHCHECK_DEBUG is set), 5 when a report or the export cannot be written.
+    """
+    try:
+        _run(click.get_current_context(), **options)
+    except KeyboardInterrupt:
+        click.echo("error: interrupted", err=True)
+        sys.exit(130)
+    except click.exceptions.ClickException:
+        raise
+    except Exception as exc:
+        _internal_error(exc)
+
+
+def _run(
+    ctx,
+    *,
     fmt,
     files,
     output,
+    reports,
+    baseline_path,
     clearance,
     tolerance,
     threshold,
@@ -144,19 +209,23 @@ def main(
     jobs,
     export_path,
 ):
-    """Check the parts in FILES for interference, contact and clearance.
-
-    FILES are mesh files (STL, OBJ, PLY, OFF, GLB/GLTF, 3MF) or directories (every mesh file
-    below them). A part is named by its path as given; a body inside a file holding several is
-    PATH#NODE.
-
-    Exit status: 0 when nothing fails, 1 when a finding fails the run (interference by default,
-    and clearance violations when --clearance is given), 2 for a usage or configuration error,
-    3 when an input cannot be checked.
-    """
     from .settings import Settings
 
+    # Everything that can be refused is refused before the check runs.
     try:
+        targets = _targets(ctx, fmt, output, reports)
+        for _, path in targets:
+            check_output(path)
+        if export_path is not None:
+            from .export import export_type
+
+            export_type(export_path)
+        _refuse_inputs_as_outputs(files, [p for _, p in targets] + [export_path])
+        baseline = None
+        if baseline_path is not None:
+            from .baseline import load_baseline
+
+            baseline = load_baseline(baseline_path)
         if no_config and config_path is None:
             config = None
         else:
@@ -182,6 +251,10 @@ def main(
         warnings.simplefilter("always", MeshcheckWarning)
         try:
             result = check(files, settings)
+            if baseline is not None:
+                from .baseline import compare
+
+                result = compare(result, baseline)
             if export_path is not None:
                 from .export import export_clashes
 
@@ -190,33 +263,94 @@ def main(
             error = exc
     for w in caught:
         if issubclass(w.category, MeshcheckWarning):
-            click.echo(f"warning: {w.message}", err=True)
+            click.echo(f"warning: {printable(str(w.message))}", err=True)
         else:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
     if error is not None:
         _fail(error)
 
-    text = render(result, fmt)
-    if output is None:
-        click.echo(text, nl=False)
-    else:
+    failed = False
+    for report_fmt, path in targets:
         try:
-            with open(output, "w", encoding="utf-8") as f:
-                f.write(text)
-        except OSError as exc:
-            click.echo(f"error: {output}: cannot write the report ({exc.strerror})", err=True)
-            sys.exit(int(ExitStatus.USAGE))
-        click.echo(f"{summary_line(result)}; report written to {output}", err=True)
+            write_output(path, render(result, report_fmt, inputs=files))
+        except OutputError as exc:
+            click.echo(f"error: {printable(str(exc))}", err=True)
+            failed = True
+    files_written = [path for _, path in targets if path != STDOUT]
+    if files_written and all(path != STDOUT for _, path in targets):
+        noun = "report" if len(files_written) == 1 else "reports"
+        where = ", ".join(printable(p) for p in files_written)
+        click.echo(f"{summary_line(result)}; {noun} written to {where}", err=True)
+    if failed:
+        sys.exit(int(ExitStatus.OUTPUT))
     # The report is out. Freezing the heap spares the interpreter's exit-time collections a walk
     # over the ~135k objects numpy, scipy, trimesh and numba created: 0.2 s of a 1.5 s warm run.
     gc.freeze()
     sys.exit(int(exit_status(result)))
 
 
+def _targets(ctx, fmt, output, reports) -> list[tuple[str, str]]:
+    """(format, path) of every report to write; ``-`` is stdout, which carries one report only.
+
+    ``--format`` goes to ``-o`` or stdout; it is left out when a ``--report FORMAT:-`` takes
+    stdout and ``--format`` was not given.
+    """
+    targets = list(reports)
+    explicit = ctx.get_parameter_source("fmt") is click.core.ParameterSource.COMMANDLINE
+    if output is not None:
+        if output == STDOUT:
+            raise ConfigError(None, "-o - is standard output, where the report goes anyway")
+        targets.insert(0, (fmt, output))
+    elif explicit or all(path != STDOUT for _, path in reports):
+        targets.insert(0, (fmt, STDOUT))
+    seen = set()
+    for _, path in targets:
+        key = path if path == STDOUT else os.path.abspath(path)
+        if key in seen:
+            where = "standard output" if path == STDOUT else printable(path)
+            raise ConfigError(None, f"two reports would be written to {where}")
+        seen.add(key)
+    return targets
+
+
+def _refuse_inputs_as_outputs(files, outputs) -> None:
+    """A ConfigError when an output path is one of the input files (``-o part.stl``)."""
+    inputs = {os.path.realpath(f) for f in files if os.path.isfile(f)}
+    for path in outputs:
+        if path is not None and path != STDOUT and os.path.realpath(path) in inputs:
+            raise ConfigError(path, "is an input file: meshcheck does not write over its inputs")
+
+
 def _fail(exc: MeshcheckError):
-    """Print ``error: PATH: reason`` on stderr and exit with the error's status."""
-    click.echo(f"error: {exc}", err=True)
+    """Print ``error: PATH: reason`` on stderr, as one line, and exit with the error's status."""
+    click.echo(f"error: {printable(str(exc))}", err=True)
     sys.exit(int(exc.exit_status))
+
+
+def _internal_error(exc: BaseException):
+    """A bug: one line saying so and where the traceback is; exit ``ExitStatus.INTERNAL``."""
+    import tempfile
+    import traceback
+
+    text = "".join(traceback.format_exception(exc))
+    where = "the traceback is above"
+    if os.environ.get(DEBUG_ENV):
+        sys.stderr.write(text)
+    else:
+        try:
+            fd, path = tempfile.mkstemp(prefix="meshcheck-crash-", suffix=".txt")
+            with os.fdopen(fd, "w", encoding="utf-8", errors="backslashreplace") as fh:
+                fh.write(text)
+            where = f"the traceback is in {path}"
+        except OSError:
+            sys.stderr.write(text)
+    what = printable(f"{type(exc).__name__}: {exc}")
+    if len(what) > 200:
+        what = what[:197] + "..."
+    click.echo(
+        f"error: internal error, a bug in meshcheck ({what}); {where}; please report it", err=True
+    )
+    sys.exit(int(ExitStatus.INTERNAL))
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -322,7 +322,8 @@ def parse_fail_on(values: Iterable[str], *, path: str | None = None) -> tuple[st
     """The statuses named in ``values`` (each a name or a comma list), checked.
 
     ``none`` stands alone and means nothing fails the run (an empty tuple); no words at all give
-    None (the default applies).
+    None (the default applies). ``new`` is not a status: it narrows the failing findings to those
+    a baseline report does not hold (``Settings.fail_on_new``).
 
     Raises
     ------
@@ -342,11 +343,11 @@ def parse_fail_on(values: Iterable[str], *, path: str | None = None) -> tuple[st
             word = word.strip().lower()
             if not word:
                 continue
-            if word != "none" and word not in FAIL_ON_CHOICES:
+            if word not in ("none", "new") and word not in FAIL_ON_CHOICES:
                 raise ConfigError(
                     path,
                     f"unknown fail-on status {word!r} (choose from {', '.join(FAIL_ON_CHOICES)}, "
-                    "none)",
+                    "new, none)",
                 )
             if word not in words:
                 words.append(word)

@@ -2,7 +2,8 @@
 
 A user mistake (a missing file, a broken mesh, a bad option) is a ``MeshcheckError`` subclass: the
 command line prints it as one line, ``error: PATH: reason``, with no traceback. Anything else that
-escapes is a bug and keeps its traceback.
+escapes is a bug: the command line exits with ``ExitStatus.INTERNAL`` and writes the traceback to
+a file it names (or to stderr when ``MESHCHECK_DEBUG`` is set).
 """
 
 from __future__ import annotations
@@ -17,6 +18,8 @@ class ExitStatus(enum.IntEnum):
     FAILED = 1  # a finding fails the run (interference, or what --fail-on selects)
     USAGE = 2  # bad options or arguments (click's own code for usage errors)
     INPUT = 3  # an input cannot be checked
+    INTERNAL = 4  # a bug in meshcheck: one line on stderr says where the traceback is
+    OUTPUT = 5  # a report or the export could not be written (disk full, device error...)
 
 
 class MeshcheckError(Exception):
@@ -38,6 +41,12 @@ class ConfigError(MeshcheckError):
     """A configuration file or option value is invalid."""
 
     exit_status = ExitStatus.USAGE
+
+
+class OutputError(MeshcheckError):
+    """A report or the export cannot be written once the check has run."""
+
+    exit_status = ExitStatus.OUTPUT
 
 
 class MeshcheckWarning(UserWarning):

@@ -1,4 +1,5 @@
-"""Findings -> a glTF binary (.glb) a person opens in any viewer to see the clashes.
+"""Findings -> a glTF file (.glb binary, or .gltf JSON with embedded buffers) a person opens in
+any viewer to see the clashes.
 
 Every part becomes a node named after it: parts in an interference in orange, the others in
 translucent grey. Every interference becomes its own red node, named after the finding, holding
@@ -15,8 +16,9 @@ import numpy as np
 import trimesh
 
 from . import results
-from .errors import InputError
+from .errors import ConfigError
 from .load import Body
+from .output import check_output, write_output
 from .verify import outward_faces, shared_solid
 
 # RGBA, 0-255.
@@ -57,13 +59,33 @@ def clash_mesh(a: Body, b: Body, finding: results.Finding) -> trimesh.Trimesh | 
     return box
 
 
+#: File name extension -> trimesh export type.
+EXPORT_TYPES = {".glb": "glb", ".gltf": "gltf"}
+
+
+def export_type(path: str) -> str:
+    """``"glb"`` or ``"gltf"`` from the file name, checked with the output rules
+    (``output.check_output``) before any work.
+
+    Raises
+    ------
+    ConfigError
+        Another extension, or a path meshcheck does not write to.
+    """
+    extension = os.path.splitext(path)[1].lower()
+    if extension not in EXPORT_TYPES:
+        raise ConfigError(path, "the export is written as .glb or .gltf: name the file so")
+    check_output(path, what="export")
+    return EXPORT_TYPES[extension]
+
+
 def export_clashes(path: str, bodies: Sequence[Body], findings: Sequence[results.Finding]) -> None:
-    """Write the assembly with its interferences marked to a glTF binary file.
+    """Write the assembly with its interferences marked to a glTF file.
 
     Parameters
     ----------
     path : str
-        Output file, ``.glb``.
+        Output file: ``.glb`` (binary) or ``.gltf`` (JSON, buffers embedded as data URIs).
     bodies : sequence of Body
         Every part of the assembly.
     findings : sequence of results.Finding
@@ -71,9 +93,12 @@ def export_clashes(path: str, bodies: Sequence[Body], findings: Sequence[results
 
     Raises
     ------
-    InputError
+    ConfigError
+        The extension is neither .glb nor .gltf.
+    OutputError
         The file cannot be written.
     """
+    file_type = export_type(path)
     by_name = {b.name: b for b in bodies}
     clashes = [f for f in findings if f.status == results.Verdict.INTERFERENCE]
     clashing = {name for f in clashes for name in (f.a, f.b)}
@@ -89,11 +114,8 @@ def export_clashes(path: str, bodies: Sequence[Body], findings: Sequence[results
             continue
         name = f"interference {f.a} x {f.b}" + (f" [{f.id}]" if f.id else "")
         scene.add_geometry(_painted(mesh, CLASH_COLOR), node_name=name, geom_name=name)
-    try:
+    if file_type == "glb":
         data = scene.export(file_type="glb")
-        tmp = f"{path}.tmp{os.getpid()}"
-        with open(tmp, "wb") as fh:
-            fh.write(data)
-        os.replace(tmp, path)
-    except OSError as exc:
-        raise InputError(path, f"cannot write the export ({exc.strerror or exc})") from None
+    else:
+        data = scene.export(file_type="gltf", embed_buffers=True)["model.gltf"]
+    write_output(path, data, what="export")

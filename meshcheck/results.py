@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
+    from .baseline import Baseline
     from .settings import Settings
 
 
@@ -152,6 +153,8 @@ class CheckResult:
         The messages of the run's MeshcheckWarnings.
     bodies : tuple of load.Body
         The parts' geometry, for outputs that draw them (``--export``); not compared.
+    baseline : baseline.Baseline or None
+        The previous report the findings were compared with (``baseline.compare``), if any.
     """
 
     findings: list[Finding]
@@ -160,6 +163,7 @@ class CheckResult:
     checked_pairs: list[tuple[str, str]] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     bodies: tuple = field(default=(), repr=False, compare=False)
+    baseline: Baseline | None = None
 
     @property
     def tolerance(self) -> float | None:
@@ -179,8 +183,16 @@ class CheckResult:
         return sum(1 for f in self.findings if f.status == status and not f.is_approved)
 
     def is_failing(self, finding: Finding) -> bool:
-        """True when ``finding`` fails the run: unapproved, with a status in ``fail_on``."""
-        return finding.status in self.settings.fail_on and not finding.is_approved
+        """True when ``finding`` fails the run: unapproved, with a status in ``fail_on``, and new
+        against the baseline when the settings ask for ``fail_on_new``."""
+        if finding.is_approved or finding.status not in self.settings.fail_on:
+            return False
+        # Only a finding the baseline holds is spared: without a baseline, every finding is new.
+        return not self.settings.fail_on_new or self.baseline_state(finding) != "active"
+
+    def baseline_state(self, finding: Finding) -> str | None:
+        """``"new"`` or ``"active"`` against the baseline; None when there is no baseline."""
+        return None if self.baseline is None else self.baseline.state(finding)
 
     @property
     def failed(self) -> bool:
@@ -196,4 +208,5 @@ def finding_id(name_a: str, digest_a: str, name_b: str, digest_b: str) -> str:
     """Stable 12-hex-digit ID of a part pair: sorted names and the meshes' content digests."""
     (na, da), (nb, db) = sorted([(name_a, digest_a), (name_b, digest_b)])
     text = "\0".join((na, da, nb, db))
-    return hashlib.sha256(text.encode()).hexdigest()[:12]
+    # surrogateescape: a file name that is not UTF-8 keeps its bytes
+    return hashlib.sha256(text.encode("utf-8", "surrogateescape")).hexdigest()[:12]

@@ -117,6 +117,9 @@ class Settings:
         Worker processes; None: all cores.
     config_path : str or None
         The configuration file the settings came from, if any.
+    fail_on_new : bool
+        Only findings that are new against the baseline report fail the run (``--fail-on new``);
+        without a baseline every finding is new.
     """
 
     clearance: float | None = None
@@ -130,6 +133,7 @@ class Settings:
     cache_dir: str | None = None
     jobs: int | None = None
     config_path: str | None = None
+    fail_on_new: bool = False
 
     def __post_init__(self):
         for name in NUMBER_RANGES:
@@ -171,7 +175,8 @@ class Settings:
         fail_on : iterable of str, optional
             Status words (``interference``, ``touching``, ``clearance``, ``none``; comma lists
             allowed). Interference always fails unless ``none`` is given; the words add to the
-            default, which is interference plus clearance when a clearance is set.
+            default, which is interference plus clearance when a clearance is set. ``new`` keeps
+            those statuses but fails only findings new against a baseline (``fail_on_new``).
         cache_dir : path, optional
             Cache directory; default the user's cache directory. ``use_cache=False`` disables it.
 
@@ -194,6 +199,9 @@ class Settings:
         words = parse_fail_on(fail_on) if fail_on is not None else None
         if words is None and file.fail_on is not None:
             words = parse_fail_on(file.fail_on, path=file.path)
+        fail_on_new = bool(words) and "new" in words
+        if fail_on_new:  # "new" narrows which findings fail; the statuses resolve as without it
+            words = tuple(w for w in words if w != "new") or None
         if not use_cache:
             cache = None
         else:
@@ -210,6 +218,7 @@ class Settings:
             cache_dir=cache,
             jobs=jobs,
             config_path=file.path,
+            fail_on_new=fail_on_new,
         )
 
     def replace(self, **changes) -> Settings:

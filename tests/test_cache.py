@@ -183,14 +183,14 @@ def test_two_processes_writing_one_key_both_succeed(tmp_path):
 def test_warm_run_gives_byte_identical_json(tmp_path):
     """Cold run, warm run and a run without cache agree byte for byte."""
     from meshcheck.pipeline import check
-    from meshcheck.report import render_json
+    from meshcheck.reports import render
 
     samples = os.path.join(os.path.dirname(__file__), "..", "sample_meshes")
     paths = [os.path.join(samples, f"{n}.stl") for n in ("plate", "bolt_m8_oversized", "bracket")]
-    cold = render_json(check(paths, cache_dir=str(tmp_path), jobs=1))
+    cold = render(check(paths, cache_dir=str(tmp_path), jobs=1), "json")
     assert list(tmp_path.rglob("*.npz"))
-    warm = render_json(check(paths, cache_dir=str(tmp_path), jobs=1))
-    uncached = render_json(check(paths, cache_dir=None, jobs=2))
+    warm = render(check(paths, cache_dir=str(tmp_path), jobs=1), "json")
+    uncached = render(check(paths, cache_dir=None, jobs=2), "json")
     assert cold == warm == uncached
     assert '"interference"' in cold
 

@@ -199,7 +199,9 @@ def test_sample_text_report(in_root, cache_dir):
     result = run([*SAMPLES, "--cache-dir", cache_dir, "--no-config"])
     assert result.exit_code == 1
     lines = result.stdout.splitlines()
-    assert any("interference" in line and OVERSIZED in line for line in lines)
+    assert lines[0] == "parts below sample_meshes/"  # the shared prefix, named once
+    assert any("interference" in line and "  bolt_m8_oversized.stl" in line for line in lines)
+    assert all(len(line) <= 100 for line in lines)
     assert lines[-1].startswith("FAIL: 6 parts, 1 interference")
 
 

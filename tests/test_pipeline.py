@@ -9,7 +9,7 @@ import trimesh
 from meshcheck.config import Approval, Groups
 from meshcheck.load import Body
 from meshcheck.pipeline import check_bodies
-from meshcheck.report import exit_status
+from meshcheck.reports import exit_status
 
 
 def box_body(name: str, lower, upper) -> Body:

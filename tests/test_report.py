@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from meshcheck.errors import ExitStatus
-from meshcheck.report import FORMATS, exit_status, render, summary
+from meshcheck.reports import FORMATS, exit_status, render, summary
 from meshcheck.results import CheckResult, Finding, Location, Part, finding_id
 from meshcheck.settings import Settings, resolve_fail_on
 
@@ -96,7 +96,10 @@ def test_text_lists_ids_and_ends_with_the_summary():
     lines = text.splitlines()
     assert lines[0].split()[:2] == ["ID", "STATUS"]
     assert any(line.startswith(CLASH.id) and "interference" in line for line in lines)
-    assert any(APPROVED.id in line and "approved: press fit" in line for line in lines)
+    row = next(k for k, line in enumerate(lines) if line.startswith(APPROVED.id))
+    assert "interference (approved)" in lines[row]
+    assert lines[row + 1].startswith(" " * 14 + "depth 0.7")  # the detail under its row
+    assert lines[row + 1].endswith("approved: press fit")
     assert lines[-1].startswith("FAIL: 4 parts, 1 interference, 0 touching, 1 approved")
 
 
@@ -139,13 +142,14 @@ def test_github_annotations():
         f"::error file=bolt.stl,title=meshcheck interference [{CLASH.id}]::"
         "bolt.stl and plate.stl: interference, depth 0.7  volume 2.5  at (1, 2, 3)"
     )
-    assert lines[1].startswith(f"::notice file=bracket.stl,title=meshcheck touching [{TOUCH.id}]")
-    notice = f"::notice file=nut.stl,title=meshcheck interference [{APPROVED.id}]"
-    assert lines[2].startswith(notice)
-    assert lines[2].endswith("(approved: press fit)")
+    # errors, then warnings, then notices: the most severe first
     # a clearance finding without --clearance does not fail the run
-    assert lines[3].startswith(f"::warning file=a.glb,title=meshcheck clearance [{NEAR.id}]")
-    assert lines[4] == "::warning title=meshcheck input::odd,file.stl: mesh is not closed"
+    assert lines[1].startswith(f"::warning file=a.glb,title=meshcheck clearance [{NEAR.id}]")
+    assert lines[2] == "::warning title=meshcheck input::odd,file.stl: mesh is not closed"
+    assert lines[3].startswith(f"::notice file=bracket.stl,title=meshcheck touching [{TOUCH.id}]")
+    notice = f"::notice file=nut.stl,title=meshcheck interference [{APPROVED.id}]"
+    assert lines[4].startswith(notice)
+    assert lines[4].endswith("(approved: press fit)")
     assert lines[-1].startswith("FAIL:")
 
 
@@ -189,5 +193,11 @@ def test_every_format_agrees_with_the_exit_status(spec, fail_on, fmt):
         assert out.count("::error ") == failing
     elif fmt == "json":
         assert json.loads(out)["summary"]["failed"] == failing
+    elif fmt == "sarif":
+        levels = [r["level"] for r in json.loads(out)["runs"][0]["results"]]
+        assert levels.count("error") == failing
+    elif fmt == "markdown":
+        assert out.startswith("## ❌ meshcheck: FAIL" if failing else "## ✅ meshcheck: PASS")
+        assert out.count("| ❌ |") == failing
     else:
         assert out.splitlines()[-1].startswith("FAIL" if failing else "PASS")

@@ -1,0 +1,77 @@
+"""Results -> reports, one module per format behind one interface, and the exit status.
+
+Each format module has ``render(result) -> str`` (text ending in a newline); ``render`` here picks
+one by name. Every format shows each finding's stable ID (``Finding.id``), its baseline state when
+there is a baseline, and renders part names (which come from files) as data: ``printable`` for
+text, escapes for Markdown, XML and JSON.
+
+``html`` is rendered by ``reports/html.py`` when that module is present (it draws the parts, so it
+also needs the bodies); ``FORMATS`` lists it only then.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+from collections.abc import Sequence
+
+from ..results import CheckResult
+from .common import (
+    describe,
+    exit_status,
+    printable,
+    summary,
+    summary_line,
+)
+
+#: Formats whose module takes only the result.
+_MODULES = ("text", "json", "junit", "github", "sarif", "markdown")
+
+
+def _has_html() -> bool:
+    try:
+        return importlib.util.find_spec(f"{__name__}.html") is not None
+    except ImportError:  # pragma: no cover
+        return False
+
+
+FORMATS: tuple[str, ...] = (*_MODULES, "html") if _has_html() else _MODULES
+
+
+def render(result: CheckResult, fmt: str = "text", *, inputs: Sequence[str] = ()) -> str:
+    """Render ``result`` in ``fmt`` (one of ``FORMATS``), ending with a newline.
+
+    ``inputs`` are the paths the user gave (the HTML report lists them).
+    """
+    if fmt not in FORMATS:
+        raise ValueError(f"unknown format {fmt!r}; choose from {', '.join(FORMATS)}")
+    if fmt == "html":
+        return _render_html(result, inputs=inputs)
+    return importlib.import_module(f"{__name__}.{fmt}").render(result)
+
+
+def _render_html(result: CheckResult, *, inputs: Sequence[str]) -> str:
+    # HOOK for reports/html.py (written separately): imported here only, so the other formats
+    # work without it. Adjust the arguments at merge if its signature differs.
+    from importlib import metadata
+
+    from .html import render_html
+
+    try:
+        version = metadata.version("meshcheck")
+    except metadata.PackageNotFoundError:  # pragma: no cover
+        version = "0"
+    return render_html(
+        result, result.bodies, units=result.settings.units, inputs=tuple(inputs), version=version
+    )
+
+
+__all__ = [
+    "FORMATS",
+    "describe",
+    "exit_status",
+    "printable",
+    "render",
+    "summary",
+    "summary_line",
+]

@@ -1,0 +1,198 @@
+"""What every format shares: safe names, the summary, measurements rounded to the tolerance.
+
+Part names come from files (paths, glTF node names, 3MF object names): they may hold newlines,
+terminal escapes, bidirectional overrides or bytes that are not UTF-8. ``printable`` is the one
+place they are made safe to show; every format that prints a name as text goes through it.
+"""
+
+from __future__ import annotations
+
+import math
+
+from ..errors import ExitStatus
+from ..results import FINDING_STATUSES, CheckResult, Finding, Verdict
+
+_NAMED = {"\n": "\\n", "\r": "\\r", "\t": "\\t"}
+
+
+def printable(text: str) -> str:
+    """``text`` with every character that is not printable written as a visible escape.
+
+    Control characters (C0, DEL, C1: newlines, ``ESC``), format characters (bidirectional
+    overrides, zero-width), line and paragraph separators and other non-printing code points become
+    ``\\n``, ``\\x1b``, ``\\u202e``...; a byte that was not UTF-8 in a file name (kept by Python as
+    a lone surrogate) becomes ``\\xNN``. The result is one line that moves no cursor and encodes
+    as UTF-8. Backslashes are kept as they are, so Windows paths stay readable.
+
+    Examples
+    --------
+    >>> printable("x\\nPASS: 2 parts\\x1b[2J.stl")
+    'x\\\\nPASS: 2 parts\\\\x1b[2J.stl'
+    >>> printable("caf\\udce9.stl")
+    'caf\\\\xe9.stl'
+    >>> printable("plain name (1).stl")
+    'plain name (1).stl'
+    """
+    if text.isprintable():
+        return text
+    return "".join(ch if ch.isprintable() else _escape(ch) for ch in text)
+
+
+def _escape(ch: str) -> str:
+    if ch in _NAMED:
+        return _NAMED[ch]
+    code = ord(ch)
+    if 0xDC80 <= code <= 0xDCFF:  # os.fsdecode's surrogateescape: the original byte
+        return f"\\x{code - 0xDC00:02x}"
+    if code < 0x100:
+        return f"\\x{code:02x}"
+    if code < 0x10000:
+        return f"\\u{code:04x}"
+    return f"\\U{code:08x}"
+
+
+def plural(count: int, noun: str) -> str:
+    """``1 part``, ``2 parts``."""
+    return f"{count} {noun}" if count == 1 else f"{count} {noun}s"
+
+
+def exit_status(result: CheckResult) -> ExitStatus:
+    """``FAILED`` when a finding fails the run (``CheckResult.is_failing``), else ``OK``."""
+    return ExitStatus.FAILED if result.failed else ExitStatus.OK
+
+
+_TOLERANCE_RULE = (
+    "per pair: max(1e-5 x the smaller part's bounding-box diagonal, "
+    "8 float32 ulps of the pair's largest coordinate)"
+)
+
+
+def summary(result: CheckResult) -> dict:
+    """Counts by status, approved findings, the settings that decide, and whether the run passes.
+
+    The keys named by a status (``interference``, ``touching``, ``clearance``) count unapproved
+    findings; ``required_clearance`` is the --clearance setting (None when not set);
+    ``tolerance`` is the one the user set, None when each pair had its own (then every finding
+    carries the tolerance that decided it); ``config`` the configuration file used, if any.
+    With a baseline, ``baseline`` names its file and ``new``, ``active`` and ``resolved`` count
+    the findings against it; ``fail_on_new`` says whether only new findings fail.
+    """
+    counts = {str(status): result.count(status) for status in FINDING_STATUSES}
+    doc = {
+        "parts": len(result.parts),
+        "pairs_checked": len(result.checked_pairs),
+        **counts,
+        "approved": sum(1 for f in result.findings if f.is_approved),
+        "failed": sum(1 for f in result.findings if result.is_failing(f)),
+        "fail_on": [str(s) for s in result.fail_on],
+        "fail_on_new": result.settings.fail_on_new,
+        "tolerance": result.tolerance,
+        "tolerance_rule": "given" if result.tolerance is not None else _TOLERANCE_RULE,
+        "required_clearance": result.clearance,
+        "config": result.settings.config_path,
+        "warnings": list(result.warnings),
+        "passed": result.passed,
+    }
+    if result.baseline is not None:
+        states = [result.baseline_state(f) for f in result.findings]
+        doc["baseline"] = result.baseline.path
+        doc["new"] = states.count("new")
+        doc["active"] = states.count("active")
+        doc["resolved"] = len(result.baseline.resolved(result.findings))
+    return doc
+
+
+def summary_line(result: CheckResult) -> str:
+    """``PASS: 6 parts, 1 interference, ...`` without a newline; names no part."""
+    s = summary(result)
+    verdict = "PASS" if s["passed"] else "FAIL"
+    parts = [f"{s[Verdict.INTERFERENCE]} interference", f"{s[Verdict.TOUCHING]} touching"]
+    if result.clearance is not None:
+        parts.append(f"{s[Verdict.CLEARANCE]} clearance (< {result.clearance:g})")
+    if s["approved"]:
+        parts.append(f"{s['approved']} approved")
+    if result.baseline is not None:
+        parts.append(f"{s['new']} new, {s['resolved']} resolved")
+    return (
+        f"{verdict}: {plural(len(result.parts), 'part')}, {', '.join(parts)} "
+        f"(tolerance {tolerance_text(result)})"
+    )
+
+
+def tolerance_text(result: CheckResult) -> str:
+    """The given tolerance, or ``per pair`` with the range the findings were decided with."""
+    if result.tolerance is not None:
+        return f"{result.tolerance:.3g}"
+    used = [f.tolerance for f in result.findings if f.tolerance is not None]
+    if not used:
+        return "per pair"
+    low, high = min(used), max(used)
+    return f"per pair, {low:.2g}" if low == high else f"per pair, {low:.2g}-{high:.2g}"
+
+
+def resolution(result: CheckResult, finding: Finding) -> float | None:
+    """The tolerance that decided ``finding``: the smallest length its numbers can resolve."""
+    tol = finding.tolerance if finding.tolerance is not None else result.tolerance
+    return tol if tol is not None and math.isfinite(tol) and tol > 0 else None
+
+
+def length(value: float, tolerance: float | None = None) -> str:
+    """A length rounded to the decimal place ``tolerance`` resolves; 6 digits without one.
+
+    Examples
+    --------
+    >>> length(3.10862e-15, 1e-4), length(40.00001234, 4e-4), length(-1e-9, 1e-5)
+    ('0', '40', '0')
+    >>> length(0.123456789)
+    '0.123457'
+    """
+    value = float(value)
+    if tolerance is None or not math.isfinite(value):
+        text = f"{value:.6g}"
+    else:
+        decimals = min(max(-math.floor(math.log10(tolerance)), 0), 15)
+        text = f"{value:.{decimals}f}"
+        if "." in text:
+            text = text.rstrip("0").rstrip(".")
+    return "0" if text in ("-0", "") else text
+
+
+def describe(finding: Finding, tolerance: float | None = None) -> str:
+    """One-line measurements of a finding: depth or distance, volume, location.
+
+    Lengths are rounded to what ``tolerance`` (the one that decided the finding) can resolve.
+    """
+    detail = f"distance {length(finding.distance, tolerance)}"
+    if finding.depth is not None:
+        detail = f"depth {length(finding.depth, tolerance)}"
+    if finding.volume is not None:
+        detail += f"  volume {finding.volume:.4g}"
+    if finding.is_surface_only:
+        detail += "  (surface only)"
+    if finding.location is not None:
+        c = [length(x, tolerance) for x in finding.location.centroid]
+        detail += f"  at ({c[0]}, {c[1]}, {c[2]})"
+    return detail
+
+
+def part_file(paths: dict[str, str], name: str) -> str:
+    """The file a part came from (``PATH`` of ``PATH#NODE``), from ``part_files(result)``."""
+    return paths.get(name, name.split("#")[0])
+
+
+def part_files(result: CheckResult) -> dict[str, str]:
+    """Part name -> the file it came from."""
+    return {p.name: p.path for p in result.parts}
+
+
+#: Rank of a finding for "most severe first": failing before not, then by status.
+def severity(result: CheckResult, finding: Finding) -> tuple[int, int]:
+    order = {s: k for k, s in enumerate(FINDING_STATUSES)}
+    return (0 if result.is_failing(finding) else 1 if not finding.is_approved else 2), order[
+        finding.status
+    ]
+
+
+def finding_title(finding: Finding) -> str:
+    """``a and b``, names made printable."""
+    return f"{printable(finding.a)} and {printable(finding.b)}"

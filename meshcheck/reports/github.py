@@ -1,0 +1,83 @@
+"""GitHub Actions workflow commands: an annotation per finding, then the summary line.
+
+``::error`` for each finding that fails the run, ``::notice`` for approved findings and touching
+pairs that do not fail it, ``::warning`` for other findings and input warnings. Annotations point
+at the file of the pair's first part.
+
+GitHub shows at most ``LIMIT`` annotations of each type from one step and drops the rest without
+a word. So each type is sorted most severe first; when there are more than ``LIMIT``, the last
+annotation of that type says how many more there are, and those are printed as plain log lines
+(``meshcheck: ...``), so nothing is lost.
+"""
+
+from __future__ import annotations
+
+from ..results import CheckResult, Finding, Verdict
+from .common import (
+    describe,
+    part_file,
+    part_files,
+    plural,
+    printable,
+    resolution,
+    severity,
+    summary_line,
+)
+
+#: Annotations GitHub shows per type (error, warning, notice) from one step.
+LIMIT = 10
+LEVELS = ("error", "warning", "notice")
+
+
+def _data(text: str) -> str:
+    """A workflow command's message: printable, with ``%`` and line ends escaped."""
+    return printable(text).replace("%", "%25").replace("\r", "%0D").replace("\n", "%0A")
+
+
+def _property(text: str) -> str:
+    """A workflow command's property value: also ``:`` and ``,`` escaped."""
+    return _data(text).replace(":", "%3A").replace(",", "%2C")
+
+
+def level(result: CheckResult, finding: Finding) -> str:
+    if result.is_failing(finding):
+        return "error"
+    if finding.is_approved or finding.status == Verdict.TOUCHING:
+        return "notice"  # contact is usually by design: keep it out of warnings
+    return "warning"
+
+
+def render(result: CheckResult) -> str:
+    # (properties, title, message) per annotation, most severe first within each level
+    annotations: dict[str, list[tuple[str, str, str]]] = {name: [] for name in LEVELS}
+    paths = part_files(result)
+    for f in sorted(result.findings, key=lambda f: severity(result, f)):
+        extra = f" (approved: {f.approval_reason})" if f.is_approved else ""
+        state = result.baseline_state(f)
+        title = f"meshcheck {f.status} [{f.id}]" + (f" {state}" if state else "")
+        props = f"file={_property(part_file(paths, f.a))},title={_property(title)}"
+        message = f"{f.a} and {f.b}: {f.status}, {describe(f, resolution(result, f))}{extra}"
+        annotations[level(result, f)].append((props, title, message))
+    for w in result.warnings:
+        annotations["warning"].append(("title=meshcheck input", "meshcheck input", w))
+
+    lines, overflow = [], []
+    for name in LEVELS:
+        entries = annotations[name]
+        shown = entries if len(entries) <= LIMIT else entries[: LIMIT - 1]
+        for props, _, message in shown:
+            lines.append(f"::{name} {props}::{_data(message)}")
+        rest = entries[len(shown) :]
+        if rest:
+            more = f"{plural(len(rest), 'more ' + name)} not annotated (GitHub shows {LIMIT})"
+            lines.append(f"::{name} title=meshcheck::{more}: see the log of this step")
+            overflow += [f"meshcheck: {name}: {t}: {printable(m)}" for _, t, m in rest]
+    if result.baseline is not None:
+        for r in result.baseline.resolved(result.findings):
+            overflow.append(
+                f"meshcheck: resolved since the baseline: {printable(r.a)} and "
+                f"{printable(r.b)}: {r.status} [{r.id}]"
+            )
+    lines += overflow
+    lines.append(summary_line(result))
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,35 @@
+"""The JSON report: ``results``, ``parts`` and ``summary``; names kept whole, as data.
+
+Every finding carries ``baseline`` (``"new"``, ``"active"``, or null without a baseline); with a
+baseline the document also has ``resolved``, the baseline's findings this run no longer has.
+Output is ASCII (``\\uXXXX`` escapes), so any name survives any terminal or file encoding.
+"""
+
+from __future__ import annotations
+
+import json
+
+from ..results import CheckResult
+from .common import summary
+
+
+def document(result: CheckResult) -> dict:
+    """The report as a JSON-ready dict."""
+    results = []
+    for f in result.findings:
+        entry = f.to_dict()
+        entry["baseline"] = result.baseline_state(f)
+        entry["failed"] = result.is_failing(f)
+        results.append(entry)
+    doc = {
+        "results": results,
+        "parts": [p.to_dict() for p in result.parts],
+        "summary": summary(result),
+    }
+    if result.baseline is not None:
+        doc["resolved"] = [r.to_dict() for r in result.baseline.resolved(result.findings)]
+    return doc
+
+
+def render(result: CheckResult) -> str:
+    return json.dumps(document(result), indent=2, ensure_ascii=True, allow_nan=False) + "\n"

@@ -1,0 +1,100 @@
+"""JUnit XML: one test case per finding, plus one per pair (or part) found clear.
+
+A finding that fails the run is a ``<failure>``, an approved one is ``<skipped>``, others
+(touching, unrequested clearance, findings a ``--fail-on new`` baseline holds) pass with their
+measurements in ``<system-out>``. When the pipeline names the pairs it checked, each clear pair is
+a passing test case; otherwise each part without findings is one. XML 1.0 cannot hold most
+control characters, so every name goes through ``printable``.
+"""
+
+from __future__ import annotations
+
+import json
+from xml.etree import ElementTree as ET
+
+from ..results import CheckResult
+from .common import describe, part_files, printable, resolution
+
+
+def render(result: CheckResult) -> str:
+    paths = part_files(result)
+    cases = []
+    for f in result.findings:
+        a, b = printable(f.a), printable(f.b)
+        case = ET.Element(
+            "testcase",
+            classname=f"meshcheck.{f.status}",
+            name=f"{a} <-> {b} [{f.id}]",
+            file=printable(paths.get(f.a, f.a.split("#")[0])),
+            time="0",
+        )
+        message = f"{f.status}: {a} and {b}: {describe(f, resolution(result, f))}"
+        state = result.baseline_state(f)
+        if state is not None:
+            message += f" ({state} since the baseline)"
+        props = ET.SubElement(case, "properties")
+        for key, value in (("id", f.id), ("status", f.status), ("a", a), ("b", b)):
+            ET.SubElement(props, "property", name=key, value=value)
+        if state is not None:
+            ET.SubElement(props, "property", name="baseline", value=state)
+        if f.is_approved:
+            ET.SubElement(case, "skipped", message=f"approved: {printable(f.approval_reason)}")
+        elif result.is_failing(f):
+            failure = ET.SubElement(case, "failure", message=message, type=f.status)
+            # ASCII JSON: the names as data, with no character XML refuses
+            failure.text = json.dumps(f.to_dict(), indent=2)
+        else:
+            ET.SubElement(case, "system-out").text = message
+        cases.append(case)
+
+    found = {(f.a, f.b) for f in result.findings}
+    if result.checked_pairs:
+        for a, b in sorted({tuple(sorted(p)) for p in result.checked_pairs} - found):
+            name = f"{printable(a)} <-> {printable(b)}"
+            cases.append(ET.Element("testcase", classname="meshcheck.clear", name=name, time="0"))
+    else:
+        named = {n for pair in found for n in pair}
+        for part in result.parts:
+            if part.name not in named:
+                cases.append(
+                    ET.Element(
+                        "testcase",
+                        classname="meshcheck.clear",
+                        name=f"{printable(part.name)}: no findings",
+                        file=printable(part.path),
+                        time="0",
+                    )
+                )
+
+    failures = sum(1 for c in cases if c.find("failure") is not None)
+    skipped = sum(1 for c in cases if c.find("skipped") is not None)
+    counts = {
+        "tests": str(len(cases)),
+        "failures": str(failures),
+        "errors": "0",
+        "skipped": str(skipped),
+        "time": "0",
+    }
+    root = ET.Element("testsuites", name="meshcheck", **counts)
+    suite = ET.SubElement(root, "testsuite", name="meshcheck", **counts)
+    props = ET.SubElement(suite, "properties")
+    settings = {
+        "parts": len(result.parts),
+        "pairs_checked": len(result.checked_pairs),
+        "tolerance": result.tolerance,
+        "clearance": result.clearance,
+        "fail_on": ",".join(result.fail_on) + (",new" if result.settings.fail_on_new else ""),
+        "config": result.settings.config_path,
+        "baseline": None if result.baseline is None else result.baseline.path,
+    }
+    for key, value in settings.items():
+        text = "" if value is None else printable(str(value))
+        ET.SubElement(props, "property", name=key, value=text)
+    suite.extend(cases)
+    if result.warnings:
+        ET.SubElement(suite, "system-err").text = "\n".join(
+            f"warning: {printable(w)}" for w in result.warnings
+        )
+    ET.indent(root)
+    body = ET.tostring(root, encoding="unicode")
+    return '<?xml version="1.0" encoding="UTF-8"?>\n' + body + "\n"

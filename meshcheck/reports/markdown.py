@@ -1,0 +1,78 @@
+"""A Markdown summary for ``$GITHUB_STEP_SUMMARY`` (or a pull-request comment): verdict, table.
+
+Names are data: made printable, then every character Markdown or HTML would read as markup
+(``|``, ``*``, ``_``, backticks, brackets, ``<``, ``&``...) is escaped, so a name can neither
+break the table nor inject a link, an image or HTML.
+"""
+
+from __future__ import annotations
+
+import re
+
+from ..results import CheckResult
+from .common import describe, plural, printable, resolution, summary, summary_line
+
+#: Rows shown in the table; the rest are counted (a step summary is limited to 1 MiB).
+MAX_ROWS = 1000
+
+_MARKUP = re.compile(r"([\\`*_{}\[\]()<>#+\-.!|~=:&\"'$])")
+
+
+def escape(text: str) -> str:
+    """``text`` as literal Markdown inline text on one line.
+
+    Examples
+    --------
+    >>> escape("a|b_<script>.stl")
+    'a\\\\|b\\\\_\\\\<script\\\\>\\\\.stl'
+    """
+    return _MARKUP.sub(r"\\\1", printable(text))
+
+
+def render(result: CheckResult) -> str:
+    s = summary(result)
+    icon = "✅" if s["passed"] else "❌"
+    lines = [f"## {icon} meshcheck: {'PASS' if s['passed'] else 'FAIL'}", ""]
+    lines.append(summary_line(result))  # names no part: no markup to fear
+    lines.append("")
+    if result.findings:
+        has_baseline = result.baseline is not None
+        header = ["", "Status", "Part A", "Part B", "Detail", "ID"]
+        if has_baseline:
+            header.insert(2, "Baseline")
+        lines.append("| " + " | ".join(header) + " |")
+        lines.append("|" + "---|" * len(header))
+        rows = sorted(
+            result.findings, key=lambda f: (not result.is_failing(f), f.is_approved, f.a, f.b)
+        )
+        for f in rows[:MAX_ROWS]:
+            mark = "❌" if result.is_failing(f) else "☑️" if f.is_approved else "⚠️"
+            detail = describe(f, resolution(result, f))
+            if f.is_approved:
+                detail += f"  approved: {escape(f.approval_reason)}"
+            cells = [mark, str(f.status), escape(f.a), escape(f.b), detail, f"`{f.id}`"]
+            if has_baseline:
+                cells.insert(2, result.baseline_state(f) or "")
+            lines.append("| " + " | ".join(cells) + " |")
+        if len(rows) > MAX_ROWS:
+            more = plural(len(rows) - MAX_ROWS, "more finding")
+            lines += ["", f"... and {more} (see the report)"]
+        lines.append("")
+    else:
+        lines += ["No findings.", ""]
+    if result.baseline is not None:
+        resolved = result.baseline.resolved(result.findings)
+        if resolved:
+            lines.append(f"Resolved since the baseline ({len(resolved)}):")
+            lines.append("")
+            for r in resolved[:MAX_ROWS]:
+                lines.append(f"- {r.status}: {escape(r.a)} and {escape(r.b)} `{r.id}`")
+            lines.append("")
+    if result.settings.config_path:
+        lines += [f"Configuration: {escape(result.settings.config_path)}", ""]
+    if result.warnings:
+        lines.append("Warnings:")
+        lines.append("")
+        lines += [f"- {escape(w)}" for w in result.warnings]
+        lines.append("")
+    return "\n".join(lines)

@@ -1,0 +1,140 @@
+"""SARIF 2.1.0 for GitHub code scanning: one rule per status, one result per finding.
+
+Each result names the file of the pair's first part as its artifact location (the second part's
+file as a related location), carries the finding's stable ID as ``partialFingerprints`` (so code
+scanning follows one clash across runs), its level (``error`` when it fails the run), approvals as
+external suppressions, and with a baseline its ``baselineState`` (``new``, ``unchanged``; resolved
+findings as ``absent``). Messages go through ``printable``; URIs are percent-encoded.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import urllib.parse
+from importlib import metadata
+
+from ..results import FINDING_STATUSES, CheckResult, Finding, Verdict
+from .common import describe, part_file, part_files, printable, resolution, summary_line
+
+SCHEMA = "https://json.schemastore.org/sarif-2.1.0.json"
+FINGERPRINT = "meshcheckFindingId/v1"
+
+_RULES = {
+    Verdict.INTERFERENCE: "Two parts share volume: they cannot both be built as modelled.",
+    Verdict.CLEARANCE: "Two parts are closer than the required clearance.",
+    Verdict.TOUCHING: "Two parts touch within the tolerance (contact, usually by design).",
+}
+
+
+def uri(path: str) -> dict:
+    """An ``artifactLocation``: relative paths against the source root, absolute as file URIs."""
+    raw = os.fsencode(path)  # a non-UTF-8 name keeps its bytes, percent-encoded
+    if os.path.isabs(path):
+        return {"uri": "file://" + urllib.parse.quote(raw)}
+    return {"uri": urllib.parse.quote(raw.replace(b"\\", b"/")), "uriBaseId": "%SRCROOT%"}
+
+
+def _version() -> str:
+    try:
+        return metadata.version("meshcheck")
+    except metadata.PackageNotFoundError:  # pragma: no cover - running from a source tree
+        return "0"
+
+
+def _level(result: CheckResult, finding: Finding) -> str:
+    if result.is_failing(finding):
+        return "error"
+    return "note" if finding.is_approved or finding.status == Verdict.TOUCHING else "warning"
+
+
+def _result(result: CheckResult, f: Finding, paths: dict[str, str]) -> dict:
+    detail = describe(f, resolution(result, f))
+    text = f"{printable(f.a)} and {printable(f.b)}: {f.status}, {detail}"
+    entry = {
+        "ruleId": str(f.status),
+        "ruleIndex": FINDING_STATUSES.index(f.status),
+        "level": _level(result, f),
+        "message": {"text": text},
+        "locations": [{"physicalLocation": {"artifactLocation": uri(part_file(paths, f.a))}}],
+        "relatedLocations": [
+            {
+                "id": 1,
+                "physicalLocation": {"artifactLocation": uri(part_file(paths, f.b))},
+                "message": {"text": printable(f.b)},
+            }
+        ],
+        "partialFingerprints": {FINGERPRINT: f.id},
+        "properties": {"id": f.id, "a": f.a, "b": f.b, **_measurements(f)},
+    }
+    if f.is_approved:
+        entry["suppressions"] = [
+            {"kind": "external", "justification": printable(f.approval_reason)}
+        ]
+    state = result.baseline_state(f)
+    if state is not None:
+        entry["baselineState"] = "new" if state == "new" else "unchanged"
+    return entry
+
+
+def _measurements(f: Finding) -> dict:
+    doc = f.to_dict()
+    return {k: doc[k] for k in ("distance", "depth", "volume", "tolerance", "location")}
+
+
+def document(result: CheckResult) -> dict:
+    rules = [
+        {
+            "id": str(status),
+            "name": str(status).capitalize(),
+            "shortDescription": {"text": _RULES[status]},
+            "defaultConfiguration": {"level": "error" if status in result.fail_on else "warning"},
+        }
+        for status in FINDING_STATUSES
+    ]
+    paths = part_files(result)
+    results = [_result(result, f, paths) for f in result.findings]
+    if result.baseline is not None:
+        for r in result.baseline.resolved(result.findings):
+            results.append(
+                {
+                    "ruleId": str(r.status),
+                    "ruleIndex": FINDING_STATUSES.index(r.status),
+                    "level": "none",
+                    "message": {
+                        "text": f"{printable(r.a)} and {printable(r.b)}: {r.status} resolved"
+                    },
+                    "partialFingerprints": {FINGERPRINT: r.id},
+                    "baselineState": "absent",
+                }
+            )
+    run = {
+        "tool": {
+            "driver": {
+                "name": "meshcheck",
+                "version": _version(),
+                "informationUri": "https://pypi.org/project/meshcheck/",
+                "rules": rules,
+            }
+        },
+        "originalUriBaseIds": {"%SRCROOT%": {"uri": _srcroot()}},
+        "invocations": [
+            {
+                "executionSuccessful": True,
+                "toolExecutionNotifications": [
+                    {"level": "warning", "message": {"text": printable(w)}} for w in result.warnings
+                ],
+            }
+        ],
+        "results": results,
+        "properties": {"summary": summary_line(result)},
+    }
+    return {"$schema": SCHEMA, "version": "2.1.0", "runs": [run]}
+
+
+def _srcroot() -> str:
+    return "file://" + urllib.parse.quote(os.fsencode(os.getcwd())).rstrip("/") + "/"
+
+
+def render(result: CheckResult) -> str:
+    return json.dumps(document(result), indent=2, ensure_ascii=True, allow_nan=False) + "\n"
