@@ -130,6 +130,21 @@ def _report_option(ctx, param, values):
     "Default: interference, plus clearance when a clearance is set.",
 )
 @click.option(
+    "--units",
+    default=None,
+    metavar="UNIT",
+    help="Unit of mesh files that declare none (STL, OBJ, PLY, OFF), and of the report: um, mm, "
+    "cm, m, in, ft. Default: the unit every input declares, else mm. Files that declare a unit "
+    "(glTF: metres, 3MF, STEP) are converted.",
+)
+@click.option(
+    "--max-triangles",
+    type=click.IntRange(min=1),
+    default=None,
+    help="Refuse runs with more triangles than this, every placed instance counted "
+    "(default 50 million): raise it for giant assemblies.",
+)
+@click.option(
     "--split",
     is_flag=True,
     help="Make each disconnected shell of a mesh its own part (NAME#1, NAME#2... in file order).",
@@ -201,6 +216,8 @@ def _run(
     tolerance,
     threshold,
     fail_on,
+    units,
+    max_triangles,
     split,
     config_path,
     no_config,
@@ -236,6 +253,8 @@ def _run(
             tolerance=tolerance,
             threshold=threshold,
             fail_on=fail_on,
+            units=units,
+            max_triangles=max_triangles,
             split=split,
             cache_dir=cache_dir,
             use_cache=not no_cache,

@@ -108,7 +108,7 @@ def approval_reason(
 # Configuration file
 
 CONFIG_NAMES = ("meshcheck.toml", "pyproject.toml")  # in one directory, meshcheck.toml wins
-_KEYS = ("tolerance", "clearance", "threshold", "fail_on", "ignore", "groups")
+_KEYS = ("tolerance", "clearance", "threshold", "units", "fail_on", "ignore", "groups")
 
 
 @dataclass(frozen=True)
@@ -128,6 +128,8 @@ class Config:
         approval lapses when either mesh changes, since the ID hashes both meshes' content).
     groups : Groups or None
         Check only pairs across two groups of parts.
+    units : str or None
+        Unit of mesh files that declare none, and of the report (``meshcheck.units``).
     """
 
     path: str | None = None
@@ -137,6 +139,7 @@ class Config:
     fail_on: tuple[str, ...] | None = None
     approvals: tuple[Approval, ...] = ()
     groups: Groups | None = None
+    units: str | None = None
 
 
 def find_config(start: str | os.PathLike | None = None) -> str | None:
@@ -315,7 +318,22 @@ def load_config(path: str | os.PathLike) -> Config:
         fail_on=fail_on,
         approvals=tuple(approvals),
         groups=groups,
+        units=_unit(doc.get("units"), fail),
     )
+
+
+def _unit(value, fail) -> str | None:
+    """The ``units`` key: a known length unit name, or None when absent."""
+    if value is None:
+        return None
+    from .units import unit_name
+
+    if not isinstance(value, str):
+        fail(f'units must be a string such as "mm", not {type(value).__name__}')
+    try:
+        return unit_name(value)
+    except ValueError as exc:
+        fail(f"units: {exc}")
 
 
 def parse_fail_on(values: Iterable[str], *, path: str | None = None) -> tuple[str, ...] | None:

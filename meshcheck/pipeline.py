@@ -32,7 +32,7 @@ from .config import Approval, approval_reason
 from .decompose import decompose_bodies, local_geometry
 from .errors import MeshcheckWarning
 from .geometry import ConvexPack, Status, pack_convex, query_pairs
-from .load import Body, load_bodies
+from .load import Body, Limits, load_bodies
 from .progress import Progress
 from .results import CheckResult, Finding, Part, Verdict, finding_id
 from .settings import (
@@ -42,6 +42,7 @@ from .settings import (
     pair_tolerances,
     part_sizes,
 )
+from .units import DEFAULT_UNIT
 
 _EPS32 = float(np.finfo(np.float32).eps)
 
@@ -99,8 +100,15 @@ def check(
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", MeshcheckWarning)
             with Progress("loading", 0) as bar:
+                limits = None
+                if settings.max_triangles is not None:
+                    limits = Limits(max_triangles=settings.max_triangles)
                 bodies = load_bodies(
-                    paths, split=settings.split, units=settings.units, progress=bar.update_total
+                    paths,
+                    split=settings.split,
+                    units=settings.units,
+                    limits=limits,
+                    progress=bar.update_total,
                 )
             result = check_bodies(bodies, settings)
     finally:
@@ -147,6 +155,7 @@ def check_bodies(bodies: Sequence[Body], settings: Settings | None = None, **fie
         settings=settings,
         checked_pairs=[tuple(sorted((bodies[i].name, bodies[j].name))) for i, j in pairs],
         bodies=tuple(bodies),
+        units=bodies[0].units if bodies else (settings.units or DEFAULT_UNIT),
     )
 
 

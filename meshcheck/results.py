@@ -151,6 +151,8 @@ class CheckResult:
         The part pairs the broad phase left to check (sorted names), clear ones included.
     warnings : list of str
         The messages of the run's MeshcheckWarnings.
+    units : str
+        The unit every length of the result is in (``meshcheck.units``).
     bodies : tuple of load.Body
         The parts' geometry, for outputs that draw them (``--export``); not compared.
     baseline : baseline.Baseline or None
@@ -163,6 +165,7 @@ class CheckResult:
     checked_pairs: list[tuple[str, str]] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     bodies: tuple = field(default=(), repr=False, compare=False)
+    units: str = "mm"
     baseline: Baseline | None = None
 
     @property

@@ -117,6 +117,8 @@ class Settings:
         Worker processes; None: all cores.
     config_path : str or None
         The configuration file the settings came from, if any.
+    max_triangles : int or None
+        Triangles allowed in the whole run (``load.Limits.max_triangles``); None: the default.
     fail_on_new : bool
         Only findings that are new against the baseline report fail the run (``--fail-on new``);
         without a baseline every finding is new.
@@ -134,6 +136,7 @@ class Settings:
     jobs: int | None = None
     config_path: str | None = None
     fail_on_new: bool = False
+    max_triangles: int | None = None
 
     def __post_init__(self):
         for name in NUMBER_RANGES:
@@ -144,6 +147,22 @@ class Settings:
             isinstance(self.jobs, bool) or not isinstance(self.jobs, int) or self.jobs < 1
         ):
             raise ConfigError(None, f"jobs must be a whole number of at least 1, not {self.jobs!r}")
+        if self.max_triangles is not None and (
+            isinstance(self.max_triangles, bool)
+            or not isinstance(self.max_triangles, int)
+            or self.max_triangles < 1
+        ):
+            raise ConfigError(
+                None,
+                f"max_triangles must be a whole number of at least 1, not {self.max_triangles!r}",
+            )
+        if self.units is not None:
+            from .units import unit_name
+
+            try:
+                object.__setattr__(self, "units", unit_name(self.units))
+            except ValueError as exc:
+                raise ConfigError(None, str(exc)) from None
         object.__setattr__(self, "fail_on", tuple(Verdict(s) for s in self.fail_on))
         object.__setattr__(self, "approvals", tuple(self.approvals))
 
@@ -163,6 +182,7 @@ class Settings:
         cache_dir: str | os.PathLike | None = None,
         use_cache: bool = True,
         jobs: int | None = None,
+        max_triangles: int | None = None,
     ) -> Settings:
         """Merge options (None: not given) with a configuration file, and validate.
 
@@ -214,11 +234,12 @@ class Settings:
             approvals=(*approvals, *file.approvals),
             groups=pick(groups, file.groups),
             split=split,
-            units=units,
+            units=pick(units, file.units),
             cache_dir=cache,
             jobs=jobs,
             config_path=file.path,
             fail_on_new=fail_on_new,
+            max_triangles=max_triangles,
         )
 
     def replace(self, **changes) -> Settings:

@@ -62,7 +62,7 @@ def _render_html(result: CheckResult, *, inputs: Sequence[str]) -> str:
     except metadata.PackageNotFoundError:  # pragma: no cover
         version = "0"
     return render_html(
-        result, result.bodies, units=result.settings.units, inputs=tuple(inputs), version=version
+        result, result.bodies, units=result.units, inputs=tuple(inputs), version=version
     )
 
 

@@ -89,6 +89,7 @@ def summary(result: CheckResult) -> dict:
         "tolerance": result.tolerance,
         "tolerance_rule": "given" if result.tolerance is not None else _TOLERANCE_RULE,
         "required_clearance": result.clearance,
+        "units": result.units,
         "config": result.settings.config_path,
         "warnings": list(result.warnings),
         "passed": result.passed,
@@ -115,7 +116,7 @@ def summary_line(result: CheckResult) -> str:
         parts.append(f"{s['new']} new, {s['resolved']} resolved")
     return (
         f"{verdict}: {plural(len(result.parts), 'part')}, {', '.join(parts)} "
-        f"(tolerance {tolerance_text(result)})"
+        f"(tolerance {tolerance_text(result)}, {result.units})"
     )
 
 

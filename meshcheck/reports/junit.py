@@ -83,6 +83,7 @@ def render(result: CheckResult) -> str:
         "pairs_checked": len(result.checked_pairs),
         "tolerance": result.tolerance,
         "clearance": result.clearance,
+        "units": result.units,
         "fail_on": ",".join(result.fail_on) + (",new" if result.settings.fail_on_new else ""),
         "config": result.settings.config_path,
         "baseline": None if result.baseline is None else result.baseline.path,
