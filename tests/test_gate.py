@@ -87,7 +87,6 @@ def test_a_group_that_matches_no_part_is_a_usage_error():
     assert "assembly/bolt.stl" in str(info.value)  # shows what the names look like
 
 
-@pytest.mark.xfail(reason="Body.relative_name lands with the load package", strict=True)
 def test_group_patterns_also_match_the_name_relative_to_the_argument(tmp_path):
     folder = tmp_path / "assembly"
     folder.mkdir()
