@@ -14,10 +14,10 @@ beforehand (faces from Qhull), and is called with ``fcl.distance`` and
 * ``signed_distance(a, b)`` per call on the raw (V, 3) point arrays (no hull, linear scan);
 * ``query_pairs(pack, pairs)`` once for all pairs, on a pack built beforehand, with the
   penetration depth (``depth=True``) and without it (``depth=False``), in one thread
-  (``threads=1``) and on numba's threads (``NUMBA_NUM_THREADS``, default all cores).
+  (``threads=1``) and on one thread per core (``threads=0``).
 
-Rounds alternate between the contenders in one process, after a warm-up that compiles (or
-loads) the numba kernels; the figures are medians over rounds, per pair. Note the work differs
+Rounds alternate between the contenders in one process, after a warm-up round; the figures are
+medians over rounds, per pair. Note the work differs
 on overlapping pairs: FCL with the requested defaults (``enable_signed_distance=False``) stops
 at "colliding" and returns -1, while ``signed_distance`` and ``query_pairs(depth=True)`` also
 measure the depth with EPA; FCL with ``enable_signed_distance=True`` is listed for that
@@ -35,7 +35,6 @@ import sys
 import time
 from pathlib import Path
 
-import numba
 import numpy as np
 from scipy.spatial import ConvexHull
 
@@ -121,17 +120,17 @@ def main() -> None:
 
         return run
 
-    threads = numba.get_num_threads()
+    threads = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1
     contenders = {
         "fcl.distance per call": run_fcl,
         "  fcl, enable_signed_distance": run_fcl_signed,
         "signed_distance per call": run_single,
         "query_pairs depth=True": batch(True, 1),
         "query_pairs depth=False": batch(False, 1),
-        f"  same, {threads} threads, depth=True": batch(True, threads),
-        f"  same, {threads} threads, depth=False": batch(False, threads),
+        f"  same, {threads} threads, depth=True": batch(True, 0),
+        f"  same, {threads} threads, depth=False": batch(False, 0),
     }
-    results = {name: f() for name, f in contenders.items()}  # warm-up (numba compile / load)
+    results = {name: f() for name, f in contenders.items()}  # warm-up
     times: dict[str, list[float]] = {name: [] for name in contenders}
     for _ in range(args.rounds):
         for name, f in contenders.items():
@@ -144,7 +143,7 @@ def main() -> None:
     sep = d_ours > 0
     agree = np.abs(d_fcl[sep] - d_ours[sep])
     print(
-        f"python {platform.python_version()}, numpy {np.__version__}, numba {numba.__version__}, "
+        f"python {platform.python_version()}, numpy {np.__version__}, "
         f"fcl {fcl.__version__}, {os.cpu_count()} cores"
     )
     print(

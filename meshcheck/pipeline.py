@@ -321,8 +321,8 @@ def approve(
 
 def _names(body: Body) -> tuple[str, ...]:
     """The names patterns are matched against: the full name, then the relative one."""
-    relative = getattr(body, "relative_name", None)
-    return (body.name,) if not relative or relative == body.name else (body.name, relative)
+    relative = body.relative_name
+    return (body.name,) if relative == body.name else (body.name, relative)
 
 
 def _check_patterns(settings: Settings, names: Sequence[tuple[str, ...]]) -> None:

@@ -1,4 +1,8 @@
-"""Pure numpy/numba geometry kernels: support maps, GJK, EPA. No trimesh, no I/O, no printing.
+"""Geometry kernels: support maps, GJK, EPA, triangle distances. No trimesh, no I/O, no printing.
+
+The kernels are C++ (``src/``: ``support.hpp``, ``simplex.hpp``, ``gjk.hpp``, ``epa.hpp``,
+``triangles.hpp``), compiled into ``meshcheck.geometry._kernels`` when the package is installed,
+so no run waits for a compiler; the Python modules here check arguments and shape the answers.
 
 Single pairs go through :func:`query` (or :func:`signed_distance`, :func:`intersects`), which
 scan the raw points and need no hull. Many pairs go through :func:`pack_convex` once and

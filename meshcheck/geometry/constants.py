@@ -13,8 +13,9 @@ Two lengths are used:
     The largest absolute coordinate of the two shapes (before re-centring). Input coordinates are
     only known to half an ulp of this, so the default tolerance never drops below a few ulps of it.
 
-The status codes shared by the compiled kernels also live here, because the numba code works on
-plain integers; :class:`meshcheck.geometry.Status` mirrors them.
+The compiled kernels (``src/``) read these values from this module when they are imported, so
+this file stays the one place they are set. The status codes they return live here too;
+:class:`meshcheck.geometry.Status` mirrors them.
 """
 
 from __future__ import annotations
@@ -90,7 +91,7 @@ EPA_MAX_ITER = 128
 HILL_CLIMB_MIN_VERTICES = 1024
 
 #: ``query_pairs(..., threads=N)`` spreads the pairs over N threads only from this many pairs
-#: on: starting the thread pool's tasks costs tens of microseconds, a few hundred 40-vertex pairs.
+#: on: starting and joining the threads costs tens of microseconds, a few hundred 40-vertex pairs.
 PARALLEL_MIN_PAIRS = 256
 
 # ---------------------------------------------------------------------------------------------

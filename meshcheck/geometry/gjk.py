@@ -4,7 +4,7 @@ The classic Gilbert-Johnson-Keerthi iteration on the Minkowski difference ``D = 
 shapes meet iff ``D`` holds the origin, and their distance is the distance from the origin to
 ``D``. Each iteration asks for the support point of ``D`` towards the origin and replaces the
 simplex by the smallest face of (simplex + new point) nearest the origin, by one small function
-per simplex size (``do_simplex2/3/4``, as libccd).
+per simplex size (``do_simplex2/3/4`` in ``src/simplex.hpp``, as libccd).
 
 Like parry, the iteration keeps two bounds on the signed distance ``sd``:
 
@@ -18,37 +18,30 @@ and the answer follows from them against the tolerance ``tol``:
 * ``lower > tol``                          -> SEPARATED (distance ``upper`` once converged);
 * ``upper <= tol and lower >= -tol``       -> TOUCHING (so a "distance 0" always rests on one
   more support point than the simplex that produced it, as MuJoCo's fix for false zeros);
-* the origin on or inside the simplex      -> :mod:`meshcheck.geometry.epa` (depth);
+* the origin on or inside the simplex      -> EPA, ``src/epa.hpp`` (touching, or the depth);
 * neither after ``GJK_MAX_ITER``           -> UNDECIDED, never SEPARATED.
 
 Both shapes are re-centred on a common point before iterating (Bullet), so parts 1e5 units from
 the origin keep their digits. Every Minkowski point keeps its two source points, which give the
 witness points.
+
+The iteration itself is C++ (``src/gjk.hpp``, compiled into ``meshcheck.geometry._kernels`` at
+``pip install``, so no run waits for a compiler); this module checks the arguments and shapes
+the answers.
 """
 
 from __future__ import annotations
 
 import enum
+import os
 from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
-from numba import get_num_threads, njit, prange, types
 
-from .constants import (
-    COORD_REL,
-    DEGENERATE_SIN,
-    GJK_MAX_ITER,
-    GJK_REL_GAP,
-    PARALLEL_MIN_PAIRS,
-    SEPARATED,
-    TOUCH_REL,
-    TOUCHING,
-    UNDECIDED,
-    ZERO_REL,
-)
-from .epa import closest_on_segment, closest_on_triangle, contact, epa_workspace, write_answer
-from .support import B1, F1D, F2D, F8, I1D, I2D, I8, SHAPE, ConvexPack, cso_support
+from . import _kernels
+from .constants import PARALLEL_MIN_PAIRS, SEPARATED, TOUCHING
+from .support import ConvexPack
 
 __all__ = [
     "Contact",
@@ -123,361 +116,10 @@ class PairQuery(NamedTuple):
     normal: np.ndarray
 
 
-# ---------------------------------------------------------------------------------------------
-# Simplex cases
-# ---------------------------------------------------------------------------------------------
-
-
-@njit(I8(F2D, F2D, F2D, I2D, F1D, I8), cache=True, nogil=True)
-def _compact(W, SA, SB, IX, lam, k):
-    """Drop simplex points of zero weight, keeping order; return the new size."""
-    n = 0
-    for r in range(k):
-        if lam[r] > 0.0:
-            if n != r:
-                for c in range(3):
-                    W[n, c] = W[r, c]
-                    SA[n, c] = SA[r, c]
-                    SB[n, c] = SB[r, c]
-                IX[n, 0] = IX[r, 0]
-                IX[n, 1] = IX[r, 1]
-                lam[n] = lam[r]
-            n += 1
-    return n
-
-
-@njit(I8(F2D, F2D, F2D, I2D, F1D), cache=True, nogil=True)
-def do_simplex2(W, SA, SB, IX, lam):
-    """Segment: keep the vertex or the segment nearest the origin. Returns the new size."""
-    lam[0], lam[1] = closest_on_segment(W, 0, 1)
-    return _compact(W, SA, SB, IX, lam, 2)
-
-
-@njit(I8(F2D, F2D, F2D, I2D, F1D), cache=True, nogil=True)
-def do_simplex3(W, SA, SB, IX, lam):
-    """Triangle: keep the vertex, edge or face nearest the origin. Returns the new size."""
-    lam[0], lam[1], lam[2] = closest_on_triangle(W, 0, 1, 2)
-    return _compact(W, SA, SB, IX, lam, 3)
-
-
-@njit(types.Tuple((I8, B1))(F2D, F2D, F2D, I2D, F1D), cache=True, nogil=True)
-def do_simplex4(W, SA, SB, IX, lam):
-    """Tetrahedron: detect that it holds the origin, else keep its feature nearest the origin.
-
-    Returns ``(size, encloses)``. A tetrahedron whose volume is below ``DEGENERATE_SIN`` times
-    the product of its edges is flat: orientation tests on it are noise, so its nearest point is
-    found over all four faces and it never claims to enclose the origin.
-    """
-    e1x, e1y, e1z = W[1, 0] - W[0, 0], W[1, 1] - W[0, 1], W[1, 2] - W[0, 2]
-    e2x, e2y, e2z = W[2, 0] - W[0, 0], W[2, 1] - W[0, 1], W[2, 2] - W[0, 2]
-    e3x, e3y, e3z = W[3, 0] - W[0, 0], W[3, 1] - W[0, 1], W[3, 2] - W[0, 2]
-    det = (
-        e1x * (e2y * e3z - e2z * e3y)
-        + e1y * (e2z * e3x - e2x * e3z)
-        + e1z * (e2x * e3y - e2y * e3x)
-    )
-    scale = np.sqrt(
-        (e1x * e1x + e1y * e1y + e1z * e1z)
-        * (e2x * e2x + e2y * e2y + e2z * e2z)
-        * (e3x * e3x + e3y * e3y + e3z * e3z)
-    )
-    flat = abs(det) <= DEGENERATE_SIN * scale
-    best = np.inf
-    bi, bj, bm, wi, wj, wm = 0, 1, 2, 1.0, 0.0, 0.0
-    encloses = True
-    for f in range(4):
-        # Face (i, j, m) opposite vertex o.
-        if f == 0:
-            i, j, m, o = 0, 1, 2, 3
-        elif f == 1:
-            i, j, m, o = 0, 1, 3, 2
-        elif f == 2:
-            i, j, m, o = 0, 2, 3, 1
-        else:
-            i, j, m, o = 1, 2, 3, 0
-        if not flat:
-            abx, aby, abz = W[j, 0] - W[i, 0], W[j, 1] - W[i, 1], W[j, 2] - W[i, 2]
-            acx, acy, acz = W[m, 0] - W[i, 0], W[m, 1] - W[i, 1], W[m, 2] - W[i, 2]
-            nx = aby * acz - abz * acy
-            ny = abz * acx - abx * acz
-            nz = abx * acy - aby * acx
-            s_origin = -(nx * W[i, 0] + ny * W[i, 1] + nz * W[i, 2])
-            s_opp = nx * (W[o, 0] - W[i, 0]) + ny * (W[o, 1] - W[i, 1]) + nz * (W[o, 2] - W[i, 2])
-            if s_origin * s_opp >= 0.0:
-                continue  # the origin is on the tetrahedron's side of this face
-        encloses = False
-        li, lj, lm = closest_on_triangle(W, i, j, m)
-        px = li * W[i, 0] + lj * W[j, 0] + lm * W[m, 0]
-        py = li * W[i, 1] + lj * W[j, 1] + lm * W[m, 1]
-        pz = li * W[i, 2] + lj * W[j, 2] + lm * W[m, 2]
-        d = px * px + py * py + pz * pz
-        if d < best:
-            best = d
-            bi, bj, bm, wi, wj, wm = i, j, m, li, lj, lm
-    if encloses:
-        return 4, True
-    lam[0] = lam[1] = lam[2] = lam[3] = 0.0
-    lam[bi], lam[bj], lam[bm] = wi, wj, wm
-    return _compact(W, SA, SB, IX, lam, 4), False
-
-
-# ---------------------------------------------------------------------------------------------
-# GJK
-# ---------------------------------------------------------------------------------------------
-
-
-@njit(types.none(I8, F8, I8, F2D, F2D, F1D, F8, F8, F8, F1D, F1D), cache=True, nogil=True)
-def _answer_simplex(status, distance, k, SA, SB, lam, nx, ny, nz, centre, out):
-    ax = ay = az = bx = by = bz = 0.0
-    for r in range(k):
-        ax += lam[r] * SA[r, 0]
-        ay += lam[r] * SA[r, 1]
-        az += lam[r] * SA[r, 2]
-        bx += lam[r] * SB[r, 0]
-        by += lam[r] * SB[r, 1]
-        bz += lam[r] * SB[r, 2]
-    write_answer(out, status, distance, ax, ay, az, bx, by, bz, nx, ny, nz, centre)
-
-
-@njit(types.UniTuple(F8, 3)(F2D, F1D, I8), cache=True, nogil=True)
-def _nearest_point(W, lam, k):
-    """The simplex point ``v`` nearest the origin.
-
-    For a triangle it is the origin's projection on the plane, ``n (n . a) / |n|^2`` with the
-    normal ``n`` from a cross product of edges (as libccd's doSimplex3 takes the normal as the
-    new direction): when the shapes nearly touch, ``v`` is tiny next to the simplex points and
-    ``sum(lam * W)`` would give its direction only to ``eps |W| / |v|`` (1e-6 at a 1e-10 gap),
-    while the normal keeps full precision, and with it the lower bound ``w . v / |v|``.
-
-    For a segment ``e`` the same holds for the component of ``v`` along ``e``: it is projected
-    out once more, so ``v`` is square to ``e`` to ``eps |v|`` and both ends of a long thin
-    Minkowski difference give the same, accurate bound (nearly collinear segments 1e-10 apart).
-    """
-    if k == 3:
-        abx, aby, abz = W[1, 0] - W[0, 0], W[1, 1] - W[0, 1], W[1, 2] - W[0, 2]
-        acx, acy, acz = W[2, 0] - W[0, 0], W[2, 1] - W[0, 1], W[2, 2] - W[0, 2]
-        nx = aby * acz - abz * acy
-        ny = abz * acx - abx * acz
-        nz = abx * acy - aby * acx
-        nn = nx * nx + ny * ny + nz * nz
-        if nn > 0.0:
-            s = (nx * W[0, 0] + ny * W[0, 1] + nz * W[0, 2]) / nn
-            return nx * s, ny * s, nz * s
-    vx = vy = vz = 0.0
-    for r in range(k):
-        vx += lam[r] * W[r, 0]
-        vy += lam[r] * W[r, 1]
-        vz += lam[r] * W[r, 2]
-    if k == 2:
-        ex, ey, ez = W[1, 0] - W[0, 0], W[1, 1] - W[0, 1], W[1, 2] - W[0, 2]
-        ee = ex * ex + ey * ey + ez * ez
-        if ee > 0.0:
-            s = (vx * ex + vy * ey + vz * ez) / ee
-            vx, vy, vz = vx - s * ex, vy - s * ey, vz - s * ez
-    return vx, vy, vz
-
-
-_SIMPLEX = (F2D, F2D, F2D, I2D, F1D)  # W, SA, SB, IX, lam
-
-
-@njit(I8(*SHAPE, *SHAPE, F1D, F1D, F8, F8, F8, *_SIMPLEX, F1D), cache=True, nogil=True)
-def gjk(pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, nst_b, nbr_b, b0, b1, climb_b,
-        centre, guess, size, tol, max_distance, W, SA, SB, IX, lam, out):  # fmt: skip
-    """Run GJK on one pair; answer into ``out``, or hand over to EPA when the shapes meet.
-
-    Parameters
-    ----------
-    pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, nst_b, nbr_b, b0, b1, climb_b
-        The two shapes, as for :func:`meshcheck.geometry.support.cso_support`.
-    centre : (3,) float64
-        Common centre both shapes are re-centred on, world coordinates.
-    guess : (3,) float64
-        First search direction, from A toward B (e.g. centre of B minus centre of A).
-    size : float64
-        Size of the query (largest AABB edge of the two shapes), model units.
-    tol : float64
-        Touching tolerance, model units, >= 0.
-    max_distance : float64
-        Stop with SEPARATED as soon as the distance is known to exceed it (and ``tol``); the
-        distance is then that lower bound. ``inf`` to always converge.
-    W, SA, SB : (4, 3) float64
-        Work arrays: simplex points of ``A - B`` and their sources on A and B (re-centred).
-    IX : (4, 2) int64
-        Work array: source vertex indices.
-    lam : (>= 4,) float64
-        Work array: barycentric weights.
-    out : (11,) float64
-        ``[status, distance, point_a(3), point_b(3), normal(3)]``.
-
-    Returns
-    -------
-    int
-        0 when ``out`` holds the answer; else the size of the simplex (in ``W, SA, SB, IX,
-        lam``) that holds the origin, for :func:`meshcheck.geometry.epa.contact`. (The caller
-        makes that call: with it inside this loop numba's code for the loop ran ~2x slower.)
-    """
-    zero_eps = min(ZERO_REL * size, 0.5 * tol)
-    ia, ib = cso_support(pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, nst_b, nbr_b, b0, b1,
-                         climb_b, centre, guess[0], guess[1], guess[2], a0, b0)  # fmt: skip
-    for c in range(3):
-        SA[0, c] = pts_a[ia, c] - centre[c]
-        SB[0, c] = pts_b[ib, c] - centre[c]
-        W[0, c] = SA[0, c] - SB[0, c]
-    IX[0, 0], IX[0, 1] = ia, ib
-    lam[0] = 1.0
-    k = 1
-    vx, vy, vz = W[0, 0], W[0, 1], W[0, 2]
-    lower = -np.inf
-    upper = np.sqrt(vx * vx + vy * vy + vz * vz)
-
-    for _ in range(GJK_MAX_ITER):
-        if upper <= zero_eps:
-            return k  # the origin is on the simplex: the shapes meet
-        ia, ib = cso_support(pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, nst_b, nbr_b, b0, b1,
-                             climb_b, centre, -vx, -vy, -vz, ia, ib)  # fmt: skip
-        wax, way, waz = pts_a[ia, 0] - centre[0], pts_a[ia, 1] - centre[1], pts_a[ia, 2] - centre[2]
-        wbx, wby, wbz = pts_b[ib, 0] - centre[0], pts_b[ib, 1] - centre[1], pts_b[ib, 2] - centre[2]
-        wx, wy, wz = wax - wbx, way - wby, waz - wbz
-        lb = (wx * vx + wy * vy + wz * vz) / upper
-        if lb > lower:
-            lower = lb
-        if lower > tol and lower > max_distance:
-            _answer_simplex(SEPARATED, lower, k, SA, SB, lam, -vx, -vy, -vz, centre, out)
-            return 0
-        if upper - lower <= GJK_REL_GAP * upper:
-            break  # converged
-        if upper <= tol and lower >= -tol:
-            break  # touching: |signed distance| <= tol, on the word of a fresh support point
-        repeated = False
-        for r in range(k):
-            if IX[r, 0] == ia and IX[r, 1] == ib:
-                repeated = True
-        if repeated:
-            break  # no new point: converged up to rounding
-        W[k, 0], W[k, 1], W[k, 2] = wx, wy, wz
-        SA[k, 0], SA[k, 1], SA[k, 2] = wax, way, waz
-        SB[k, 0], SB[k, 1], SB[k, 2] = wbx, wby, wbz
-        IX[k, 0], IX[k, 1] = ia, ib
-        k += 1
-        if k == 2:
-            k = do_simplex2(W, SA, SB, IX, lam)
-        elif k == 3:
-            k = do_simplex3(W, SA, SB, IX, lam)
-        else:
-            k, encloses = do_simplex4(W, SA, SB, IX, lam)
-            if encloses:
-                return k  # the tetrahedron holds the origin: the shapes meet
-        vx, vy, vz = _nearest_point(W, lam, k)
-        new_upper = np.sqrt(vx * vx + vy * vy + vz * vz)
-        stalled = new_upper >= upper
-        upper = new_upper
-        if stalled:
-            break  # no progress (rounding): decide from the bounds
-
-    if lower > tol:
-        status = SEPARATED
-        distance = upper
-    elif upper <= tol and lower >= -tol:
-        status = TOUCHING
-        distance = upper if lower >= 0.0 else 0.0
-    elif upper - lower <= GJK_REL_GAP * upper:
-        # Converged, with the tolerance inside the (tiny) bracket: the estimate decides.
-        status = SEPARATED if upper > tol else TOUCHING
-        distance = upper
-    elif upper <= tol:
-        # The origin is within tol of the simplex but no direction has shown the far side of
-        # D within tol (a flat or sliver D). Let the blow-up and EPA look for one: their
-        # TOUCHING / PENETRATING verdicts rest on bounds that hold wherever the origin is.
-        return k
-    else:
-        status = UNDECIDED
-        distance = lower if np.isfinite(lower) else 0.0
-    _answer_simplex(status, distance, k, SA, SB, lam, -vx, -vy, -vz, centre, out)
-    return 0
-
-
-@njit(types.Tuple((F2D, F2D, F2D, F2D, F1D, F1D, F1D, I2D, I1D))(), cache=True, nogil=True)
-def _workspace():
-    """Work arrays of one GJK query, carved from two allocations (each costs ~0.1 us)."""
-    f = np.empty((20, 3))
-    idx = np.zeros((5, 2), dtype=np.int64)
-    # W, SA, SB, box (lo_a, hi_a, lo_b, hi_b), centre, guess, lam; IX, an empty adjacency
-    lam = f[18:20].reshape(6)
-    return f[0:4], f[4:8], f[8:12], f[12:16], f[16], f[17], lam, idx[0:4], idx[4]
-
-
-@njit(B1(F2D, F1D, F1D), cache=True, nogil=True)
-def _bounds(pts, lo, hi):
-    """Fill the AABB ``lo, hi`` of ``pts``; return False if a coordinate is not finite."""
-    for c in range(3):
-        lo[c] = np.inf
-        hi[c] = -np.inf
-    for i in range(pts.shape[0]):
-        for c in range(3):
-            x = pts[i, c]
-            if x < lo[c]:
-                lo[c] = x
-            if x > hi[c]:
-                hi[c] = x
-    for c in range(3):
-        if not (np.isfinite(lo[c]) and np.isfinite(hi[c])):
-            return False
-    return True
-
-
-@njit(types.UniTuple(F8, 2)(F2D, F8, F1D, F1D), cache=True, nogil=True)
-def _setup(box, tol, centre, guess):
-    """Fill the common centre and first direction; return ``(size, tol)`` (default if tol < 0).
-
-    ``box`` is (4, 3): the AABB minimum and maximum of A, then of B.
-    """
-    size = 0.0
-    coord = 0.0
-    gl = 0.0
-    for c in range(3):
-        ca = 0.5 * (box[0, c] + box[1, c])
-        cb = 0.5 * (box[2, c] + box[3, c])
-        centre[c] = 0.5 * (ca + cb)
-        guess[c] = cb - ca
-        gl += guess[c] * guess[c]
-        size = max(size, box[1, c] - box[0, c], box[3, c] - box[2, c])
-        coord = max(coord, abs(box[0, c]), abs(box[1, c]), abs(box[2, c]), abs(box[3, c]))
-    if gl == 0.0:
-        guess[0], guess[1], guess[2] = 1.0, 0.0, 0.0
-    if tol < 0.0:
-        tol = max(TOUCH_REL * size, COORD_REL * coord)
-    return size, tol
-
-
-@njit(types.none(F2D, F2D, F8, B1, F1D), cache=True, nogil=True)
-def _query_points(a, b, tol, want_depth, out):
-    """Compiled body of :func:`query`: linear-scan supports on the raw points, no hull.
-
-    Writes the answer into ``out`` (11,) float64; ``out[0] = -1`` for non-finite input. (The
-    caller allocates ``out``: numba returning a new array costs ~1 us per call.)
-    """
-    W, SA, SB, box, centre, guess, lam, IX, no_adj = _workspace()
-    if not (_bounds(a, box[0], box[1]) and _bounds(b, box[2], box[3])):
-        out[0] = -1.0
-        return
-    size, tol = _setup(box, tol, centre, guess)
-    n, m = a.shape[0], b.shape[0]
-    k = gjk(a, no_adj, no_adj, 0, n, False, b, no_adj, no_adj, 0, m, False,
-            centre, guess, size, tol, np.inf, W, SA, SB, IX, lam, out)  # fmt: skip
-    if k > 0:
-        fws, iws = epa_workspace()
-        contact(a, no_adj, no_adj, 0, n, False, b, no_adj, no_adj, 0, m, False,
-                centre, size, tol, want_depth, k, W, SA, SB, IX, lam, fws, iws, out)  # fmt: skip
-
-
 def _contiguous(x, dtype) -> np.ndarray:
-    """``x`` as a C-contiguous, writable array of ``dtype``, copied only if needed.
-
-    The kernels are compiled for exactly these array types; a read-only or strided array would
-    cost one more compilation (seconds) and one more cache entry.
-    """
-    arr = np.ascontiguousarray(x, dtype=dtype)
-    return arr if arr.flags.writeable else arr.copy()
+    """``x`` as a C-contiguous array of ``dtype``, copied only if needed (the kernels read
+    exactly these array types)."""
+    return np.ascontiguousarray(x, dtype=dtype)
 
 
 def _points(x, name: str) -> np.ndarray:
@@ -488,7 +130,6 @@ def _points(x, name: str) -> np.ndarray:
         and x.shape[1] == 3
         and x.shape[0] > 0
         and x.flags.c_contiguous
-        and x.flags.writeable
     ):
         return x
     arr = _contiguous(x, np.float64)
@@ -509,8 +150,7 @@ def _tolerance(tolerance) -> float:
 
 
 def _run(a, b, tolerance, want_depth: bool) -> np.ndarray:
-    out = np.empty(11)
-    _query_points(_points(a, "a"), _points(b, "b"), _tolerance(tolerance), want_depth, out)
+    out = _kernels.query_points(_points(a, "a"), _points(b, "b"), _tolerance(tolerance), want_depth)
     if out[0] < 0.0:
         raise ValueError("a, b: coordinates must be finite")
     return out
@@ -592,59 +232,6 @@ def intersects(a, b, *, tolerance: float | None = None) -> bool:
 # ---------------------------------------------------------------------------------------------
 
 
-# pack arrays, pairs, tolerances, max distances, depth?, then the five output arrays
-_PAIRS = (F2D, I1D, I1D, I1D, F2D, F2D, I2D, F1D, F1D, B1, types.int8[::1], F1D, F2D, F2D, F2D)
-
-
-def _PAIRS_SIG(*extra):
-    return types.none(*_PAIRS, *extra)
-
-
-@njit(_PAIRS_SIG(I8, I8), cache=True, nogil=True)
-def _query_pairs_range(points, starts, nbr_starts, nbrs, lower, upper, pairs, tols, max_dists,
-                       want_depth, status, distance, point_a, point_b, normal, q0, q1):  # fmt: skip
-    """Answer pairs ``q0:q1`` (one task's share) into the output arrays."""
-    W, SA, SB, box, centre, guess, lam, IX, _ = _workspace()
-    fws, iws = epa_workspace()
-    out = np.empty(11)
-    for q in range(q0, q1):
-        i, j = pairs[q, 0], pairs[q, 1]
-        a0, a1, b0, b1 = starts[i], starts[i + 1], starts[j], starts[j + 1]
-        climb_a = nbr_starts[a0 + 1] > nbr_starts[a0]
-        climb_b = nbr_starts[b0 + 1] > nbr_starts[b0]
-        for c in range(3):
-            box[0, c], box[1, c] = lower[i, c], upper[i, c]
-            box[2, c], box[3, c] = lower[j, c], upper[j, c]
-        size, tol = _setup(box, tols[q], centre, guess)
-        k = gjk(points, nbr_starts, nbrs, a0, a1, climb_a, points, nbr_starts, nbrs, b0, b1,
-                climb_b, centre, guess, size, tol, max_dists[q], W, SA, SB, IX, lam,
-                out)  # fmt: skip
-        if k > 0:
-            contact(points, nbr_starts, nbrs, a0, a1, climb_a, points, nbr_starts, nbrs, b0, b1,
-                    climb_b, centre, size, tol, want_depth, k, W, SA, SB, IX, lam, fws, iws,
-                    out)  # fmt: skip
-        status[q] = np.int8(out[0])
-        distance[q] = out[1]
-        for c in range(3):
-            point_a[q, c] = out[2 + c]
-            point_b[q, c] = out[5 + c]
-            normal[q, c] = out[8 + c]
-
-
-# Compiled lazily (no signature): threads are opt-in, so nobody pays its ~4 s cold compile
-# unless they use it. Its arguments always arrive as the types above.
-@njit(cache=True, parallel=True)
-def _query_pairs_parallel(points, starts, nbr_starts, nbrs, lower, upper, pairs, tols, max_dists,
-                          want_depth, status, distance, point_a, point_b, normal,
-                          chunks):  # fmt: skip
-    """The pairs split into ``chunks`` contiguous shares, run as parallel tasks."""
-    k = pairs.shape[0]
-    for t in prange(chunks):
-        _query_pairs_range(points, starts, nbr_starts, nbrs, lower, upper, pairs, tols,
-                           max_dists, want_depth, status, distance, point_a, point_b, normal,
-                           t * k // chunks, (t + 1) * k // chunks)  # fmt: skip
-
-
 def _per_pair(value, k: int, name: str, default: float) -> np.ndarray:
     if value is None:
         return np.full(k, default)
@@ -683,12 +270,11 @@ def query_pairs(
         witness points of the current simplex. The pipeline passes clearance + tolerance, so
         every pair with ``distance <= max_distance`` is still measured exactly.
     threads : int, keyword-only
-        Threads to spread the pairs over (numba ``prange``); 0 means numba's thread count
-        (``NUMBA_NUM_THREADS``, by default the number of cores). Default 1: the calling thread
-        only, because on the shared 2-core machine measured (``bench/gjk.py``) two threads
-        ranged from 2.8x faster to 3x slower than one, depending on what else was running, and
-        because numba's OpenMP thread layer makes a later ``fork()`` of the process unsafe (use
-        the "spawn" start method).
+        Threads to spread the pairs over; 0 means one per core this process may run on. Default
+        1: the calling thread only, because on a shared 2-core machine (``bench/gjk.py``) a
+        second thread only helps when the second core is idle, and the pipeline's CoACD workers
+        often use it. The threads are started and joined within the call (no pool is left
+        behind, so ``fork()`` afterwards is safe), and the GIL is released while they run.
         Fewer than ``PARALLEL_MIN_PAIRS`` pairs always run in the calling thread.
 
     Returns
@@ -722,15 +308,14 @@ def query_pairs(
     normal = np.empty((k, 3))
     if k:
         f8, i8 = np.float64, np.int64
-        args = (
+        if threads == 0:
+            threads = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1
+        threads = max(1, int(threads)) if k >= PARALLEL_MIN_PAIRS else 1
+        _kernels.query_pairs(
             _contiguous(pack.points, f8), _contiguous(pack.starts, i8),
             _contiguous(pack.nbr_starts, i8), _contiguous(pack.nbrs, i8),
             _contiguous(pack.lower, f8), _contiguous(pack.upper, f8),
             pairs, tols, max_dists, bool(depth), status, distance, point_a, point_b, normal,
+            threads,
         )  # fmt: skip
-        threads = get_num_threads() if threads == 0 else max(1, int(threads))
-        if threads > 1 and k >= PARALLEL_MIN_PAIRS:
-            _query_pairs_parallel(*args, 4 * threads)
-        else:
-            _query_pairs_range(*args, 0, k)
     return PairQuery(status, distance, point_a, point_b, normal)

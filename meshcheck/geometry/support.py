@@ -1,13 +1,11 @@
-"""Support maps of convex shapes, and many hulls packed in flat arrays for the batch kernel.
+"""Convex shapes for the support maps: many hulls packed in flat arrays for the batch kernel.
 
 A convex shape is only ever asked one question: which of its points lies furthest along a
 direction (its *support point*). Small hulls are scanned; hulls with more than
 :data:`~meshcheck.geometry.constants.HILL_CLIMB_MIN_VERTICES` vertices walk their vertex
-adjacency from the previous answer (hill climbing), which visits a handful of vertices.
-
-Every support query works in re-centred coordinates: the caller passes the common centre ``c``
-and gets the index of a vertex ``p`` maximising ``(p - c) . d``; the caller then stores
-``p - c``. Subtracting before the dot product keeps the digits of shapes far from the origin.
+adjacency from the previous answer (hill climbing), which visits a handful of vertices. This
+module builds what the support maps read (the vertices and that adjacency); the support maps
+themselves are compiled, in ``src/support.hpp``.
 """
 
 from __future__ import annotations
@@ -16,7 +14,6 @@ from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit, types
 from scipy.spatial import ConvexHull, QhullError
 
 from .constants import HILL_CLIMB_MIN_VERTICES
@@ -194,103 +191,3 @@ def concat_packs(packs: Sequence[ConvexPack]) -> ConvexPack:
         cat(lower, (0, 3), np.float64),
         cat(upper, (0, 3), np.float64),
     )
-
-
-# ---------------------------------------------------------------------------------------------
-# Compiled support maps
-# ---------------------------------------------------------------------------------------------
-
-# Every compiled function of the geometry package has one explicit signature over these types
-# (C-contiguous float64 / int64 arrays, int64, float64, bool). Without them numba compiles one
-# version per call site whenever a call passes a literal (a status constant, ``False``, ``0``),
-# which doubled the cold compile time; with them each function is compiled (or loaded from the
-# cache) once, when the module is imported.
-F8, I8, B1 = types.float64, types.int64, types.boolean
-F1D, F2D = types.float64[::1], types.float64[:, ::1]
-I1D, I2D = types.int64[::1], types.int64[:, ::1]
-#: A shape in a compiled signature: points, nbr_starts, nbrs, first, end, climb.
-SHAPE = (F2D, I1D, I1D, I8, I8, B1)
-
-
-@njit(I8(F2D, I1D, I1D, I8, I8, B1, I8, F8, F8, F8, F8, F8, F8), cache=True, nogil=True)
-def support_index(pts, nbr_starts, nbrs, s0, s1, climb, start, dx, dy, dz, cx, cy, cz):
-    """Index of a vertex of one shape maximising ``(p - c) . d``.
-
-    Parameters
-    ----------
-    pts : (N, 3) float64
-        Vertex array holding the shape's points at ``pts[s0:s1]``, model units.
-    nbr_starts, nbrs : (N + 1,) int64, (E,) int64
-        CSR vertex adjacency (global indices); only read when ``climb``.
-    s0, s1 : int64
-        The shape's vertex range.
-    climb : bool
-        Walk the adjacency from ``start`` instead of scanning ``s0:s1``.
-    start : int64
-        First vertex of the walk (the previous support point of this shape is a good one).
-    dx, dy, dz : float64
-        Direction (need not be unit).
-    cx, cy, cz : float64
-        Common centre of the query, subtracted before the dot product.
-
-    Returns
-    -------
-    int64
-        Global index into ``pts``.
-    """
-    if climb:
-        best = start
-        bv = (pts[best, 0] - cx) * dx + (pts[best, 1] - cy) * dy + (pts[best, 2] - cz) * dz
-        while True:
-            nxt = best
-            for e in range(nbr_starts[best], nbr_starts[best + 1]):
-                j = nbrs[e]
-                val = (pts[j, 0] - cx) * dx + (pts[j, 1] - cy) * dy + (pts[j, 2] - cz) * dz
-                if val > bv:
-                    bv = val
-                    nxt = j
-            if nxt == best:
-                return best
-            best = nxt
-    best = s0
-    bv = -np.inf
-    for i in range(s0, s1):
-        val = (pts[i, 0] - cx) * dx + (pts[i, 1] - cy) * dy + (pts[i, 2] - cz) * dz
-        if val > bv:
-            bv = val
-            best = i
-    return best
-
-
-@njit(types.UniTuple(I8, 2)(*SHAPE, *SHAPE, F1D, F8, F8, F8, I8, I8), cache=True, nogil=True)
-def cso_support(pts_a, nst_a, nbr_a, a0, a1, climb_a, pts_b, nst_b, nbr_b, b0, b1, climb_b,
-                centre, dx, dy, dz, start_a, start_b):  # fmt: skip
-    """Support point of the Minkowski difference ``A - B`` in direction ``d``, by its sources.
-
-    The support point is ``s_A(d) - s_B(-d)``; the two source vertices are returned so the
-    caller keeps them with the Minkowski point (witness points then come for free).
-
-    Parameters
-    ----------
-    pts_a, nst_a, nbr_a, a0, a1, climb_a
-        Shape A, as ``pts, nbr_starts, nbrs, s0, s1, climb`` of :func:`support_index`.
-        (Shapes are passed as flat arguments, not tuples: numba passes a tuple of arrays
-        ~0.7 us slower per call, which was most of a 40-vertex GJK query.)
-    pts_b, nst_b, nbr_b, b0, b1, climb_b
-        Shape B, likewise.
-    centre : (3,) float64
-        Common centre of the query.
-    dx, dy, dz : float64
-        Direction in the Minkowski difference.
-    start_a, start_b : int64
-        Where each walk starts.
-
-    Returns
-    -------
-    (int64, int64)
-        Global vertex indices of the support points of A and of B.
-    """
-    cx, cy, cz = centre[0], centre[1], centre[2]
-    ia = support_index(pts_a, nst_a, nbr_a, a0, a1, climb_a, start_a, dx, dy, dz, cx, cy, cz)
-    ib = support_index(pts_b, nst_b, nbr_b, b0, b1, climb_b, start_b, -dx, -dy, -dz, cx, cy, cz)
-    return ia, ib
