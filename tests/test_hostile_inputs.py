@@ -13,7 +13,6 @@ from __future__ import annotations
 import base64
 import json
 import os
-import stat
 import struct
 import subprocess
 import sys
@@ -129,21 +128,26 @@ def measured(args, tmp_path) -> tuple[int, list[str], float, float]:
 # 3MF
 
 
-def test_3mf_zip_bomb_is_refused_from_its_declared_sizes(tmp_path):
-    # 200 MB of XML whitespace deflates to ~200 KB: the ratio of a bomb, refused unread.
+def make_zip_bomb(folder) -> list:
+    """A 3MF whose 200 MB model entry (XML whitespace) deflates to ~200 KB: a bomb's ratio."""
     comp = zlib.compressobj(9, zlib.DEFLATED, -15)
     head = f'<model xmlns="{CORE}"><resources>'.encode()
+    tail = b"</resources><build/></model>"
     chunk = b" " * (1 << 20)
-    body = [comp.compress(head)] + [comp.compress(chunk) for _ in range(200)]
-    body.append(comp.compress(b"</resources><build/></model>") + comp.flush())
-    raw = b"".join(body)
-    size = len(head) + 200 * len(chunk) + len(b"</resources><build/></model>")
+    raw = [comp.compress(head)] + [comp.compress(chunk) for _ in range(200)]
+    raw.append(comp.compress(tail) + comp.flush())
     crc = zlib.crc32(head)
     for _ in range(200):
         crc = zlib.crc32(chunk, crc)
-    crc = zlib.crc32(b"</resources><build/></model>", crc)
-    path = tmp_path / "bomb.3mf"
-    _write_raw_member(path, "3D/3dmodel.model", raw, size, crc)
+    crc = zlib.crc32(tail, crc)
+    size = len(head) + 200 * len(chunk) + len(tail)
+    path = folder / "bomb.3mf"
+    _write_raw_member(path, "3D/3dmodel.model", b"".join(raw), size, crc)
+    return [path]
+
+
+def test_3mf_zip_bomb_is_refused_from_its_declared_sizes(tmp_path):
+    (path,) = make_zip_bomb(tmp_path)
     assert os.path.getsize(path) < 1 << 20
     refused(path, "the ratio of a zip bomb")
     status, lines, seconds, peak = measured([path], tmp_path)
@@ -194,13 +198,17 @@ def test_3mf_entry_declared_over_the_limit_is_refused_before_reading(tmp_path):
     refused(path, f"declares {len(model)} bytes uncompressed, over the limit", limits=limits)
 
 
-def test_3mf_component_fan_out_is_counted_before_expanding(tmp_path):
-    # 20 components per level, 8 levels: 20^8 = 2.56e10 placed cubes from a few kilobytes
+def make_fan_out(folder) -> list:
+    """20 components per level, 8 levels: 20^8 = 2.56e10 placed cubes from a few kilobytes."""
     objects = [f'<object id="1">{mesh_xml(box())}</object>']
     for level in range(2, 10):
         comps = "".join(f'<component objectid="{level - 1}"/>' for _ in range(20))
         objects.append(f'<object id="{level}"><components>{comps}</components></object>')
-    path = write_3mf(tmp_path / "fan.3mf", model_xml("".join(objects), '<item objectid="9"/>'))
+    return [write_3mf(folder / "fan.3mf", model_xml("".join(objects), '<item objectid="9"/>'))]
+
+
+def test_3mf_component_fan_out_is_counted_before_expanding(tmp_path):
+    (path,) = make_fan_out(tmp_path)
     assert os.path.getsize(path) < 8192
     refused(path, "25_600_000_000 placed meshes exceed the limit")
     status, lines, seconds, peak = measured([path], tmp_path)
@@ -209,12 +217,17 @@ def test_3mf_component_fan_out_is_counted_before_expanding(tmp_path):
     assert seconds < 60, seconds  # mostly interpreter start-up on a loaded machine
 
 
-def test_3mf_transform_that_overflows_once_applied_is_refused(tmp_path):
-    # finite in the file, 1e300 once applied: 0.1 passed this (exit 0) with 26 warnings
+def make_overflowing_3mf(folder) -> list:
+    """Two boxes placed by a transform finite in the file, 1e300 once applied."""
     big = "1e300 0 0 0 1e300 0 0 0 1e300 0 0 0"
     objects = f'<object id="1">{mesh_xml(box())}</object>'
     build = f'<item objectid="1" transform="{big}"/><item objectid="1" transform="{big}"/>'
-    path = write_3mf(tmp_path / "huge.3mf", model_xml(objects, build))
+    return [write_3mf(folder / "huge.3mf", model_xml(objects, build))]
+
+
+def test_3mf_transform_that_overflows_once_applied_is_refused(tmp_path):
+    # 0.1 passed this (exit 0) with 26 RuntimeWarnings
+    (path,) = make_overflowing_3mf(tmp_path)
     with pytest.raises(InputError) as info:
         load_bodies([path])
     assert info.value.path == f"{path}#object1"
@@ -234,9 +247,14 @@ def test_3mf_unknown_unit_is_refused(tmp_path):
 # glTF
 
 
-def test_gltf_node_cycle_is_refused(tmp_path):
+def make_gltf_cycle(folder) -> list:
+    """Nodes 0 and 1 each other's child."""
     nodes = [{"mesh": 0, "children": [1]}, {"mesh": 0, "children": [0]}]
-    path = write_json(tmp_path / "cycle.gltf", gltf_doc(nodes, [0]))
+    return [write_json(folder / "cycle.gltf", gltf_doc(nodes, [0]))]
+
+
+def test_gltf_node_cycle_is_refused(tmp_path):
+    (path,) = make_gltf_cycle(tmp_path)
     refused(path, "node 0 is reached twice: the nodes do not form a tree")
     status, lines = cli([path])  # 0.1: "Iteration limit exceeded!" traceback, exit 1
     assert (status, len(lines)) == (ExitStatus.INPUT, 1), lines
@@ -248,11 +266,16 @@ def test_gltf_shared_child_is_refused(tmp_path):
     refused(path, "node 2 is reached twice")
 
 
-def test_gltf_deep_node_chain_loads_in_bounded_time(tmp_path):
-    depth = 100_000
+def make_deep_chain(folder, depth: int = 100_000) -> list:
+    """A chain of nodes ``depth`` deep, each moving 1 micrometre along x, the cube at its tip."""
     nodes = [{"children": [k + 1], "translation": [1e-6, 0, 0]} for k in range(depth - 1)]
     nodes.append({"mesh": 0, "name": "tip"})
-    path = write_json(tmp_path / "chain.gltf", gltf_doc(nodes, [0]))
+    return [write_json(folder / "chain.gltf", gltf_doc(nodes, [0]))]
+
+
+def test_gltf_deep_node_chain_loads_in_bounded_time(tmp_path):
+    depth = 100_000
+    (path,) = make_deep_chain(tmp_path, depth)
     start = time.perf_counter()
     (body,) = load_bodies([path])
     seconds = time.perf_counter() - start
@@ -263,10 +286,15 @@ def test_gltf_deep_node_chain_loads_in_bounded_time(tmp_path):
     assert seconds < 15, seconds  # 0.1: 41 s
 
 
+def make_huge_byte_length(folder) -> list:
+    """A data URI of 200 bytes whose buffer declares a byteLength of 1e12."""
+    return [write_json(folder / "short.gltf", gltf_doc([{"mesh": 0}], [0], byte_length=10**12))]
+
+
 def test_gltf_data_uri_shorter_than_its_byte_length_is_refused(tmp_path):
     # 0.1 said a bare "AssertionError"
     nodes = [{"mesh": 0}]
-    path = write_json(tmp_path / "short.gltf", gltf_doc(nodes, [0], byte_length=10**12))
+    (path,) = make_huge_byte_length(tmp_path)
     refused(path, "glTF buffer 0 declares 1000000000000 bytes, over the limit")
     path = write_json(tmp_path / "short2.gltf", gltf_doc(nodes, [0], byte_length=10**6))
     refused(path, "glTF buffer 0 declares 1000000 bytes, its data holds only")
@@ -314,13 +342,17 @@ def test_glb_bin_chunk_shorter_than_its_buffer_is_refused(tmp_path):
 # STL, PLY, OFF
 
 
+def make_solid_binary_stl(folder) -> list:
+    """A binary STL whose header starts with 'solid' and claims 2^31 triangles."""
+    data = b"solid evil" + b"\0" * 70 + struct.pack("<I", 2**31)
+    path = folder / "solid.stl"
+    path.write_bytes(data + box().export(file_type="stl")[84:])
+    return [path]
+
+
 def test_binary_stl_with_a_solid_header_and_a_huge_count_is_a_binary_stl_error(tmp_path):
     # 0.1: "No module named 'charset_normalizer'"
-    data = (
-        b"solid evil" + b"\0" * 70 + struct.pack("<I", 2**31) + box().export(file_type="stl")[84:]
-    )
-    path = tmp_path / "solid.stl"
-    path.write_bytes(data)
+    (path,) = make_solid_binary_stl(tmp_path)
     refused(path, "binary STL: header says 2147483648 triangles")
 
 
@@ -332,23 +364,36 @@ def test_ascii_stl_with_latin1_names_loads(tmp_path):
     assert len(body.mesh.faces) == 12
 
 
+def make_huge_ascii_stl(folder) -> list:
+    """An ASCII STL box scaled by 1e300 (finite, but products of coordinates overflow)."""
+    path = folder / "huge.stl"
+    with np.errstate(all="ignore"):
+        path.write_text(box().apply_scale(1e300).export(file_type="stl_ascii"))
+    return [path]
+
+
 def test_coordinates_of_1e300_are_refused_with_the_real_reason(tmp_path, recwarn):
     # 0.1: "every triangle is degenerate (zero area)" and numpy overflow warnings
-    path = tmp_path / "huge.stl"
-    path.write_text(box().apply_scale(1e300).export(file_type="stl_ascii"))
+    (path,) = make_huge_ascii_stl(tmp_path)
     recwarn.clear()  # trimesh warns while writing the file
     refused(path, "its coordinates reach 5e+299")
     assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
 
 
-def test_binary_ply_header_claiming_more_than_the_file_holds_is_refused(tmp_path):
+def make_lying_ply(folder) -> list:
+    """A binary PLY whose header declares 2^40 vertices, followed by 64 bytes."""
     header = (
         b"ply\nformat binary_little_endian 1.0\nelement vertex 1099511627776\n"
         b"property float x\nproperty float y\nproperty float z\n"
         b"element face 1\nproperty list uchar int vertex_indices\nend_header\n"
     )
-    path = tmp_path / "liar.ply"
+    path = folder / "liar.ply"
     path.write_bytes(header + b"\0" * 64)
+    return [path]
+
+
+def test_binary_ply_header_claiming_more_than_the_file_holds_is_refused(tmp_path):
+    (path,) = make_lying_ply(tmp_path)
     refused(path, "PLY header declares 1099511627776 vertex, 1 face")
 
 
@@ -378,9 +423,14 @@ def test_file_over_the_byte_limit_is_refused_before_reading(tmp_path):
 # The file system
 
 
-def test_fifo_is_refused_without_blocking(tmp_path):
-    path = tmp_path / "pipe.stl"
+def make_fifo(folder) -> list:
+    path = folder / "pipe.stl"
     os.mkfifo(path)
+    return [path]
+
+
+def test_fifo_is_refused_without_blocking(tmp_path):
+    (path,) = make_fifo(tmp_path)
     refused(path, "is not a regular file")
 
 
@@ -392,32 +442,73 @@ def test_unreadable_file_is_refused(tmp_path):
     refused(path, "cannot be read (Permission denied)")
 
 
+WRITE_ONLY = "/proc/sys/vm/compact_memory"
+
+
+def make_unreadable(folder) -> list:
+    """A .stl that even root cannot read: a link to a write-only sysctl file.
+
+    Tests run as root in CI containers, where chmod 000 does not stop reading. procfs checks a
+    sysctl file's own mode bits even for root, so reading this one fails with the same
+    PermissionError a mode-000 file gives a normal user.
+    """
+    path = folder / "secret.stl"
+    path.symlink_to(WRITE_ONLY)
+    return [path]
+
+
 def test_unreadable_file_is_refused_even_as_root(tmp_path):
-    # Tests run as root in CI containers, where chmod 000 does not stop reading. A write-only
-    # sysctl file refuses reads even to root (procfs checks its own mode bits): the same
-    # PermissionError path as a mode-000 file for a normal user.
-    target = "/proc/sys/vm/compact_memory"
     try:
-        with open(target, "rb"):
+        with open(WRITE_ONLY, "rb"):
             pytest.skip("this kernel lets root read a write-only sysctl file")
     except PermissionError:
         pass
     except OSError:
-        pytest.skip(f"{target} is not available here")
-    path = tmp_path / "secret.stl"
-    path.symlink_to(target)
+        pytest.skip(f"{WRITE_ONLY} is not available here")
+    (path,) = make_unreadable(tmp_path)
     refused(path, "cannot be read (Permission denied)")
     status, lines = cli([path])
     assert (status, len(lines)) == (ExitStatus.INPUT, 1), lines
 
 
-def test_non_utf8_file_name_loads(tmp_path):
-    # 0.1: UnicodeEncodeError in trimesh's transform hashing
-    raw = os.fsencode(tmp_path) + b"/caf\xe9.stl"
+def make_non_utf8_names(folder) -> list:
+    """Two apart boxes, one in a file named b'caf\\xe9.stl' (Latin-1, not UTF-8)."""
+    raw = os.fsencode(folder) + b"/caf\xe9.stl"
     with open(raw, "wb") as fh:
         fh.write(box().export(file_type="stl"))
-    path = os.fsdecode(raw)
+    other = folder / "b.stl"
+    box(at=(3, 0, 0)).export(str(other))
+    return [os.fsdecode(raw), other]
+
+
+def test_non_utf8_file_name_loads(tmp_path):
+    # 0.1: UnicodeEncodeError in trimesh's transform hashing; with --format json stdout was empty
+    path, other = make_non_utf8_names(tmp_path)
+    raw = os.fsencode(path)
     (body,) = load_bodies([path])
     assert body.name == path
     assert body.relative_name == os.fsdecode(b"caf\xe9.stl")
-    assert stat.S_ISREG(os.stat(raw).st_mode)
+    command = [sys.executable, "-m", "meshcheck", raw, os.fsencode(other), "--no-cache"]
+    proc = subprocess.run(
+        [*command, "--format", "json"], capture_output=True, timeout=300, check=False
+    )
+    assert proc.returncode == ExitStatus.OK, proc.stderr
+    assert len(json.loads(proc.stdout)["parts"]) == 2
+
+
+#: Each hostile case: its maker (folder -> command-line paths) and the exit status it must give.
+#: ``bench/hostile_inputs.py`` runs them all and prints exit status, stderr lines, time and RSS.
+CASES = {
+    "3MF zip bomb (200 MB entry in 200 KB)": (make_zip_bomb, ExitStatus.INPUT),
+    "3MF component fan-out 20^8": (make_fan_out, ExitStatus.INPUT),
+    "3MF transform 1e300 on two boxes": (make_overflowing_3mf, ExitStatus.INPUT),
+    "glTF nodes 0 and 1 each other's child": (make_gltf_cycle, ExitStatus.INPUT),
+    "glTF 100,000-deep node chain": (make_deep_chain, ExitStatus.OK),
+    "glTF data URI declaring 1e12 bytes": (make_huge_byte_length, ExitStatus.INPUT),
+    "STL 'solid' header, 2^31 triangles": (make_solid_binary_stl, ExitStatus.INPUT),
+    "ASCII STL scaled by 1e300": (make_huge_ascii_stl, ExitStatus.INPUT),
+    "binary PLY declaring 2^40 vertices": (make_lying_ply, ExitStatus.INPUT),
+    "FIFO named pipe.stl": (make_fifo, ExitStatus.INPUT),
+    "unreadable file (write-only sysctl)": (make_unreadable, ExitStatus.INPUT),
+    "non-UTF-8 file name": (make_non_utf8_names, ExitStatus.OK),
+}

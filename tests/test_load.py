@@ -581,3 +581,16 @@ def test_touching_or_apart_shells_do_not_warn(tmp_path):
     path = write_stl(tmp_path / "assy.stl", touching)
     (body,) = load_bodies([path])  # filterwarnings = error: any warning fails
     assert len(body.mesh.faces) == 36
+
+
+def test_mm_stl_beside_a_metre_gltf_is_checked_in_one_unit(tmp_path):
+    import meshcheck
+
+    # 0.1 read the 1 m cube 2 m away as a 1 mm cube 2 mm away: buried in the frame, a clash
+    stl = write_stl(tmp_path / "frame.stl", box((1000, 1000, 1000)))
+    gltf = write_gltf(tmp_path / "pin.gltf", [("pin", (2, 0, 0))])
+    result = meshcheck.check([stl, gltf], cache_dir=None)
+    assert result.findings == []
+    touching = write_gltf(tmp_path / "near.gltf", [("pin", (1.0, 0, 0))])
+    (finding,) = meshcheck.check([stl, touching], cache_dir=None).findings
+    assert finding.status == "touching"

@@ -263,6 +263,8 @@ def _read(path: str, budget: Budget) -> tuple[list[Item], str | None]:
     declared = None
     with np.errstate(all="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # refused below with the real reason
+        # A reader takes (path, bytes, budget) and returns (node, mesh, placement) items and the
+        # unit the file declares (None: undeclared). A STEP reader plugs in here the same way.
         if ext == ".3mf":
             items, declared = read_3mf(path, data, budget)
         elif ext in (".glb", ".gltf"):

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import io
 import json
-import math
 import os
 import struct
 
@@ -28,6 +27,7 @@ Item = tuple[str, trimesh.Trimesh, np.ndarray]
 _COMPONENT_BYTES = {5120: 1, 5121: 1, 5122: 2, 5123: 2, 5125: 4, 5126: 4}
 _TYPE_SIZE = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
 _TRIANGLES, _STRIP, _FAN = 4, 5, 6
+_TRANSFORM_KEYS = frozenset(("matrix", "translation", "rotation", "scale"))
 
 
 class _Malformed(Exception):
@@ -55,19 +55,37 @@ def read_gltf(path: str, data: bytes, ext: str, budget: Budget) -> list[Item]:
     except (_Malformed, ValueError, TypeError, KeyError, IndexError, AttributeError) as exc:
         raise InputError(path, f"cannot be read as glTF: {one_line(exc)}") from None
 
+    # trimesh decodes the meshes only: it gets one flat node per mesh the scene places, so its
+    # work does not grow with the node tree, and the tree (walked above) is never handed to it.
+    used = sorted({m for _, m, _ in placed})
+    flat = {
+        k: v
+        for k, v in header.items()
+        if k not in ("nodes", "scenes", "scene", "animations", "skins", "cameras")
+    }
+    flat["nodes"] = [{"mesh": m, "name": f"mesh{m}"} for m in used]
+    flat["scenes"] = [{"nodes": list(range(len(used)))}]
+    flat["scene"] = 0
     try:
         resolver = trimesh.resolvers.FilePathResolver(path)
-        load = trimesh_gltf.load_glb if ext == ".glb" else trimesh_gltf.load_gltf
-        kwargs = load(io.BytesIO(data), resolver=resolver, skip_materials=True)
+        if ext == ".glb":
+            kwargs = trimesh_gltf.load_glb(
+                io.BytesIO(_glb_with_json(data, flat)), resolver=resolver, skip_materials=True
+            )
+        else:
+            text = json.dumps(flat).encode()
+            kwargs = trimesh_gltf.load_gltf(
+                io.BytesIO(text), resolver=resolver, skip_materials=True
+            )
     except Exception as exc:
         raise InputError(path, f"cannot be read as a mesh: {one_line(exc)}") from None
 
-    primitives = _primitive_geometry(header, kwargs)
+    primitives = _primitive_geometry({f"mesh{m}": m for m in used}, kwargs)
     node_names = _node_names(header)
     meshes: dict[str, trimesh.Trimesh] = {}
     items = []
-    for node, _, transform in placed:
-        geoms = primitives.get(node, [])
+    for node, m, transform in placed:
+        geoms = primitives.get(m, [])
         for k, geom_name in geoms:
             if geom_name not in meshes:
                 geom = kwargs["geometry"][geom_name]
@@ -237,7 +255,13 @@ def _walk_nodes(path: str, header: dict) -> list[tuple[int, int, np.ndarray]]:
             raise InputError(path, f"glTF node {i} is reached twice: the nodes do not form a tree")
         seen.add(i)
         node = nodes[i]
-        world = parent @ _local_matrix(node)
+        if not node.keys() & _TRANSFORM_KEYS:
+            world = parent  # never changed in place: shared by reference
+        elif node.keys() & _TRANSFORM_KEYS == {"translation"}:  # the common case, made cheap
+            world = parent.copy()
+            world[:3, 3] += parent[:3, :3] @ _numbers(node["translation"], 3, "translation")
+        else:
+            world = parent @ _local_matrix(node)
         if "mesh" in node:
             m = _count(node["mesh"], f"node {i} mesh")
             if m >= n_meshes:
@@ -270,44 +294,50 @@ def _local_matrix(node: dict) -> np.ndarray:
 def _numbers(value, n: int, what: str) -> np.ndarray:
     if not isinstance(value, list) or len(value) != n:
         raise _Malformed(f"node {what} is not {n} numbers")
-    if not all(isinstance(x, int | float) and not isinstance(x, bool) for x in value):
+    try:
+        out = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise _Malformed(f"node {what} is not {n} numbers") from None
+    if any(isinstance(x, bool | str) for x in value):
         raise _Malformed(f"node {what} is not {n} numbers")
-    if not all(math.isfinite(x) for x in value):
+    if not np.isfinite(out).all():
         raise _Malformed(f"node {what} holds NaN or infinite values")
-    return np.array(value, dtype=np.float64)
+    return out
 
 
-def _primitive_geometry(header: dict, kwargs: dict) -> dict[int, list[tuple[int, str]]]:
-    """For each node with a mesh, (primitive position, trimesh geometry name) in primitive order.
+def _primitive_geometry(names: dict[str, int], kwargs: dict) -> dict[int, list[tuple[int, str]]]:
+    """For each mesh, (primitive position, trimesh geometry name) in primitive order.
 
-    trimesh names nodes ``name`` (or the index) made unique with ``unique_name``, and hangs a
-    mesh with several primitives under its node through frames with random names; the graph
-    entries, in order, identify each node's geometries whatever those names are.
+    ``names`` maps the node names given to trimesh to mesh indices. trimesh hangs a mesh with
+    several primitives under its node through frames with random names; the graph entries, in
+    order, identify each node's geometries whatever those frames are called.
     """
-    names: dict[str, int] = {}
-    counts: dict = {}
-    for i, n in enumerate(header.get("nodes", [])):
-        raw = n.get("name", str(i)) if isinstance(n, dict) else str(i)
-        names[trimesh.util.unique_name(raw, names, counts=counts)] = i
-    world = names.get(trimesh_gltf.DEFAULT_BASE_FRAME)
-    if world is not None:  # trimesh renames a node that collides with its base frame
-        del names[trimesh_gltf.DEFAULT_BASE_FRAME]
-        by_index = {v: k for k, v in names.items()}
-        by_index[world] = trimesh.util.unique_name(
-            trimesh_gltf.DEFAULT_BASE_FRAME, set(by_index.values())
-        )
-        names = {v: k for k, v in by_index.items()}
     out: dict[int, list[tuple[int, str]]] = {}
     for edge in kwargs.get("graph", []):
         if "geometry" not in edge:
             continue
         to, frm = edge.get("frame_to"), edge.get("frame_from")
         if to in names:
-            node = names[to]
+            mesh = names[to]
         elif frm in names:  # a primitive's frame under its multi-primitive node
-            node = names[frm]
+            mesh = names[frm]
         else:
             continue
-        geoms = out.setdefault(node, [])
+        geoms = out.setdefault(mesh, [])
         geoms.append((len(geoms), edge["geometry"]))
     return out
+
+
+def _glb_with_json(data: bytes, header: dict) -> bytes:
+    """The GLB container ``data`` with its JSON chunk replaced by ``header``."""
+    json_length = struct.unpack_from("<I", data, 12)[0]
+    text = json.dumps(header).encode()
+    text += b" " * (-len(text) % 4)
+    rest = data[20 + json_length :]
+    return (
+        b"glTF"
+        + struct.pack("<II", 2, 20 + len(text) + len(rest))
+        + struct.pack("<II", len(text), 0x4E4F534A)
+        + text
+        + rest
+    )

@@ -190,8 +190,11 @@ def overlapping_shells(mesh: trimesh.Trimesh) -> tuple[int, int] | None:
     upper = np.array([shells[k].bounds[1] for k in solid])
     for i, j in candidate_pairs(lower, upper, margin=0.0):
         a, b = shells[solid[i]], shells[solid[j]]
-        size = float(np.linalg.norm(np.maximum(a.extents, b.extents)))
-        verdict = verify_pair(a, b, tolerance=1e-6 * size, clearance=None)
+        tolerance = 1e-6 * float(np.linalg.norm(np.maximum(a.extents, b.extents)))
+        shared = np.minimum(upper[i], upper[j]) - np.maximum(lower[i], lower[j])
+        if shared.min() <= tolerance:  # boxes meeting face to face (an assembly export's
+            continue  # neighbours) cannot share a solid thicker than the tolerance
+        verdict = verify_pair(a, b, tolerance=tolerance, clearance=None)
         if verdict.status == Verdict.INTERFERENCE:
             return solid[i] + 1, solid[j] + 1
     return None
