@@ -111,7 +111,7 @@ def test_text_report_snapshot_of_a_forged_name():
         f"{result.findings[0].id}  interference  plate.stl"
         "                            x\\nPASS: 2 parts...terference\\n.stl\n"
         "              depth 0.25  volume 2.5  at (1, 2, 3)\n"
-        "FAIL: 2 parts, 1 interference, 0 touching (tolerance per pair, 0.0001)\n"
+        "FAIL: 2 parts, 1 interference, 0 touching (tolerance per pair, 0.0001, mm)\n"
     )
 
 
@@ -287,7 +287,7 @@ def test_text_says_the_configuration_and_plurals(tmp_path):
     lines = render(one, "text").splitlines()
     assert lines == [
         f"configuration: {config}",
-        "PASS: 1 part, 0 interference, 0 touching (tolerance 0.001)",
+        "PASS: 1 part, 0 interference, 0 touching (tolerance 0.001, mm)",
     ]
     assert json.loads(render(one, "json"))["summary"]["config"] == str(config)
 
