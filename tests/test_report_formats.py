@@ -107,9 +107,8 @@ def test_text_and_github_have_no_forged_line_and_no_escape_bytes():
 def test_text_report_snapshot_of_a_forged_name():
     result = result_of(finding(HOSTILE["forged line"], "plate.stl"))
     assert render(result, "text") == (
-        "ID            STATUS        PART A                               PART B\n"
-        f"{result.findings[0].id}  interference  plate.stl"
-        "                            x\\nPASS: 2 parts...terference\\n.stl\n"
+        "ID            STATUS        PART A     PART B\n"
+        f"{result.findings[0].id}  interference  plate.stl  x\\nPASS: 2 parts...terference\\n.stl\n"
         "              depth 0.25  volume 2.5  at (1, 2, 3)\n"
         "FAIL: 2 parts, 1 interference, 0 touching (tolerance per pair, 0.0001, mm)\n"
     )

@@ -71,11 +71,12 @@ def render(result: CheckResult) -> str:
         state_width = max(len(r[2]) for r in (header, *rows)) if has_baseline else 0
         fixed = _ID_WIDTH + 2 + status_width + 2 + (state_width + 2 if has_baseline else 0) + 2
         name_width = max((WIDTH - fixed) // 2, 12)
+        a_width = min(name_width, max(len(r[3]) for r in (header, *rows)))
         for r in (header, *rows):
             cells = [r[0].ljust(_ID_WIDTH), r[1].ljust(status_width)]
             if has_baseline:
                 cells.append(r[2].ljust(state_width))
-            cells += [shorten(r[3], name_width).ljust(name_width), shorten(r[4], name_width)]
+            cells += [shorten(r[3], name_width).ljust(a_width), shorten(r[4], name_width)]
             lines.append("  ".join(cells).rstrip())
             if r[5]:
                 lines.extend(
