@@ -17,14 +17,17 @@ environment's console script::
 and, in the same run, the peer: a process that loads the same STL files with trimesh and runs
 ``CollisionManager.in_collision_internal`` (FCL; needs python-fcl, a dev dependency, in the
 interpreter running this script). With ``--no-venv`` the installed ``meshcheck`` of the current
-environment is timed instead, with an empty ``--cache-dir`` and an empty ``PYTHONPYCACHEPREFIX``
-(so even Python's bytecode is compiled afresh, which a fresh install does not have to do).
+environment is timed instead, with an empty ``--cache-dir``: the compiled kernels keep no cache
+of their own. (To time a checkout from before the kernels were compiled at install, when numba
+compiled them at first use, run its environment's Python on this script with ``--no-venv`` and
+``NUMBA_CACHE_DIR`` pointing at an empty directory.)
 
 Each later round repeats the cold run with a new empty cache directory (the environment is no
 longer fresh then: the rows after the first measure a cold decomposition cache only).
 
-It prints wall times, the ratios against CollisionManager and checks that the cold and warm
-reports are identical.
+It prints wall and CPU times (CPU: the process and its worker processes, which a machine shared
+with other work disturbs less), their ratios against CollisionManager ("/ CM"), and checks that
+the cold and warm reports are identical.
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ from __future__ import annotations
 import argparse
 import glob
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -50,14 +54,20 @@ print(len(names))
 """
 
 
-def timed(cmd: list[str], env: dict | None = None) -> tuple[float, int, str]:
-    """Wall seconds, exit status and stdout of ``cmd`` run from the repository root."""
-    t = time.perf_counter()
+def _children_cpu() -> float:
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def timed(cmd: list[str], env: dict | None = None) -> tuple[float, float, int, str]:
+    """Wall seconds, CPU seconds (the process and its waited-for descendants), exit status and
+    stdout of ``cmd`` run from the repository root."""
+    t, c = time.perf_counter(), _children_cpu()
     r = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, env=env)
-    wall = time.perf_counter() - t
+    wall, cpu = time.perf_counter() - t, _children_cpu() - c
     if "Traceback" in r.stderr:
         sys.stderr.write(r.stderr)
-    return wall, r.returncode, r.stdout
+    return wall, cpu, r.returncode, r.stdout
 
 
 def main(argv=None) -> None:
@@ -78,7 +88,6 @@ def main(argv=None) -> None:
         env["XDG_CACHE_HOME"] = os.path.join(tmp, "xdg")  # no user cache of any tool
         if args.no_venv:
             script = os.path.join(os.path.dirname(sys.executable), "meshcheck")
-            env["PYTHONPYCACHEPREFIX"] = os.path.join(tmp, "pycache")
             install = None
         else:
             venv = os.path.join(tmp, "venv")
@@ -94,33 +103,27 @@ def main(argv=None) -> None:
             c = timed([script, *files, "--cache-dir", cache], env)
             w = timed([script, *files, "--cache-dir", cache], env)
             p = timed([sys.executable, "-c", FCL_SCRIPT, *files])
-            assert c[1] == w[1] == 1, (
-                f"expected exit status 1 (the oversized bolt), got {c[1]}, {w[1]}"
+            assert c[2] == w[2] == 1, (
+                f"expected exit status 1 (the oversized bolt), got {c[2]}, {w[2]}"
             )
-            assert c[2] == w[2], "cold and warm reports differ"
-            assert p[1] == 0, "CollisionManager run failed"
-            cold.append(c[0])
-            warm.append(w[0])
-            peer.append(p[0])
+            assert c[3] == w[3], "cold and warm reports differ"
+            assert p[2] == 0, "CollisionManager run failed"
+            cold.append(c[:2])
+            warm.append(w[:2])
+            peer.append(p[:2])
 
     print(f"python {sys.version.split()[0]}, {os.cpu_count()} cores, {len(files)} sample parts")
     if install is not None:
         print(f"pip install . into a fresh venv: {install:.1f} s")
-    print(f"{'run':<44}{'s':>7}{'/ CollisionManager':>20}")
-    base = statistics.median(peer)
-    rows = [
-        (
-            "meshcheck, first run (cold)" if install is not None else "meshcheck, cold caches",
-            cold[:1],
-        ),
-        ("meshcheck, warm", warm),
-        ("trimesh CollisionManager (FCL)", peer),
-    ]
+    print(f"{'run (medians)':<46}{'wall s':>7}{'/ CM':>7}{'CPU s':>8}{'/ CM':>7}")
+    base = [statistics.median(x[i] for x in peer) for i in (0, 1)]
+    first = "meshcheck, first run (cold)" if install is not None else "meshcheck, cold caches"
+    rows = [(first, cold[:1]), ("meshcheck, warm", warm), ("CollisionManager (trimesh, FCL)", peer)]
     if args.rounds > 1:
-        rows.insert(1, ("meshcheck, cold decomposition cache (median)", cold[1:]))
-    for name, times in rows:
-        t = statistics.median(times)
-        print(f"{name:<44}{t:>7.2f}{t / base:>19.2f}x")
+        rows.insert(1, ("meshcheck, cold decomposition cache only", cold[1:]))
+    for name, runs in rows:
+        wall, cpu = (statistics.median(x[i] for x in runs) for i in (0, 1))
+        print(f"{name:<46}{wall:>7.2f}{wall / base[0]:>6.2f}x{cpu:>8.2f}{cpu / base[1]:>6.2f}x")
 
 
 if __name__ == "__main__":

@@ -17,7 +17,9 @@ beforehand (faces from Qhull), and is called with ``fcl.distance`` and
   (``threads=1``) and on one thread per core (``threads=0``).
 
 Rounds alternate between the contenders in one process, after a warm-up round; the figures are
-medians over rounds, per pair. Note the work differs
+medians over rounds, per pair: wall time, and CPU time of the process (all its threads), which
+a machine shared with other work disturbs much less (for the threaded rows CPU time shows the
+cost, wall time the speed-up). Note the work differs
 on overlapping pairs: FCL with the requested defaults (``enable_signed_distance=False``) stops
 at "colliding" and returns -1, while ``signed_distance`` and ``query_pairs(depth=True)`` also
 measure the depth with EPA; FCL with ``enable_signed_distance=True`` is listed for that
@@ -132,11 +134,13 @@ def main() -> None:
     }
     results = {name: f() for name, f in contenders.items()}  # warm-up
     times: dict[str, list[float]] = {name: [] for name in contenders}
+    cpu: dict[str, list[float]] = {name: [] for name in contenders}
     for _ in range(args.rounds):
         for name, f in contenders.items():
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             f()
             times[name].append((time.perf_counter() - t0) / n)
+            cpu[name].append((time.process_time() - c0) / n)
 
     d_fcl = results["fcl.distance per call"]
     d_ours = results["signed_distance per call"]
@@ -167,10 +171,15 @@ def main() -> None:
     )
     print()
     base = statistics.median(times["fcl.distance per call"])
-    print(f"{'contender':<34}{'us / pair':>10}{'fcl / this':>12}")
+    base_cpu = statistics.median(cpu["fcl.distance per call"])
+    print(f"{'':<34}{'wall':>22}{'CPU (all threads)':>24}")
+    print(
+        f"{'contender':<34}{'us / pair':>10}{'fcl / this':>12}{'us / pair':>12}{'fcl / this':>12}"
+    )
     for name in contenders:
         t = statistics.median(times[name])
-        print(f"{name:<34}{t * 1e6:>10.2f}{base / t:>11.2f}x")
+        c = statistics.median(cpu[name])
+        print(f"{name:<34}{t * 1e6:>10.2f}{base / t:>11.2f}x{c * 1e6:>12.2f}{base_cpu / c:>11.2f}x")
 
 
 if __name__ == "__main__":

@@ -11,6 +11,14 @@ scan the raw points and need no hull. Many pairs go through :func:`pack_convex` 
 
 from __future__ import annotations
 
+try:
+    from . import _kernels  # noqa: F401
+except ImportError as error:  # a source checkout that was never installed
+    raise ImportError(
+        "meshcheck's compiled geometry kernels (meshcheck.geometry._kernels) are not built: "
+        "run `pip install .` or `pip install -e .` in the repository"
+    ) from error
+
 from .gjk import (
     Contact,
     PairQuery,

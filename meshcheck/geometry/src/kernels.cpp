@@ -76,7 +76,8 @@ bool indices_in(const int64_t* idx, npy_intp n, int64_t bound, const char* name)
 }
 
 bool faces_of(PyObject* fo, npy_intp n_vertices, const char* name, Array& f) {
-    return as_array(fo, NPY_INT64, 2, 3, name, f) && indices_in(f.i8(), 3 * f.len(), n_vertices, name);
+    return as_array(fo, NPY_INT64, 2, 3, name, f) &&
+           indices_in(f.i8(), 3 * f.len(), n_vertices, name);
 }
 
 // Fill the AABB lo, hi of n points; false if a coordinate is not finite.
