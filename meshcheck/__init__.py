@@ -11,7 +11,7 @@ False
 >>> meshcheck.signed_distance([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 0, 2], [1, 0, 2], [0, 1, 2]])
 2.0
 
-The names below are imported on first use, so ``meshcheck --help`` does not pay for numba,
+The names below are imported on first use, so ``meshcheck --help`` does not pay for
 trimesh and scipy.
 """
 

@@ -1,6 +1,6 @@
 """The ``meshcheck`` command: parse options, call ``check``, render, exit. No geometry here.
 
-Heavy modules (trimesh, numba, CoACD) are imported inside ``main`` only, so ``--help`` and usage
+Heavy modules (trimesh, scipy, CoACD) are imported inside ``main`` only, so ``--help`` and usage
 errors stay quick.
 """
 
@@ -303,7 +303,7 @@ def _run(
     if failed:
         sys.exit(int(ExitStatus.OUTPUT))
     # The report is out. Freezing the heap spares the interpreter's exit-time collections a walk
-    # over the ~135k objects numpy, scipy, trimesh and numba created: 0.2 s of a 1.5 s warm run.
+    # over the ~135k objects numpy, scipy and trimesh created: 0.2 s of a 1.5 s warm run.
     gc.freeze()
     sys.exit(int(exit_status(result)))
 
