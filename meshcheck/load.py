@@ -39,7 +39,7 @@ import trimesh
 
 from .errors import InputError, MeshcheckWarning
 
-SUPPORTED_EXTENSIONS = (".stl", ".obj", ".ply", ".off", ".glb", ".gltf", ".3mf")
+SUPPORTED_EXTENSIONS = (".stl", ".obj", ".ply", ".off", ".glb", ".gltf", ".3mf", ".step", ".stp")
 
 _STL_HEADER = 84  # 80-byte header + uint32 triangle count
 _STL_RECORD = 50  # 12 float32 (normal + 3 vertices) + uint16 attribute
@@ -228,6 +228,8 @@ def load_file(path: str) -> list[Body]:
         raise InputError(path, "empty file")
     if ext == ".stl":
         _check_stl_size(path, size)
+    if ext in (".step", ".stp"):
+        return _step_bodies(path)
 
     if ext == ".3mf":
         items = _read_3mf(path)
@@ -247,6 +249,19 @@ def load_file(path: str) -> list[Body]:
         body = Body(name, path, mesh, transform)
         if not body.is_closed:
             warn(name, "mesh is not closed (not watertight); its findings rest on surfaces only")
+        bodies.append(body)
+    return bodies
+
+
+def _step_bodies(path: str) -> list[Body]:
+    """One body per solid of a STEP file, named ``PATH#PRODUCT``, in the file's own unit."""
+    from .load_step import read_step
+
+    bodies = []
+    for node, mesh, transform in read_step(path).items:
+        body = Body(f"{path}#{node}", path, mesh, transform)
+        if not body.is_closed:
+            warn(body.name, "mesh is not closed; its findings rest on surfaces only")
         bodies.append(body)
     return bodies
 
