@@ -461,7 +461,11 @@ def _first_error(messages: str) -> str:
     clean = re.sub(r"\x1b\[[0-9;]*m", "", messages)
     lines = [line.strip(" *\t") for line in clean.splitlines()]
     errors = [line for line in lines if "ERR" in line or "rror" in line]
-    return _one_line(errors[0] if errors else "not a STEP file OpenCASCADE can read")
+    if not errors:
+        return "not a STEP file OpenCASCADE can read"
+    # "**** ERR StepFile : Undefined Parsing: Line 7: Incorrect syntax: ..." -> "Line 7: ..."
+    reason = re.sub(r"^ERR\s+StepFile\s*:\s*(Undefined Parsing\s*:\s*)?", "", errors[0])
+    return _one_line(reason)
 
 
 def _one_line(text) -> str:

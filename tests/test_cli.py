@@ -89,7 +89,7 @@ BROKEN = {
     ),
     "nan.obj": (b"v 0 0 0\nv 1 0 0\nv nan 1 0\nf 1 2 3\n", "NaN or infinite"),
     "inf.obj": (b"v 0 0 0\nv 1 0 0\nv 0 -inf 0\nf 1 2 3\n", "NaN or infinite"),
-    "part.step": (b"ISO-10303-21;\n", "unsupported file type .step"),
+    "part.step": (b"ISO-10303-21;\n", "cannot be read as STEP: Line 3: Incorrect syntax"),
 }
 
 
