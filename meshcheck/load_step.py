@@ -209,20 +209,16 @@ def read_step(
         deflection_mm = float(deflection) * UNIT_METRES[given_unit] / 1e-3
     deflection_file = deflection_mm * 1e-3 / scale
 
-    key = None
-    if cache is not None:
-        key = tessellation_key(data, deflection_mm, angular)
-        hit = cache.get(key)
-        if hit is not None and hit.unit == unit:
-            return hit
-    scene = _tessellate(data, path, deflection_mm, angular)
+    key = tessellation_key(data, deflection_mm, angular) if cache is not None else ""
+    assembly = cache.get(key) if cache is not None else None
+    if assembly is None or assembly.unit != unit:
+        scene = _tessellate(data, path, deflection_mm, angular)
+        items = _items(scene, path, scale, deflection_file)
+        assembly = StepAssembly(items, unit, deflection_file, angular)
+        if cache is not None:
+            cache.put(key, assembly)
     if declared is None:
         _warn_no_unit(path)
-    assembly = StepAssembly(
-        _items(scene, path, scale, deflection_file), unit, deflection_file, angular
-    )
-    if cache is not None:
-        cache.put(key, assembly)
     return assembly
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -197,7 +198,12 @@ def test_sample_without_the_oversized_bolt_passes(in_root, cache_dir):
     assert result.stdout.splitlines()[-1].startswith("PASS: 5 parts, 0 interference")
 
 
-def test_directory_argument_matches_the_file_list(in_root, cache_dir, sample_json):
+def test_directory_argument_matches_the_file_list(tmp_path, monkeypatch, cache_dir, sample_json):
+    # the STL files alone (sample_meshes/ also holds the same assembly as one STEP file)
+    (tmp_path / "sample_meshes").mkdir()
+    for p in SAMPLES:
+        shutil.copy(ROOT / p, tmp_path / p)
+    monkeypatch.chdir(tmp_path)
     result = run(["sample_meshes", "--format", "json", "--cache-dir", cache_dir, "--no-config"])
     assert result.exit_code == 1
     doc = json.loads(result.stdout)

@@ -56,6 +56,16 @@ def is_closed(mesh: trimesh.Trimesh) -> bool:
     return bool(np.all(counts == 2) and np.all(directed_counts == 1))
 
 
+def side_chord_radii(pin: trimesh.Trimesh) -> np.ndarray:
+    """Distance from the z axis of the edge midpoints of a z-cylinder's side facets.
+
+    A chord's midpoint is the deepest point of a facet below the cylinder it approximates.
+    """
+    tri = pin.triangles
+    tri = tri[np.ptp(tri[..., 2], axis=1) > 1e-6]  # the cap triangles lie in one plane
+    return np.linalg.norm(((tri + np.roll(tri, -1, axis=1)) / 2)[..., :2], axis=-1)
+
+
 def pin_in_housing(
     path, *, hole: float, pin: float, unit: str = "MM", half: float = 10.0, height: float = 10.0
 ) -> str:
@@ -139,13 +149,10 @@ def test_facets_lie_within_the_deflection_of_the_cad_faces(files):
     asm = read_step(files["clear"])
     assert asm.deflection == pytest.approx(DEFAULT_DEFLECTION_MM)
     pin = dict((n, m) for n, m, _ in asm.items)["pin"]
-    side = np.abs(pin.face_normals[:, 2]) < 0.5
-    # the chord midpoint of every side facet: the deepest point of a facet below the cylinder
-    tri = pin.triangles[side]
-    radii = np.hypot(*np.moveaxis(tri[:, :, :2], 2, 0))
+    tri = pin.triangles[np.ptp(pin.triangles[..., 2], axis=1) > 1e-6]  # side triangles
+    radii = np.linalg.norm(tri[..., :2], axis=-1)
     assert np.all(np.abs(radii - 3.0) < 1e-5)  # vertices on the cylinder (float32 precision)
-    edges = (tri + np.roll(tri, -1, axis=1)) / 2
-    mid = np.hypot(edges[..., 0], edges[..., 1])
+    mid = side_chord_radii(pin)
     assert mid.min() >= 3.0 - asm.deflection
     assert mid.min() < 3.0 - asm.deflection / 10  # and the deflection is what it says
 
@@ -268,6 +275,9 @@ def test_inch_file_reads_in_inches(files):
     housing = dict((n, m) for n, m, _ in asm.items)["housing"]
     assert np.allclose(housing.bounds, [[-0.5, -0.5, 0], [0.5, 0.5, 0.5]], atol=1e-6)
     assert asm.deflection == pytest.approx(DEFAULT_DEFLECTION_MM / 25.4)
+    # the deflection holds in inches, and is used (not 25.4 times finer)
+    pin = dict((n, m) for n, m, _ in asm.items)["pin"]
+    assert 0.121 - asm.deflection <= side_chord_radii(pin).min() < 0.121 - asm.deflection / 10
     finding = only_finding(bodies_of(files["inch"]))
     assert finding.distance == pytest.approx(0.004, abs=0.01 / 25.4)
 
