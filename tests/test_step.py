@@ -32,7 +32,7 @@ from step_writer import (
 )
 
 from meshcheck.cli import main
-from meshcheck.load import Body, load_bodies
+from meshcheck.load import Body, load_bodies, mesh_digest
 from meshcheck.load_step import (
     DEFAULT_DEFLECTION_MM,
     TessellationCache,
@@ -224,10 +224,14 @@ def test_repeated_instances_get_stable_names_and_their_placements(files):
         assert np.allclose(t[:3, :3] @ t[:3, :3].T, np.eye(3), atol=1e-6)
 
 
-def test_instance_names_do_not_depend_on_the_hash_seed(files):
+def test_names_and_triangles_do_not_depend_on_the_hash_seed(files):
+    # same names, placements and triangles (finding IDs hash the meshes) in every process
     code = (
-        "import sys; from meshcheck.load_step import read_step;"
-        "print([(n, t[:3, 3].round(6).tolist()) for n, _, t in read_step(sys.argv[1]).items])"
+        "import sys\n"
+        "from meshcheck.load import mesh_digest\n"
+        "from meshcheck.load_step import read_step\n"
+        "items = read_step(sys.argv[1]).items\n"
+        "print([(n, t[:3, 3].round(6).tolist(), mesh_digest(m)) for n, m, t in items])\n"
     )
     outputs = {
         subprocess.run(
@@ -239,7 +243,10 @@ def test_instance_names_do_not_depend_on_the_hash_seed(files):
         ).stdout
         for seed in ("1", "2")
     }
-    here = [(n, t[:3, 3].round(6).tolist()) for n, _, t in read_step(files["bolts"]).items]
+    here = [
+        (n, t[:3, 3].round(6).tolist(), mesh_digest(m))
+        for n, m, t in read_step(files["bolts"]).items
+    ]
     assert outputs == {f"{here}\n"}
 
 
