@@ -7,6 +7,9 @@ Naming
   objects) is named ``PATH#NODE``, NODE being its scene-graph node name; bodies of one file are
   listed sorted by NODE. A geometry instanced by two nodes gives two parts that share one local
   mesh (``Body.mesh``) and differ by ``Body.transform``.
+- A STEP file (``.step``/``.stp``, any case) gives one part per solid instance, ``PATH#PRODUCT``
+  after its STEP product name, repeated instances ``PRODUCT_1``, ``PRODUCT_2``... in the unit the
+  file declares (``load_step.read_step``).
 - A directory argument stands for every supported mesh file below it, recursively, sorted by
   relative path, hidden files and folders skipped; each is named ``os.path.join(ARG, RELPATH)``.
 - With ``split=True`` a body made of several disconnected shells becomes one part per shell,
