@@ -387,7 +387,7 @@ def step_unit(data: bytes, path: str = "") -> str:
 def _warn_no_unit(path: str) -> None:
     warnings.warn(
         MeshcheckWarning(f"{path}: declares no length unit meshcheck knows; reading millimetres"),
-        stacklevel=4,
+        stacklevel=3,
     )
 
 
