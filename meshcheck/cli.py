@@ -138,6 +138,13 @@ def _report_option(ctx, param, values):
     "(glTF: metres, 3MF, STEP) are converted.",
 )
 @click.option(
+    "--step-deflection",
+    type=FiniteFloat("step_deflection"),
+    default=None,
+    help="How far the triangles of STEP parts may lie from the CAD surface, in --units "
+    "(default 0.005 mm). Overlaps and gaps within two parts' deflections count as touching.",
+)
+@click.option(
     "--max-triangles",
     type=click.IntRange(min=1),
     default=None,
@@ -217,6 +224,7 @@ def _run(
     threshold,
     fail_on,
     units,
+    step_deflection,
     max_triangles,
     split,
     config_path,
@@ -255,6 +263,7 @@ def _run(
             fail_on=fail_on,
             units=units,
             max_triangles=max_triangles,
+            step_deflection=step_deflection,
             split=split,
             cache_dir=cache_dir,
             use_cache=not no_cache,

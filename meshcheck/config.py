@@ -25,6 +25,7 @@ NUMBER_RANGES = {
     "tolerance": (0.0, math.inf),
     "clearance": (0.0, math.inf),
     "threshold": (0.01, 1.0),
+    "step_deflection": (1e-9, 1e6),
 }
 
 

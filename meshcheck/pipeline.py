@@ -108,6 +108,8 @@ def check(
                     split=settings.split,
                     units=settings.units,
                     limits=limits,
+                    cache_dir=settings.cache_dir,
+                    step_deflection=settings.step_deflection,
                     progress=bar.update_total,
                 )
             result = check_bodies(bodies, settings)
@@ -131,8 +133,9 @@ def check_bodies(bodies: Sequence[Body], settings: Settings | None = None, **fie
 
     hulls = pack_convex(_world_hulls(bodies), is_hull=True)
     diagonal, magnitude = part_sizes(hulls.lower, hulls.upper)
-    pairs = select_pairs(hulls, settings, names, diagonal, magnitude)
-    tolerance = _tolerances(settings, diagonal, magnitude, pairs)
+    deflection = max((b.deflection for b in bodies), default=0.0)
+    pairs = select_pairs(hulls, settings, names, diagonal, magnitude, deflection)
+    tolerance = _tolerances(settings, bodies, diagonal, magnitude, pairs)
     reach = tolerance + (settings.clearance or 0.0)
 
     hull_query = query_pairs(hulls, pairs, tolerance=tolerance, depth=False, max_distance=reach)
@@ -169,6 +172,7 @@ def select_pairs(
     names: Sequence[tuple[str, ...]],
     diagonal: np.ndarray,
     magnitude: np.ndarray,
+    deflection: float = 0.0,
 ) -> np.ndarray:
     """Part pairs whose boxes come within reach, restricted by the groups rule; ``(k, 2)``.
 
@@ -183,6 +187,7 @@ def select_pairs(
         )
     else:
         largest = 0.0
+    largest = max(largest, 2.0 * deflection)
     pairs = candidate_pairs(hulls.lower, hulls.upper, margin=largest + (settings.clearance or 0.0))
     if settings.groups is not None:
         pairs = pairs[settings.groups.pair_mask(names, pairs)]
@@ -372,12 +377,22 @@ def _check_patterns(settings: Settings, names: Sequence[tuple[str, ...]]) -> Non
 
 
 def _tolerances(
-    settings: Settings, diagonal: np.ndarray, magnitude: np.ndarray, pairs: np.ndarray
+    settings: Settings,
+    bodies: Sequence[Body],
+    diagonal: np.ndarray,
+    magnitude: np.ndarray,
+    pairs: np.ndarray,
 ) -> np.ndarray:
-    """The touching tolerance of each pair: the user's, or the pair's own."""
+    """The touching tolerance of each pair: the user's, or the pair's own, and never below the
+    sum of the two parts' tessellation deflections."""
     if settings.tolerance is not None:
-        return np.full(len(pairs), settings.tolerance)
-    return pair_tolerances(diagonal, magnitude, pairs)
+        tol = np.full(len(pairs), settings.tolerance)
+    else:
+        tol = pair_tolerances(diagonal, magnitude, pairs)
+    # Triangles of a part read from CAD lie up to its deflection from the true surface: overlaps
+    # and gaps within the two deflections cannot be told apart, so they count as touching.
+    deflection = np.array([b.deflection for b in bodies], dtype=np.float64)
+    return np.maximum(tol, deflection[pairs[:, 0]] + deflection[pairs[:, 1]])
 
 
 def _world_hulls(bodies: Sequence[Body]) -> list[np.ndarray]:

@@ -117,6 +117,8 @@ class Settings:
         Worker processes; None: all cores.
     config_path : str or None
         The configuration file the settings came from, if any.
+    step_deflection : float or None
+        Tessellation tolerance of STEP files, in ``units`` (default mm); None: the reader's default.
     max_triangles : int or None
         Triangles allowed in the whole run (``load.Limits.max_triangles``); None: the default.
     fail_on_new : bool
@@ -137,6 +139,7 @@ class Settings:
     config_path: str | None = None
     fail_on_new: bool = False
     max_triangles: int | None = None
+    step_deflection: float | None = None
 
     def __post_init__(self):
         for name in NUMBER_RANGES:
@@ -183,6 +186,7 @@ class Settings:
         use_cache: bool = True,
         jobs: int | None = None,
         max_triangles: int | None = None,
+        step_deflection: float | None = None,
     ) -> Settings:
         """Merge options (None: not given) with a configuration file, and validate.
 
@@ -240,6 +244,7 @@ class Settings:
             config_path=file.path,
             fail_on_new=fail_on_new,
             max_triangles=max_triangles,
+            step_deflection=step_deflection,
         )
 
     def replace(self, **changes) -> Settings:

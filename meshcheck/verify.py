@@ -4,8 +4,8 @@ The convex filter before this stage only says which part pairs *may* come within
 (tolerance + clearance). Here the real triangles decide:
 
 1. the triangles of each mesh whose boxes come within reach of the other mesh are paired through a
-   bounding-volume hierarchy, and every pair's exact distance is computed (compiled C++, float64, both
-   meshes re-centred on a common point so coordinates far from the origin keep their digits);
+   bounding-volume hierarchy, and every pair's exact distance is computed (compiled C++, float64,
+   both meshes re-centred on a common point so coordinates far from the origin keep their digits);
 2. surfaces within the tolerance meet: when both meshes are closed, the shared solid is computed
    with manifold3d and its thickness (``depth``) tells interference (thicker than the tolerance)
    from touching (faces resting on faces leave a sliver at most);

@@ -59,6 +59,7 @@ from __future__ import annotations
 import os
 import warnings
 from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 import trimesh
@@ -85,7 +86,8 @@ __all__ = [
     "split_shells",
 ]
 
-SUPPORTED_EXTENSIONS = (".stl", ".obj", ".ply", ".off", ".glb", ".gltf", ".3mf")
+STEP_EXTENSIONS = (".step", ".stp")
+SUPPORTED_EXTENSIONS = (".stl", ".obj", ".ply", ".off", ".glb", ".gltf", ".3mf", *STEP_EXTENSIONS)
 
 #: Files whose bounding-box diagonals differ by this factor or more get a "mixed units?" warning.
 MIXED_UNITS_RATIO = 500.0
@@ -159,6 +161,8 @@ def load_bodies(
     split: bool = False,
     units: str | None = None,
     limits: Limits | None = None,
+    cache_dir: str | None = None,
+    step_deflection: float | None = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> list[Body]:
     """Load every body of every file, in world coordinates and one report unit.
@@ -174,6 +178,11 @@ def load_bodies(
         Unit of the files that declare none, and the report unit (``meshcheck.units``).
     limits : Limits, optional
         Budgets for the run; default ``Limits()``.
+    cache_dir : str, optional
+        Where STEP tessellations are cached (``step.TessellationCache``); None: not cached.
+    step_deflection : float, optional
+        Tessellation tolerance for STEP files, in ``units`` (default millimetres); default
+        ``step.DEFAULT_DEFLECTION_MM``.
     progress : callable, optional
         Called as ``progress(done, total)`` after each file, counting files.
 
@@ -198,18 +207,19 @@ def load_bodies(
     budget = Budget(limits or Limits())
     files = _expand(paths)
     read = []
+    step = _StepOptions(cache_dir, step_deflection, units)
     for done, (path, rel) in enumerate(files, start=1):
-        items, declared = _read(path, budget)
-        read.append((path, rel, items, declared))
+        items, declared, deflection = _read(path, budget, step)
+        read.append((path, rel, items, declared, deflection))
         if progress is not None:
             progress(done, len(files))
-    report = units_.report_unit([declared for *_, declared in read], units)
+    report = units_.report_unit([declared for _, _, _, declared, _ in read], units)
 
     bodies: list[Body] = []
     seen: set[str] = set()
     sizes = []
-    for path, rel, items, declared in read:
-        file_bodies = _place(path, rel, items, declared, report, units, budget.limits)
+    for path, rel, items, declared, deflection in read:
+        file_bodies = _place(path, rel, items, declared, report, units, budget.limits, deflection)
         sizes.append((_diagonal(file_bodies), path))
         for body in file_bodies:
             for part in split_body(body) if split else [body]:
@@ -241,13 +251,44 @@ def load_file(path: str, *, units: str | None = None, limits: Limits | None = No
     """
     units = None if units is None else units_.unit_name(units)
     budget = Budget(limits or Limits())
-    items, declared = _read(path, budget)
+    items, declared, deflection = _read(path, budget, _StepOptions(None, None, units))
     report = units_.report_unit([declared], units)
-    return _place(path, os.path.basename(path), items, declared, report, units, budget.limits)
+    return _place(
+        path, os.path.basename(path), items, declared, report, units, budget.limits, deflection
+    )
 
 
-def _read(path: str, budget: Budget) -> tuple[list[Item], str | None]:
-    """Cleaned (node, mesh, placement) items of one file, sorted by node, and its declared unit."""
+@dataclass(frozen=True)
+class _StepOptions:
+    cache_dir: str | None
+    deflection: float | None
+    units: str | None
+
+
+def _read_step(path: str, options: _StepOptions):
+    """(items, declared unit, deflection in that unit) of a STEP file."""
+    from .step import TessellationCache, read_step
+
+    cache = None if options.cache_dir is None else TessellationCache(options.cache_dir)
+    try:
+        assembly = read_step(
+            path,
+            deflection=options.deflection,
+            deflection_unit=(options.units or units_.DEFAULT_UNIT)
+            if options.deflection is not None
+            else None,
+            cache=cache,
+        )
+    except ValueError as exc:
+        raise InputError(path, str(exc)) from None
+    return list(assembly.items), assembly.unit, float(assembly.deflection)
+
+
+def _read(
+    path: str, budget: Budget, step: _StepOptions
+) -> tuple[list[Item], str | None, float]:
+    """Cleaned (node, mesh, placement) items of one file, sorted by node, its declared unit, and
+    how far its triangles may lie from the true surface (in that unit; 0 for mesh files)."""
     if not os.path.exists(path):
         raise InputError(path, "no such file or directory")
     if os.path.isdir(path):
@@ -260,12 +301,14 @@ def _read(path: str, budget: Budget) -> tuple[list[Item], str | None]:
             f"supported: {', '.join(SUPPORTED_EXTENSIONS)}",
         )
     data = read_file(path, budget.limits)
-    declared = None
+    declared, deflection = None, 0.0
     with np.errstate(all="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # refused below with the real reason
         # A reader takes (path, bytes, budget) and returns (node, mesh, placement) items and the
         # unit the file declares (None: undeclared). A STEP reader plugs in here the same way.
-        if ext == ".3mf":
+        if ext in STEP_EXTENSIONS:
+            items, declared, deflection = _read_step(path, step)
+        elif ext == ".3mf":
             items, declared = read_3mf(path, data, budget)
         elif ext in (".glb", ".gltf"):
             items, declared = read_gltf(path, data, ext, budget), "m"
@@ -273,7 +316,7 @@ def _read(path: str, budget: Budget) -> tuple[list[Item], str | None]:
             items = read_scene(path, data, ext, budget)
     del data
 
-    multi = len(items) > 1
+    multi = len(items) > 1 or ext in STEP_EXTENSIONS  # a STEP solid is named by its product
     cleaned: dict[int, trimesh.Trimesh] = {}  # once per geometry, shared by its instances
     out = []
     triangles = 0
@@ -290,7 +333,7 @@ def _read(path: str, budget: Budget) -> tuple[list[Item], str | None]:
         triangles += len(mesh.faces)
         out.append((node, mesh, np.asarray(transform, dtype=np.float64)))
     budget.take(path, triangles, len(out))
-    return out, declared
+    return out, declared, deflection
 
 
 def _place(
@@ -301,12 +344,13 @@ def _place(
     report: str,
     units: str | None,
     limits: Limits,
+    deflection: float = 0.0,
 ) -> list[Body]:
     """Bodies of one file's items, placed in world coordinates in the report unit."""
     file_unit = declared or units or units_.DEFAULT_UNIT
     factor = units_.scale(file_unit, report)
     to_report = np.diag([factor, factor, factor, 1.0])
-    multi = len(items) > 1
+    multi = len(items) > 1 or os.path.splitext(path)[1].lower() in STEP_EXTENSIONS
     bodies = []
     for node, mesh, placement in items:
         name = f"{path}#{node}" if multi else path
@@ -319,6 +363,7 @@ def _place(
             transform,
             relative_name=f"{rel}#{node}" if multi else rel,
             units=report,
+            deflection=deflection * factor,
         )
         bodies.append(body)
     return bodies
@@ -384,6 +429,7 @@ def split_body(body: Body) -> list[Body]:
             body.transform,
             relative_name=f"{body.relative_name}#{k}",
             units=body.units,
+            deflection=body.deflection,
         )
         for k, shell in enumerate(shells, start=1)
     ]

@@ -33,6 +33,9 @@ class Body:
         directory argument, ``basename(PATH)[#NODE]`` for a file argument. Defaults to ``name``.
     units : str
         The report unit (``meshcheck.units``) of the world coordinates.
+    deflection : float
+        How far the triangles may lie from the true surface, report units: the tessellation
+        tolerance of a part read from CAD (STEP), 0 for a mesh file (the mesh is the part).
     """
 
     name: str
@@ -41,6 +44,7 @@ class Body:
     transform: np.ndarray = field(default_factory=lambda: np.eye(4))
     relative_name: str = ""
     units: str = "mm"
+    deflection: float = 0.0
 
     def __post_init__(self):
         if not self.relative_name:

@@ -1,0 +1,148 @@
+"""Write STEP assemblies with OpenCASCADE (cadquery-ocp), for tests, benchmarks and samples.
+
+Products are OpenCASCADE solids built from primitives, named, and placed by transforms in an
+assembly whose instances share their product (as CAD systems write repeated parts). Lengths are
+in the file's unit: the document is given that unit, so nothing is scaled on the way out.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+# metres per unit, and the name OpenCASCADE writes in the file
+UNITS = {"MM": 1e-3, "INCH": 0.0254, "M": 1.0, "CM": 1e-2, "FT": 0.3048}
+
+
+def box(lower, upper):
+    """A solid box from corner ``lower`` to corner ``upper``."""
+    from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox
+    from OCP.gp import gp_Pnt
+
+    (x0, y0, z0), (x1, y1, z1) = lower, upper
+    return BRepPrimAPI_MakeBox(gp_Pnt(x0, y0, z0), gp_Pnt(x1, y1, z1)).Shape()
+
+
+def cylinder(radius: float, z0: float, z1: float, x: float = 0.0, y: float = 0.0):
+    """A solid cylinder along z from ``z0`` to ``z1``, axis through (x, y)."""
+    from OCP.BRepPrimAPI import BRepPrimAPI_MakeCylinder
+    from OCP.gp import gp_Ax2, gp_Dir, gp_Pnt
+
+    axis = gp_Ax2(gp_Pnt(x, y, z0), gp_Dir(0, 0, 1))
+    return BRepPrimAPI_MakeCylinder(axis, radius, z1 - z0).Shape()
+
+
+def cut(shape, *tools):
+    """``shape`` minus every tool."""
+    from OCP.BRepAlgoAPI import BRepAlgoAPI_Cut
+
+    for tool in tools:
+        shape = BRepAlgoAPI_Cut(shape, tool).Shape()
+    return shape
+
+
+def fuse(shape, *others):
+    """The union of the shapes."""
+    from OCP.BRepAlgoAPI import BRepAlgoAPI_Fuse
+
+    for other in others:
+        shape = BRepAlgoAPI_Fuse(shape, other).Shape()
+    return shape
+
+
+def fillet(shape, radius: float):
+    """``shape`` with every edge rounded by ``radius``."""
+    from OCP.BRepFilletAPI import BRepFilletAPI_MakeFillet
+    from OCP.TopAbs import TopAbs_EDGE
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS
+
+    maker = BRepFilletAPI_MakeFillet(shape)
+    explorer = TopExp_Explorer(shape, TopAbs_EDGE)
+    while explorer.More():
+        maker.Add(radius, TopoDS.Edge(explorer.Current()))
+        explorer.Next()
+    return maker.Shape()
+
+
+def volume(shape) -> float:
+    """The solid's exact volume (OpenCASCADE's mass properties), in its unit cubed."""
+    from OCP.BRepGProp import BRepGProp
+    from OCP.GProp import GProp_GProps
+
+    props = GProp_GProps()
+    BRepGProp.VolumeProperties_s(shape, props)
+    return props.Mass()
+
+
+def placement(translation=(0.0, 0.0, 0.0), angle_deg: float = 0.0, axis=(0.0, 0.0, 1.0)):
+    """(4, 4) transform: rotate by ``angle_deg`` about ``axis`` through the origin, then move."""
+    import numpy as np
+
+    axis = np.asarray(axis, dtype=np.float64)
+    axis /= np.linalg.norm(axis)
+    a = np.radians(angle_deg)
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    out = np.eye(4)
+    out[:3, :3] = np.eye(3) + np.sin(a) * k + (1 - np.cos(a)) * (k @ k)
+    out[:3, 3] = translation
+    return out
+
+
+def write_step(
+    path: str,
+    products: dict,
+    instances: Sequence[tuple[str, object]],
+    *,
+    unit: str = "MM",
+    assembly: str = "assembly",
+) -> str:
+    """Write an assembly of named products placed by (4, 4) rigid transforms to a STEP file.
+
+    Parameters
+    ----------
+    path : str
+        Output file.
+    products : dict of str -> TopoDS_Shape
+        Product name -> solid, in the product's own frame, ``unit``.
+    instances : sequence of (str, (4, 4) array)
+        Product name and placement of each instance, in order.
+    unit : str
+        A key of ``UNITS``: the length unit the file declares and its coordinates are in.
+    assembly : str
+        Product name of the top assembly.
+    """
+    import numpy as np
+    from OCP.gp import gp_Trsf
+    from OCP.IFSelect import IFSelect_ReturnStatus
+    from OCP.Interface import Interface_Static
+    from OCP.STEPCAFControl import STEPCAFControl_Controller, STEPCAFControl_Writer
+    from OCP.STEPControl import STEPControl_AsIs
+    from OCP.TCollection import TCollection_ExtendedString
+    from OCP.TDataStd import TDataStd_Name
+    from OCP.TDocStd import TDocStd_Document
+    from OCP.TopLoc import TopLoc_Location
+    from OCP.XCAFDoc import XCAFDoc_DocumentTool
+
+    STEPCAFControl_Controller.Init_s()
+    doc = TDocStd_Document(TCollection_ExtendedString("XmlOcaf"))
+    XCAFDoc_DocumentTool.SetLengthUnit_s(doc, UNITS[unit])
+    tool = XCAFDoc_DocumentTool.ShapeTool_s(doc.Main())
+    top = tool.NewShape()
+    TDataStd_Name.Set_s(top, TCollection_ExtendedString(assembly))
+    labels = {}
+    for name, shape in products.items():
+        labels[name] = tool.AddShape(shape, False)
+        TDataStd_Name.Set_s(labels[name], TCollection_ExtendedString(name))
+    for name, transform in instances:
+        m = np.asarray(transform, dtype=np.float64)
+        trsf = gp_Trsf()
+        trsf.SetValues(*m[0], *m[1], *m[2])
+        tool.AddComponent(top, labels[name], TopLoc_Location(trsf))
+    tool.UpdateAssemblies()
+    Interface_Static.SetCVal_s("write.step.unit", unit)
+    Interface_Static.SetCVal_s("write.step.product.name", assembly)
+    writer = STEPCAFControl_Writer()
+    writer.Transfer(doc, STEPControl_AsIs)
+    if writer.Write(str(path)) != IFSelect_ReturnStatus.IFSelect_RetDone:
+        raise OSError(f"{path}: OpenCASCADE could not write the STEP file")
+    return str(path)
