@@ -45,11 +45,19 @@ from .geometry.triangles import (
 #: 1e-3 of the largest ball, which is the accuracy the depth is documented to have.
 REL_GAP = 1e-3
 
+#: Boxes the search may spend to prove a solid thinner than a tolerance, after the thinness
+#: certificate failed: a thick non-convex solid whose largest ball sits just under it.
+DECIDE_BOXES = 100
+
 #: Boxes evaluated before the search gives up and reports the bounds it has. Each box costs one
 #: pass over the triangles (distance and winding number at its centre) and a few dozen exact
 #: point-triangle distances; 3000 boxes keep the worst case near a second on a few thousand
 #: triangles, and the common shapes (slabs, boxes, rings) finish in tens.
 MAX_BOXES = 3000
+
+#: Pieces cut by the thinness certificate (``_is_thinner_than``) before it gives up; each is
+#: a manifold3d boolean and a hull, about a millisecond on a sliver of a few hundred triangles.
+MAX_PIECES = 1024
 
 #: Triangles near a box centre tried in the convexity bound (single triangles and pairs).
 _NEAREST = 10
@@ -143,6 +151,11 @@ def depth_bounds(
     if decide_at is not None and search.radius * 2.0 > decide_at:
         # Interference is proven by the ball; the box search would only narrow the upper bound.
         max_boxes = 0
+    elif decide_at is not None:
+        if _is_thinner_than(v, f, 0.5 * decide_at, MAX_PIECES):
+            # A curved sliver: no box search gets below its tolerance, its pieces' hulls do.
+            return DepthBounds(2.0 * search.radius, decide_at, search.centre)
+        max_boxes = min(max_boxes, DECIDE_BOXES)
     search.branch_and_bound(
         upper_radius=0.5 * upper,
         decide_at=None if decide_at is None else 0.5 * decide_at,
@@ -188,6 +201,68 @@ def _upper_radius(v: np.ndarray, f: np.ndarray) -> tuple[float, list[np.ndarray]
             if centre is not None:
                 centres.append(centre)
     return best, centres
+
+
+def _is_thinner_than(v: np.ndarray, f: np.ndarray, radius: float, max_pieces: int) -> bool:
+    """Prove that no ball of ``radius`` fits in the solid (True), or fail to (False).
+
+    A ball of radius ``radius`` centred in a box ``C`` lies in the piece of the solid inside
+    ``C`` grown by ``radius``, hence in that piece's convex hull: when the hull's inradius is
+    below ``radius`` for every box of a cover of the solid's box, there is no such ball. Boxes
+    are halved across their longest edge until that holds (a thin curved shell becomes flat
+    enough in small pieces) or they are no larger than the ball (then it may well fit).
+    """
+    import manifold3d
+
+    solid = manifold3d.Manifold(
+        manifold3d.Mesh64(
+            vert_properties=np.array(v, dtype=np.float64),  # a writable copy, as nanobind wants
+            tri_verts=np.array(f, dtype=np.uint64),
+        )
+    )
+    if solid.status() != manifold3d.Error.NoError:
+        return False
+    stack = [(v.min(axis=0), v.max(axis=0))]
+    pieces = 0
+    while stack:
+        lo, hi = stack.pop()
+        pieces += 1
+        if pieces > max_pieces:
+            return False
+        grown = manifold3d.Manifold.cube(hi - lo + 2.0 * radius).translate(lo - radius)
+        cut = (solid ^ grown).to_mesh64()
+        points = np.asarray(cut.vert_properties)[:, :3]
+        if len(points) == 0:
+            continue
+        extent = float((points.max(axis=0) - points.min(axis=0)).min())
+        if min(0.5 * extent, _hull_inradius(points)[0]) < radius:
+            continue
+        if (hi - lo).max() <= radius:
+            return False
+        # Halve across the axis along which the surface turns most (a shell bends along one
+        # axis, not along its length): the area-weighted slope of the normals along each axis.
+        axis = _bending_axis(cut, hi - lo)
+        mid = 0.5 * (lo + hi)
+        mid = mid[axis]
+        left_hi, right_lo = hi.copy(), lo.copy()
+        left_hi[axis], right_lo[axis] = mid, mid
+        stack += [(lo, left_hi), (right_lo, hi)]
+    return True
+
+
+def _bending_axis(mesh, extent: np.ndarray) -> int:
+    """The longest axis of ``extent`` across which a manifold3d mesh's surface bends: the axis
+    of a cylindrical shell (the direction its normals never take) is the one not to cut."""
+    v = np.asarray(mesh.vert_properties)[:, :3]
+    t = v[np.asarray(mesh.tri_verts, dtype=np.int64)]
+    n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+    area = np.linalg.norm(n, axis=1)
+    if area.sum() <= 0.0:
+        return int(np.argmax(extent))
+    # Area-weighted tensor of the normals (sum of w n n^T = n^T n / |n|, trace 1).
+    tensor = (n / np.maximum(area, 1e-300)[:, None]).T @ n / area.sum()
+    straight = np.linalg.eigh(tensor)[1][:, 0]
+    return int(np.argmax(extent * (1.0 - straight**2) + 1e-9 * extent))
 
 
 def _hull_inradius(points: np.ndarray) -> tuple[float, np.ndarray | None]:
