@@ -67,7 +67,7 @@ _MAX_SEEDS = 1024
 
 #: Edge seeds grown by the successive-LP ascent, of the reflex and of the convex edges each (the
 #: best ones, at least a radius apart).
-_ASCENTS = 3
+_ASCENTS = 2
 
 
 @dataclass(frozen=True)
@@ -351,7 +351,11 @@ class _Search:
         pair = np.flatnonzero(np.all(e[1:] == e[:-1], axis=1))  # e[k] == e[k + 1]: one edge
         # Reflex: the far vertex of one face lies outside the other face's plane.
         lift = np.einsum("ij,ij->i", self.normal[owner[pair]], v[third[pair + 1]] - v[e[pair, 0]])
-        for edges in (pair[lift > 1e-12 * size], pair[lift <= 1e-12 * size]):
+        # Flat edges (a wall's diagonals, a cap's fan) cast the faces' own rays: skipped.
+        bent = (
+            np.einsum("ij,ij->i", self.normal[owner[pair]], self.normal[owner[pair + 1]]) < 1 - 1e-9
+        )
+        for edges in (pair[bent & (lift > 0.0)], pair[bent & (lift <= 0.0)]):
             self._grow_edge_seeds(e, owner, _strided(edges, _MAX_SEEDS), size)
 
     def _grow_edge_seeds(self, e, owner, pair, size) -> None:
@@ -368,8 +372,8 @@ class _Search:
         dist = point_distances(points, self.v, self.f)
         chosen: list[np.ndarray] = []
         for k in np.argsort(-dist):
-            if len(chosen) == _ASCENTS or dist[k] <= 0.0:
-                break
+            if len(chosen) == _ASCENTS or dist[k] <= 0.5 * self.radius:
+                break  # an ascent grows a ball by a few percent, not by half
             if any(np.linalg.norm(points[k] - c) < dist[k] for c in chosen):
                 continue
             chosen.append(points[k])
