@@ -1,29 +1,37 @@
 """Depth of a closed solid: the diameter of the largest ball inside it, as a certified interval.
 
 The distance from a point to the surface, ``d(x) = min_i dist(x, T_i)`` over the triangles
-``T_i``, is what an inscribed ball's radius can be at ``x``. The depth is ``2 max d`` over the
-points inside. This module brackets it:
+``T_i``, is the radius a ball centred at ``x`` can have. The depth is ``2 max d`` over the points
+inside. This module brackets it, and the verify stage calls a shared solid touching only when
+the *upper* end is within the tolerance: a ball that was not found proves nothing.
 
 lower bound
-    a ball it exhibits: a centre whose winding number says it is inside, and its exact distance
-    to the surface. Found by casting inward rays (``inscribed_ball``), by the cell centres of the
-    search below, and by a successive-LP ascent from the best of them.
+    a ball it exhibits: a centre whose winding number says it is inside, at its exact distance
+    to the surface. Candidates: the inscribed balls of the pieces' convex hulls (exact for a
+    convex solid), ``inscribed_ball`` (inward rays from faces, compass search), midpoints of
+    rays along the inward bisectors of bent edges (a thin wall's thickest spot is a corner
+    ball, touching an edge, which face rays and ascents from a wall's flat middle never reach),
+    and box centres of the search below; the best are grown by successive linear programs.
 upper bound
-    a branch and bound over boxes that cover the solid's box. Two bounds on ``max d`` over the
-    points of the solid in a box, both proofs:
+    the least of three proofs, cheapest first:
 
-    - Lipschitz: ``d`` is 1-Lipschitz, so ``max <= s(c) + h`` with ``s`` the signed distance at
-      the centre ``c`` (negative outside) and ``h`` the half-diagonal;
-    - convexity: ``dist(x, T)`` is convex in ``x`` for every triangle, so for weights ``w >= 0``
-      summing to 1, ``d(x) <= sum_i w_i dist(x, T_i)``, a convex function whose maximum over the
-      box is at a corner. With the two triangles across a thin wall this is exact on the wall's
-      flat parts, which the Lipschitz bound never is: it is what makes thin shells and slivers
-      provable without cells as small as the tolerance.
+    - per connected piece, half its box's smallest extent, the radius of a ball of its volume,
+      and the inradius of its convex hull (read from the LP's dual, so the solver's tolerances
+      cannot make it low);
+    - a thinness certificate (only to decide touching): a ball of radius ``rho`` centred in a
+      box lies in the solid's part within the box grown by ``rho`` (a manifold3d boolean), so
+      in that part's hull; boxes are halved across the direction the surface bends until every
+      hull is thinner than ``rho``. Curved slivers (a pin in a hole of its own size) pass this.
+    - a branch and bound over boxes, with the 1-Lipschitz bound ``s(c) + h`` (signed distance
+      at the centre, half-diagonal) and a convexity bound: ``dist(x, K)`` is convex for every
+      flat convex polygon ``K`` of the surface, so ``d(x) <= sum_i w_i dist(x, K_i)`` for
+      weights summing to 1, whose maximum over the box is at a corner (the best weights are an
+      LP); exact on flat walls. It certifies convex and compact solids to 1e-3; on a thin shell
+      it would need boxes as thin as the wall, so there it stops at its budget and the interval
+      it reports is wide (the lower end is still a ball that fits).
 
-    Boxes are split in two across the axis along which the bound varies most, so a shell
-    extruded along an axis is not cut along it.
-
-Pure numpy/scipy plus the verify kernels of ``geometry.triangles``; no I/O.
+Numpy and scipy, manifold3d for the certificate's booleans, and the verify kernels of
+``geometry.triangles``; no I/O.
 """
 
 from __future__ import annotations
@@ -49,17 +57,17 @@ REL_GAP = 1e-3
 #: certificate failed: a thick non-convex solid whose largest ball sits just under it.
 DECIDE_BOXES = 100
 
-#: Boxes evaluated before the search gives up and reports the bounds it has. Each box costs one
-#: pass over the triangles (distance and winding number at its centre) and a few dozen exact
-#: point-triangle distances; 3000 boxes keep the worst case near a second on a few thousand
-#: triangles, and the common shapes (slabs, boxes, rings) finish in tens.
-MAX_BOXES = 3000
+#: Boxes evaluated before the search gives up and reports the bounds it has, by default. Each
+#: box costs a pass over the triangles (distance and winding number at its centre), exact
+#: distances from its corners to the nearby polygons and a small LP: 5-10 ms in all, so 500
+#: boxes are a few seconds; convex and compact solids finish in tens, thin shells never do.
+MAX_BOXES = 500
 
 #: Pieces cut by the thinness certificate (``_is_thinner_than``) before it gives up; each is
 #: a manifold3d boolean and a hull, about a millisecond on a sliver of a few hundred triangles.
 MAX_PIECES = 1024
 
-#: Triangles near a box centre tried in the convexity bound (single triangles and pairs).
+#: Triangles near a box centre whose polygons enter the convexity bound.
 _NEAREST = 10
 
 #: Faces (and as many edges) cast inward to seed the ball; caps the cost on large solids.
