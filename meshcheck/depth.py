@@ -222,6 +222,8 @@ def _is_thinner_than(v: np.ndarray, f: np.ndarray, radius: float, max_pieces: in
     """
     import manifold3d
 
+    if not radius > 0.0:
+        return False
     solid = manifold3d.Manifold(
         manifold3d.Mesh64(
             vert_properties=np.array(v, dtype=np.float64),  # a writable copy, as nanobind wants
