@@ -18,7 +18,7 @@ from scipy.optimize import linprog
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from depth_shapes import annulus, crescent, pin, prism_tube, wedge
+from depth_shapes import annulus, crescent, pin, prism_tube, tilted_slab_pair, wedge
 
 from meshcheck.depth import depth_bounds
 from meshcheck.geometry.triangles import closest_points_on_triangles, inscribed_ball
@@ -142,6 +142,27 @@ def main():
         tv = best_ms(lambda a=a, b=b, t=tol: verify_pair(a, b, tolerance=t, clearance=None))
         print(f"{label:36s} {old:9.6f} {new.lower:9.6f} {tb:15.1f} {ta:6.1f} {tv:14.1f}")
     print("(verify_pair before = verify_pair after - depth after + depth before)")
+
+    print("\nSlivers 0.3 tolerance thick (tolerance 1e-3): touching, now on proof; time of the")
+    print("depth step (before: the ball found was under the tolerance, which proved nothing)")
+    slivers = [
+        ("flat: tilted boxes", tilted_slab_pair(1.0, 3e-4)),
+        ("curved: pin in hole, 32 facets", annulus(1.0, 3e-4, 32)),
+        ("curved: pin in hole, 128 facets", annulus(1.0, 3e-4, 128)),
+        ("curved: crescent, 32 facets", crescent(1.0, 3e-4, 32)),
+    ]
+    print(
+        f"{'sliver':36s} {'before':>8s} {'after':>8s} {'upper':>9s} {'ms before':>9s} {'after':>7s}"
+    )
+    for label, (a, b, _) in slivers:
+        v, f = solid_of(a, b)
+        tol = 1e-3
+        old, new = before_depth(v, f), depth_bounds(v, f, decide_at=tol)
+        tb = best_ms(lambda v=v, f=f: before_depth(v, f), 1)
+        ta = best_ms(lambda v=v, f=f, t=tol: depth_bounds(v, f, decide_at=t), 1)
+        verdict = "touch" if new.upper <= tol else "interf"
+        before = "touch" if old <= tol else "interf"
+        print(f"{label:36s} {before:>8s} {verdict:>8s} {new.upper:9.2e} {tb:9.1f} {ta:7.1f}")
 
 
 if __name__ == "__main__":
