@@ -7,8 +7,9 @@ The convex filter before this stage only says which part pairs *may* come within
    bounding-volume hierarchy, and every pair's exact distance is computed (compiled C++, float64,
    both meshes re-centred on a common point so coordinates far from the origin keep their digits);
 2. surfaces within the tolerance meet: when both meshes are closed, the shared solid is computed
-   with manifold3d and its thickness (``depth``) tells interference (thicker than the tolerance)
-   from touching (faces resting on faces leave a sliver at most);
+   with manifold3d and its thickness (``depth``, the largest ball inside) tells interference from
+   touching: touching only when it is *proven* no thicker than the tolerance (faces resting on
+   faces leave a sliver at most), interference otherwise (see ``meshcheck.depth``);
 3. surfaces farther apart may still belong to one part buried inside the other: one point of every
    connected shell is tested with the winding number of the other mesh;
 4. otherwise the pair is a clearance finding when the true distance is below the clearance, and
@@ -24,9 +25,9 @@ import numpy as np
 import trimesh
 
 from . import results
+from .depth import depth_bounds
 from .geometry.triangles import (
     box_pairs,
-    inscribed_ball,
     pair_distances,
     triangle_boxes,
     winding_numbers,
@@ -34,8 +35,6 @@ from .geometry.triangles import (
 from .load.mesh import is_closed
 from .results import Verdict
 
-# Faces cast inward to seed the inscribed-ball search; caps the cost on large overlaps.
-_MAX_SEEDS = 1024
 # Points tested with winding numbers (each costs one pass over the other mesh's triangles): one per
 # shell for burial (a triangle soup can have a shell per triangle), and the surface-only probes.
 _MAX_SHELL_PROBES = 20000
@@ -56,8 +55,9 @@ class PairVerdict:
         within reach, else ``inf`` (only known to exceed the reach).
     depth : float or None
         Interference depth, model units: the thickness of the shared solid, i.e. the diameter of
-        the largest ball that fits inside it. None unless interfering, or when a mesh is not
-        closed (there is no shared solid to measure).
+        the largest ball that fits inside it; the diameter of a ball shown to fit, so never more
+        than the true depth (within 1e-3 of it on the shapes of tests/test_depth.py). None
+        unless interfering, or when a mesh is not closed (there is no shared solid to measure).
     volume : float or None
         Volume of the shared solid (manifold3d boolean intersection), model units cubed, when both
         meshes are closed and the pair interferes.
@@ -316,17 +316,13 @@ def _volume_centroid(v: np.ndarray, f: np.ndarray) -> tuple[float, np.ndarray]:
     return float(total / 6.0), centroid
 
 
-def solid_depth(v: np.ndarray, f: np.ndarray, *, at_most: float = 0.0) -> float:
+def solid_depth(v: np.ndarray, f: np.ndarray) -> float:
     """Thickness of a closed solid: the diameter of the largest ball inside it, model units.
 
     Two boxes overlapping by 0.3 share a slab 0.3 thick; a bolt 0.2 too big radially shares a
-    tube whose wall is 0.2 thick: both give exactly that. The ball is found in two steps: seeds
-    on the medial surface (``inscribed_ball``: midpoints of inward rays, improved by a compass
-    search), then an ascent where each step solves a small linear program: maximise ``r`` subject
-    to ``(y - q_i) . u_i >= r`` for every triangle ``i`` (``q_i`` its closest point to the current
-    centre, ``u_i`` the unit direction from it). Each constraint is a lower bound on the distance
-    from ``y`` to triangle ``i``, so every step is an improvement that stays inside the solid, and
-    on a convex polyhedron the first step already lands on the exact inscribed ball.
+    tube whose wall is 0.2 thick: both give that. The value is the diameter of a ball shown to
+    be inside (``depth.depth_bounds`` without its upper-bound search), so never more than the
+    true depth.
 
     Parameters
     ----------
@@ -334,61 +330,13 @@ def solid_depth(v: np.ndarray, f: np.ndarray, *, at_most: float = 0.0) -> float:
         Vertices, model units.
     f : (m, 3) int64
         Faces of a closed, outward-wound mesh.
-    at_most : float
-        When a cheap upper bound (the smallest box extent, the diameter of a ball of the solid's
-        volume) is already at most this, return that bound without searching.
 
     Returns
     -------
     depth : float
         Model units; 0 for an empty solid.
     """
-    if len(f) == 0:
-        return 0.0
-    extent = float((v.max(axis=0) - v.min(axis=0)).min())
-    volume, _ = _volume_centroid(v, f)
-    # A ball of diameter D fits in the box and has volume pi D^3 / 6 <= volume.
-    bound = min(extent, (6.0 * max(volume, 0.0) / math.pi) ** (1.0 / 3.0))
-    if bound <= at_most:
-        return bound
-    radius, centre = inscribed_ball(v, f, _MAX_SEEDS)
-    if radius <= 0.0:
-        return 0.0
-    radius = _ascend_ball(v, f, np.asarray(centre, dtype=np.float64), radius)
-    return min(2.0 * radius, bound)
-
-
-def _ascend_ball(v: np.ndarray, f: np.ndarray, x: np.ndarray, r: float) -> float:
-    """Grow the ball centred at ``x`` (radius ``r``, inside the solid) by successive LPs."""
-    from scipy.optimize import linprog
-
-    from .geometry.triangles import closest_points_on_triangles
-
-    for _ in range(30):
-        dist, q = closest_points_on_triangles(x, v, f)
-        r = float(dist.min())
-        # Triangles beyond the trust region cannot bind: a step moves at most sqrt(3) * r.
-        keep = dist <= r * (1.0 + 2.0 * math.sqrt(3.0)) + 1e-300
-        u = (x - q[keep]) / dist[keep, None]
-        # Variables (step s, r): maximise r with u . (x + s - q) >= r, |s|_inf <= r.
-        a_ub = np.c_[-u, np.ones(len(u))]
-        b_ub = np.einsum("ij,ij->i", u, x - q[keep])
-        lp = linprog(
-            [0.0, 0.0, 0.0, -1.0],
-            A_ub=a_ub,
-            b_ub=b_ub,
-            bounds=[(-r, r)] * 3 + [(None, None)],
-            method="highs",
-        )
-        if lp.status != 0:
-            break
-        y = x + lp.x[:3]
-        ry = float(closest_points_on_triangles(y, v, f)[0].min())
-        if ry <= r * (1.0 + 1e-9):
-            break
-        x = y
-        r = ry
-    return r
+    return depth_bounds(v, f, max_boxes=0).lower
 
 
 def _interference(
@@ -403,9 +351,14 @@ def _interference(
 
 
 def _solid_verdict(m: _Pair, solid, *, tolerance: float, distance: float, near) -> PairVerdict:
+    """Touching only when the shared solid is proven no thicker than the tolerance (an upper
+    bound on its largest ball); a ball that merely failed to be found larger proves nothing,
+    so anything short of that proof is an interference, reported with the largest ball shown
+    to fit (which may then be below the tolerance)."""
     v, f = solid
-    depth = solid_depth(v, f, at_most=tolerance)
-    if depth > tolerance:
+    bounds = depth_bounds(v, f, decide_at=tolerance)
+    if bounds.upper > tolerance:
+        depth = bounds.lower
         volume, centroid = _volume_centroid(v, f)
         where = results.Location(
             centroid + m.origin, v.min(axis=0) + m.origin, v.max(axis=0) + m.origin

@@ -7,6 +7,7 @@ mass properties, placements chosen by the test.
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -363,10 +364,11 @@ def test_truncated_step_is_an_input_error(files, tmp_path):
 def test_cli_reads_step_with_any_case_extension(files, tmp_path):
     path = tmp_path / "OVER.STP"
     path.write_bytes(open(files["over"], "rb").read())
-    result = CliRunner().invoke(main, [str(path), "--jobs", "1"])
+    result = CliRunner().invoke(main, [str(path), "--jobs", "1", "--format", "json"])
     assert result.exit_code == 1, result.output
-    assert f"{path}#housing" in result.stdout and f"{path}#pin" in result.stdout
-    assert "interference" in result.stdout
+    doc = json.loads(result.stdout)
+    assert [p["name"] for p in doc["parts"]] == [f"{path}#housing", f"{path}#pin"]
+    assert [f["status"] for f in doc["results"]] == ["interference"]
 
 
 # --------------------------------------------------------------------------------------------
