@@ -1,0 +1,376 @@
+"""Results -> one self-contained HTML file: a 3D view of the clashes, the findings, the verdict.
+
+The file opens offline in any current browser, from ``file://``: three.js (vendored in
+``assets/``, built by ``scripts/build_three.sh`` at a pinned version) and the viewer are inlined,
+and a Content-Security-Policy allows only those two scripts and no network at all.
+
+Geometry is stored once per distinct display mesh: instances of one mesh share it, and so do
+copies of one mesh that differ only by a translation (STL files of repeated parts, each written in
+world coordinates). Vertices are quantized to 16 bits over each mesh's own box, then the whole
+geometry is gzipped and base64-encoded; the browser inflates it with ``DecompressionStream``.
+
+Everything that comes from the inputs (part names, paths, approval reasons, warnings, units) is
+data: it travels as JSON with ``<``, ``>``, ``&`` and every non-ASCII character escaped, and the
+viewer puts it into the page with ``textContent`` only, showing control characters as escapes.
+"""
+
+from __future__ import annotations
+
+import base64
+import gzip
+import hashlib
+import json
+import math
+from collections.abc import Collection, Sequence
+from dataclasses import dataclass
+from importlib import resources
+
+import numpy as np
+
+from ..export import clash_mesh
+from ..geometry.triangles import point_distances
+from ..load import Body
+from ..report import is_failing, resolve_fail_on, summary
+from ..results import CLEARANCE, INTERFERENCE, TOUCHING, CheckResult, Finding
+
+# Two copies of a mesh count as one display mesh when their vertices, each taken relative to its
+# own box corner, agree to this fraction of the mesh's size: far below a pixel at any zoom that
+# shows the whole part, and above the float32 rounding of an STL copy written 10^4 sizes away.
+SAME_SHAPE = 1e-4
+_QUANT = 65535  # 16-bit vertex grid over each mesh's largest extent
+_SEVERITY = (INTERFERENCE, CLEARANCE, TOUCHING)  # colour of a part in several findings
+
+
+@dataclass
+class _Mesh:
+    """A distinct display mesh: quantized vertices, faces, and its grid (corner and step)."""
+
+    grid: np.ndarray  # (n, 3) uint16
+    faces: np.ndarray  # (m, 3) int64
+    corner: np.ndarray  # (3,) float64, frame-local
+    step: float
+    relative: np.ndarray  # (n, 3) float64, vertices - corner, to recognise copies
+
+
+def render_html(
+    result: CheckResult,
+    bodies: Sequence[Body],
+    *,
+    fail_on: Collection[str] | None,
+    units: str = "mm",
+    inputs: Sequence[str] = (),
+    version: str,
+) -> str:
+    """Render ``result`` as one HTML document with a 3D view of ``bodies``.
+
+    Parameters
+    ----------
+    result : CheckResult
+        The check's findings and settings.
+    bodies : sequence of Body
+        The parts the check loaded (``load.load_bodies`` on the same paths); parts are matched to
+        findings by name. Interference volumes are recomputed from their world meshes.
+    fail_on : collection of str or None
+        Statuses that fail the run, as for ``report.exit_status`` (None: its default).
+    units : str
+        Name of the model units, shown beside every length.
+    inputs : sequence of str
+        The files and directories the user named, listed in the header as given.
+    version : str
+        meshcheck's version, shown in the header.
+
+    Returns
+    -------
+    str
+        The document, UTF-8 text, ending with a newline. Byte-identical for identical arguments.
+    """
+    fail_on = resolve_fail_on(result, fail_on)
+    origin = _scene_origin(bodies)
+    by_name = {b.name: b for b in bodies}
+
+    meshes: list[_Mesh] = []
+    mesh_rows: list[dict] = []
+    shapes: dict[tuple, list[int]] = {}  # (vertex count, faces digest) -> indices into meshes
+    seen: dict[int, int] = {}  # id(body.mesh) -> index, for instances of one mesh
+
+    def add_part_mesh(body: Body) -> tuple[int, np.ndarray]:
+        """Index of the body's display mesh, and the frame-local corner of this copy."""
+        v = np.asarray(body.mesh.vertices, dtype=np.float64)
+        corner = v.min(axis=0) if len(v) else np.zeros(3)
+        k = seen.get(id(body.mesh))
+        if k is not None:
+            return k, corner
+        f = np.asarray(body.mesh.faces, dtype=np.int64)
+        relative = v - corner
+        size = float(np.ptp(v, axis=0).max()) if len(v) else 0.0
+        key = (len(v), hashlib.sha256(f.tobytes()).hexdigest())
+        for k in shapes.get(key, []):
+            if np.abs(meshes[k].relative - relative).max(initial=0.0) <= SAME_SHAPE * size:
+                seen[id(body.mesh)] = k
+                return k, corner
+        k = add_mesh(v, f, None)
+        shapes.setdefault(key, []).append(k)
+        seen[id(body.mesh)] = k
+        return k, corner
+
+    def add_mesh(v: np.ndarray, f: np.ndarray, matrix: list[float] | None) -> int:
+        mesh = _quantize(v, f)
+        meshes.append(mesh)
+        mesh_rows.append({"matrix": matrix})
+        return len(meshes) - 1
+
+    part_status = _part_statuses(result.findings)
+    parts = []
+    names = [p.name for p in result.parts] or [b.name for b in bodies]
+    for name in names:
+        body = by_name.get(name)
+        row = {"name": name, "mesh": None, "matrix": None, "status": part_status.get(name)}
+        if body is not None and len(body.mesh.faces):
+            k, corner = add_part_mesh(body)
+            step = meshes[k].step
+            local = _translate(corner) @ np.diag([step, step, step, 1.0])
+            row["mesh"] = k
+            row["matrix"] = _columns(_translate(-origin) @ np.asarray(body.transform) @ local)
+        parts.append(row)
+
+    findings = []
+    for f in result.findings:
+        a, b = by_name.get(f.a), by_name.get(f.b)
+        solid = line = None
+        if f.status == INTERFERENCE and a is not None and b is not None:
+            shared = clash_mesh(a, b, f)
+            if shared is not None and len(shared.faces):
+                v = np.asarray(shared.vertices, dtype=np.float64) - origin
+                mesh = _quantize(v, np.asarray(shared.faces, dtype=np.int64))
+                s = mesh.step
+                matrix = _columns(_translate(mesh.corner) @ np.diag([s, s, s, 1.0]))
+                meshes.append(mesh)
+                mesh_rows.append({"matrix": matrix})
+                solid = len(meshes) - 1
+        if f.status == CLEARANCE and f.location is not None and a is not None and b is not None:
+            p, q = closest_points(a, b, f)
+            line = [_point(p - origin), _point(q - origin)]
+        box = None
+        if f.location is not None:
+            box = [
+                _point(np.asarray(f.location.lower) - origin),
+                _point(np.asarray(f.location.upper) - origin),
+            ]
+        findings.append(
+            {
+                "id": f.id,
+                "a": f.a,
+                "b": f.b,
+                "status": f.status,
+                "distance": _number(f.distance),
+                "depth": _number(f.depth),
+                "volume": _number(f.volume),
+                "surface_only": f.is_surface_only,
+                "approved": f.approved,
+                "fails": is_failing(f, fail_on),
+                "box": box,
+                "solid": solid,
+                "line": line,
+            }
+        )
+
+    blob, layout = _pack(meshes)
+    for row, place in zip(mesh_rows, layout, strict=True):
+        row.update(place)
+    s = summary(result, fail_on=fail_on)
+    s["tolerance"] = _number(s["tolerance"])
+    s["required_clearance"] = _number(s["required_clearance"])
+    data = {
+        "version": str(version),
+        "units": str(units),
+        "inputs": [str(x) for x in inputs],
+        "summary": s,
+        "meshes": mesh_rows,
+        "parts": parts,
+        "findings": findings,
+    }
+    return _document(_json_for_script(data), blob)
+
+
+# ---------------------------------------------------------------------------------------------
+# geometry
+
+
+def _scene_origin(bodies: Sequence[Body]) -> np.ndarray:
+    """Centre of the assembly's box, world coordinates: the view works relative to it, so
+    float32 on the GPU keeps its digits for assemblies far from the origin."""
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    for body in bodies:
+        if not len(body.mesh.vertices):
+            continue
+        corners = np.array(np.meshgrid(*np.asarray(body.mesh.bounds).T)).reshape(3, -1).T
+        world = corners @ np.asarray(body.transform)[:3, :3].T + np.asarray(body.transform)[:3, 3]
+        lo, hi = np.minimum(lo, world.min(axis=0)), np.maximum(hi, world.max(axis=0))
+    return 0.5 * (lo + hi) if np.all(np.isfinite(lo)) else np.zeros(3)
+
+
+def _quantize(v: np.ndarray, f: np.ndarray) -> _Mesh:
+    """Vertices on a 16-bit grid over the mesh's largest extent (uniform, so angles keep)."""
+    corner = v.min(axis=0) if len(v) else np.zeros(3)
+    relative = v - corner
+    size = float(relative.max(initial=0.0))
+    step = size / _QUANT if size > 0 else 1.0
+    grid = np.clip(np.rint(relative / step), 0, _QUANT).astype(np.uint16)
+    return _Mesh(grid, f, corner, step, relative)
+
+
+def closest_points(a: Body, b: Body, finding: Finding) -> tuple[np.ndarray, np.ndarray]:
+    """The two closest points of a clearance finding, on ``a`` and on ``b``, world coordinates.
+
+    The finding's location is the box spanned by the two points, so they are the ends of one of
+    its four diagonals: the one whose ends lie on ``a`` and on ``b`` (exact point-to-triangle
+    distances pick it).
+    """
+    lower = np.asarray(finding.location.lower, dtype=np.float64)
+    upper = np.asarray(finding.location.upper, dtype=np.float64)
+    centre = 0.5 * (lower + upper)
+    bits = np.array([[(k >> axis) & 1 for axis in range(3)] for k in range(8)], dtype=bool)
+    corners = np.where(bits, upper, lower) - centre
+    on = []
+    for body in (a, b):
+        w = body.world
+        v = np.asarray(w.vertices, dtype=np.float64) - centre
+        on.append(point_distances(corners, v, np.asarray(w.faces, dtype=np.int64)))
+    # corner k and corner 7 - k are opposite
+    k = int(np.argmin([on[0][k] + on[1][7 - k] for k in range(8)]))
+    return corners[k] + centre, corners[7 - k] + centre
+
+
+def _pack(meshes: Sequence[_Mesh]) -> tuple[str, list[dict]]:
+    """All meshes in one gzipped, base64-encoded buffer, and where each one's arrays start."""
+    chunks, layout, offset = [], [], 0
+
+    def put(array: np.ndarray) -> int:
+        nonlocal offset
+        start = offset
+        raw = array.tobytes()
+        pad = -len(raw) % 4  # typed-array views need aligned offsets
+        chunks.append(raw + b"\0" * pad)
+        offset += len(raw) + pad
+        return start
+
+    for m in meshes:
+        is_wide = len(m.grid) > 65536
+        faces = m.faces.astype(np.uint32 if is_wide else np.uint16)
+        pos = put(np.ascontiguousarray(m.grid, dtype="<u2"))
+        idx = put(np.ascontiguousarray(faces, dtype="<u4" if is_wide else "<u2"))
+        layout.append(
+            {"pos": pos, "idx": idx, "nv": len(m.grid), "nf": len(m.faces), "wide": is_wide}
+        )
+    packed = gzip.compress(b"".join(chunks), compresslevel=9, mtime=0)
+    return base64.b64encode(packed).decode("ascii"), layout
+
+
+def _part_statuses(findings: Sequence[Finding]) -> dict[str, str]:
+    """Each part's colour: its most severe unapproved finding, else ``approved``."""
+    status: dict[str, str] = {}
+    for f in findings:
+        key = "approved" if f.approved is not None else f.status
+        for name in (f.a, f.b):
+            old = status.get(name)
+            if old is None or _rank(key) < _rank(old):
+                status[name] = key
+    return status
+
+
+def _rank(status: str) -> int:
+    return _SEVERITY.index(status) if status in _SEVERITY else len(_SEVERITY)
+
+
+def _translate(t: np.ndarray) -> np.ndarray:
+    m = np.eye(4)
+    m[:3, 3] = t
+    return m
+
+
+def _columns(m: np.ndarray) -> list[float]:
+    """A 4x4 matrix column-major, as three.js reads it."""
+    return [float(f"{x:.10g}") for x in np.asarray(m, dtype=np.float64).T.ravel()]
+
+
+def _point(p: np.ndarray) -> list[float]:
+    return [float(f"{x:.10g}") for x in p]
+
+
+def _number(x: float | None) -> float | None:
+    """JSON has no infinity or NaN: those become null (shown as a dash)."""
+    return None if x is None or not math.isfinite(x) else float(x)
+
+
+# ---------------------------------------------------------------------------------------------
+# the document
+
+
+def _json_for_script(data: dict) -> str:
+    """JSON that cannot end its <script> element or be read as HTML: ``<``, ``>``, ``&`` and
+    every non-ASCII character (U+2028 and U+2029 included) as ``\\uXXXX`` escapes."""
+    text = json.dumps(data, ensure_ascii=True, allow_nan=False, separators=(",", ":"))
+    return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
+
+
+def _asset(name: str) -> str:
+    return (resources.files(__package__) / "assets" / name).read_text(encoding="utf-8")
+
+
+def _script(text: str) -> str:
+    """A script's text, checked to be inlinable: no ``</script`` and no ``<!--`` inside."""
+    lowered = text.lower()
+    if "</script" in lowered or "<!--" in lowered:
+        raise ValueError("an inlined script contains '</script' or '<!--'")
+    return text
+
+
+def _csp_hash(text: str) -> str:
+    return "'sha256-" + base64.b64encode(hashlib.sha256(text.encode()).digest()).decode() + "'"
+
+
+def _document(data_json: str, blob: str) -> str:
+    license_text = _asset("three.LICENSE").replace("*/", "* /")
+    three = _script(f"/*\n{license_text}*/\n" + _asset("three.min.js"))
+    viewer = _script(_asset("viewer.js"))
+    style = _asset("viewer.css")
+    csp = "; ".join(
+        [
+            "default-src 'none'",
+            f"script-src {_csp_hash(three)} {_csp_hash(viewer)}",
+            f"style-src {_csp_hash(style)}",
+            "img-src data:",
+        ]
+    )
+    headings = "".join(
+        f"<th>{h}</th>"
+        for h in ("ID", "Status", "Parts", "Depth", "Volume", "Distance", "Approved")
+    )
+    return f"""<!DOCTYPE html>
+<html lang="en">
+<head>
+<meta charset="utf-8">
+<meta http-equiv="Content-Security-Policy" content="{csp}">
+<meta name="viewport" content="width=device-width, initial-scale=1">
+<title>meshcheck report</title>
+<style>{style}</style>
+</head>
+<body>
+<header id="header"></header>
+<div id="main">
+<div id="view"><button id="home" type="button">Reset view</button><span class="hint">drag: \
+rotate &middot; right-drag: pan &middot; wheel: zoom &middot; click a finding to frame it</span>\
+</div>
+<div id="side"><div id="filters"></div><div id="table-wrap"><table id="findings">
+<thead><tr>{headings}</tr></thead><tbody></tbody></table></div></div>
+</div>
+<script type="application/json" id="meshcheck-data">{data_json}</script>
+<script type="application/octet-stream" id="meshcheck-geometry">{blob}</script>
+<script>{three}</script>
+<script>{viewer}</script>
+</body>
+</html>
+"""
+
+
+__all__ = ["closest_points", "render_html"]
