@@ -77,7 +77,7 @@ def embedded(text: str) -> tuple[dict, bytes]:
 def decoded_vertices(data: dict, buffer: bytes, k: int, matrix) -> np.ndarray:
     """Vertices of display mesh ``k`` placed by a column-major 4x4 ``matrix``."""
     m = data["meshes"][k]
-    grid = np.frombuffer(buffer, dtype="<u2", count=3 * m["nv"], offset=m["pos"]).reshape(-1, 3)
+    grid = np.frombuffer(buffer, dtype="<i2", count=3 * m["nv"], offset=m["pos"]).reshape(-1, 3)
     mat = np.asarray(matrix, dtype=np.float64).reshape(4, 4).T
     return grid @ mat[:3, :3].T + mat[:3, 3]
 
@@ -138,7 +138,7 @@ def test_geometry_round_trips_within_the_grid(checked):
             lo = np.min([b.world.bounds[0] for b in bodies], axis=0)
             hi = np.max([b.world.bounds[1] for b in bodies], axis=0)
             origin = 0.5 * (lo + hi)
-        step = np.ptp(world, axis=0).max() / 65535
+        step = np.ptp(world, axis=0).max() / 65534
         np.testing.assert_allclose(v + origin, world, rtol=0, atol=step)
 
 

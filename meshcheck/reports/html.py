@@ -6,8 +6,9 @@ and a Content-Security-Policy allows only those two scripts and no network at al
 
 Geometry is stored once per distinct display mesh: instances of one mesh share it, and so do
 copies of one mesh that differ only by a translation (STL files of repeated parts, each written in
-world coordinates). Vertices are quantized to 16 bits over each mesh's own box, then the whole
-geometry is gzipped and base64-encoded; the browser inflates it with ``DecompressionStream``.
+world coordinates). Vertices are quantized to 16 bits around each mesh's own box centre (which
+also becomes the part's position, so three.js sorts translucent parts by their centres), then the
+whole geometry is gzipped and base64-encoded; the browser inflates it with ``DecompressionStream``.
 
 Everything that comes from the inputs (part names, paths, approval reasons, warnings, units) is
 data: it travels as JSON with ``<``, ``>``, ``&`` and every non-ASCII character escaped, and the
@@ -34,22 +35,22 @@ from ..report import is_failing, resolve_fail_on, summary
 from ..results import CLEARANCE, INTERFERENCE, TOUCHING, CheckResult, Finding
 
 # Two copies of a mesh count as one display mesh when their vertices, each taken relative to its
-# own box corner, agree to this fraction of the mesh's size: far below a pixel at any zoom that
+# own box centre, agree to this fraction of the mesh's size: far below a pixel at any zoom that
 # shows the whole part, and above the float32 rounding of an STL copy written 10^4 sizes away.
 SAME_SHAPE = 1e-4
-_QUANT = 65535  # 16-bit vertex grid over each mesh's largest extent
+_QUANT = 32767  # signed 16-bit vertex grid over half of each mesh's largest extent
 _SEVERITY = (INTERFERENCE, CLEARANCE, TOUCHING)  # colour of a part in several findings
 
 
 @dataclass
 class _Mesh:
-    """A distinct display mesh: quantized vertices, faces, and its grid (corner and step)."""
+    """A distinct display mesh: quantized vertices, faces, and its grid (centre and step)."""
 
-    grid: np.ndarray  # (n, 3) uint16
+    grid: np.ndarray  # (n, 3) int16
     faces: np.ndarray  # (m, 3) int64
-    corner: np.ndarray  # (3,) float64, frame-local
+    centre: np.ndarray  # (3,) float64, centre of the mesh's box, frame-local
     step: float
-    relative: np.ndarray  # (n, 3) float64, vertices - corner, to recognise copies
+    relative: np.ndarray  # (n, 3) float64, vertices - centre, to recognise copies
 
 
 def render_html(
@@ -94,24 +95,24 @@ def render_html(
     seen: dict[int, int] = {}  # id(body.mesh) -> index, for instances of one mesh
 
     def add_part_mesh(body: Body) -> tuple[int, np.ndarray]:
-        """Index of the body's display mesh, and the frame-local corner of this copy."""
+        """Index of the body's display mesh, and the frame-local box centre of this copy."""
         v = np.asarray(body.mesh.vertices, dtype=np.float64)
-        corner = v.min(axis=0) if len(v) else np.zeros(3)
+        centre = _box_centre(v)
         k = seen.get(id(body.mesh))
         if k is not None:
-            return k, corner
+            return k, centre
         f = np.asarray(body.mesh.faces, dtype=np.int64)
-        relative = v - corner
+        relative = v - centre
         size = float(np.ptp(v, axis=0).max()) if len(v) else 0.0
         key = (len(v), hashlib.sha256(f.tobytes()).hexdigest())
         for k in shapes.get(key, []):
             if np.abs(meshes[k].relative - relative).max(initial=0.0) <= SAME_SHAPE * size:
                 seen[id(body.mesh)] = k
-                return k, corner
+                return k, centre
         k = add_mesh(v, f, None)
         shapes.setdefault(key, []).append(k)
         seen[id(body.mesh)] = k
-        return k, corner
+        return k, centre
 
     def add_mesh(v: np.ndarray, f: np.ndarray, matrix: list[float] | None) -> int:
         mesh = _quantize(v, f)
@@ -126,9 +127,9 @@ def render_html(
         body = by_name.get(name)
         row = {"name": name, "mesh": None, "matrix": None, "status": part_status.get(name)}
         if body is not None and len(body.mesh.faces):
-            k, corner = add_part_mesh(body)
+            k, centre = add_part_mesh(body)
             step = meshes[k].step
-            local = _translate(corner) @ np.diag([step, step, step, 1.0])
+            local = _translate(centre) @ np.diag([step, step, step, 1.0])
             row["mesh"] = k
             row["matrix"] = _columns(_translate(-origin) @ np.asarray(body.transform) @ local)
         parts.append(row)
@@ -143,7 +144,7 @@ def render_html(
                 v = np.asarray(shared.vertices, dtype=np.float64) - origin
                 mesh = _quantize(v, np.asarray(shared.faces, dtype=np.int64))
                 s = mesh.step
-                matrix = _columns(_translate(mesh.corner) @ np.diag([s, s, s, 1.0]))
+                matrix = _columns(_translate(mesh.centre) @ np.diag([s, s, s, 1.0]))
                 meshes.append(mesh)
                 mesh_rows.append({"matrix": matrix})
                 solid = len(meshes) - 1
@@ -209,14 +210,19 @@ def _scene_origin(bodies: Sequence[Body]) -> np.ndarray:
     return 0.5 * (lo + hi) if np.all(np.isfinite(lo)) else np.zeros(3)
 
 
+def _box_centre(v: np.ndarray) -> np.ndarray:
+    return 0.5 * (v.min(axis=0) + v.max(axis=0)) if len(v) else np.zeros(3)
+
+
 def _quantize(v: np.ndarray, f: np.ndarray) -> _Mesh:
-    """Vertices on a 16-bit grid over the mesh's largest extent (uniform, so angles keep)."""
-    corner = v.min(axis=0) if len(v) else np.zeros(3)
-    relative = v - corner
-    size = float(relative.max(initial=0.0))
-    step = size / _QUANT if size > 0 else 1.0
-    grid = np.clip(np.rint(relative / step), 0, _QUANT).astype(np.uint16)
-    return _Mesh(grid, f, corner, step, relative)
+    """Vertices on a signed 16-bit grid around the box centre, one step for all three axes (a
+    uniform scale keeps angles, so flat shading and edge detection see the true shape)."""
+    centre = _box_centre(v)
+    relative = v - centre
+    half = float(np.abs(relative).max(initial=0.0))
+    step = half / _QUANT if half > 0 else 1.0
+    grid = np.clip(np.rint(relative / step), -_QUANT, _QUANT).astype(np.int16)
+    return _Mesh(grid, f, centre, step, relative)
 
 
 def closest_points(a: Body, b: Body, finding: Finding) -> tuple[np.ndarray, np.ndarray]:
@@ -257,7 +263,7 @@ def _pack(meshes: Sequence[_Mesh]) -> tuple[str, list[dict]]:
     for m in meshes:
         is_wide = len(m.grid) > 65536
         faces = m.faces.astype(np.uint32 if is_wide else np.uint16)
-        pos = put(np.ascontiguousarray(m.grid, dtype="<u2"))
+        pos = put(np.ascontiguousarray(m.grid, dtype="<i2"))
         idx = put(np.ascontiguousarray(faces, dtype="<u4" if is_wide else "<u2"))
         layout.append(
             {"pos": pos, "idx": idx, "nv": len(m.grid), "nf": len(m.faces), "wide": is_wide}

@@ -47,7 +47,7 @@
 
   function buildGeometry(buffer, m) {
     const g = new T.BufferGeometry();
-    g.setAttribute("position", new T.BufferAttribute(new Uint16Array(buffer, m.pos, m.nv * 3), 3));
+    g.setAttribute("position", new T.BufferAttribute(new Int16Array(buffer, m.pos, m.nv * 3), 3));
     const Index = m.wide ? Uint32Array : Uint16Array;
     g.setIndex(new T.BufferAttribute(new Index(buffer, m.idx, m.nf * 3), 1));
     g.computeBoundingBox();
@@ -147,7 +147,7 @@
         side: T.DoubleSide,
         transparent: opacity < 1,
         opacity,
-        depthWrite: opacity >= 1,
+        depthWrite: true, // with back-to-front sorting: a part on top of a larger one stays on top
       });
     const partMaterial = material(PART_COLOR, 0.18);
     const statusMaterials = {};
@@ -259,7 +259,7 @@
     }
 
     function home() {
-      lookAt(sceneSphere.center, radius, new T.Vector3(1, -1.2, 0.9));
+      lookAt(sceneSphere.center, 0.8 * radius, new T.Vector3(1, -1.2, 0.9));
     }
 
     let selected = [];
