@@ -179,6 +179,34 @@ def test_instances_and_translated_copies_share_geometry():
         np.testing.assert_allclose(v, body.world.vertices, rtol=0, atol=1e-3)
 
 
+def test_large_assemblies_are_simplified_for_display(monkeypatch):
+    monkeypatch.setattr(html_report, "DISPLAY_TRIANGLES", 3000)
+    spheres = []
+    for k in range(3):  # 5120 triangles each, distinct radii so nothing is shared
+        mesh = trimesh.creation.icosphere(subdivisions=4, radius=1.0 + 0.1 * k)
+        spheres.append(
+            Body(name=f"s{k}.stl", path=f"s{k}.stl", mesh=mesh.apply_translation([5 * k, 0, 0]))
+        )
+    small = box("small.stl", [0, 5, 0], [1, 6, 1])  # 12 triangles: kept as it is
+    bodies = [*spheres, small]
+    result = check_bodies(bodies, jobs=1)
+    data, buffer = embedded(render_html(result, bodies, fail_on=None, version="x"))
+    assert data["triangles"]["parts"] == 3 * 5120 + 12
+    assert data["triangles"]["shown"] <= 3000 * 1.05
+    centre = 0.5 * (
+        np.min([b.world.bounds[0] for b in bodies], axis=0)
+        + np.max([b.world.bounds[1] for b in bodies], axis=0)
+    )
+    for part, body in zip(data["parts"], bodies, strict=True):
+        v = decoded_vertices(data, buffer, part["mesh"], part["matrix"]) + centre
+        if body is small:
+            np.testing.assert_allclose(v, body.world.vertices, rtol=0, atol=1e-3)
+            continue
+        assert data["meshes"][part["mesh"]]["nf"] < 1500
+        radius = np.linalg.norm(v - body.world.centroid, axis=1)
+        np.testing.assert_allclose(radius, body.mesh.bounding_sphere.primitive.radius, rtol=0.03)
+
+
 def test_clearance_line_joins_the_closest_points():
     """Edges 0.2 apart diagonally: x grows from a to b while y falls, so the box of the two
     points has them on its (x max, y min) diagonal, not on (min, max)."""

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 from importlib import resources
 
 import numpy as np
+import trimesh
 
 from ..export import clash_mesh
 from ..geometry.triangles import point_distances
@@ -38,6 +39,11 @@ from ..results import CLEARANCE, INTERFERENCE, TOUCHING, CheckResult, Finding
 # own box centre, agree to this fraction of the mesh's size: far below a pixel at any zoom that
 # shows the whole part, and above the float32 rounding of an STL copy written 10^4 sizes away.
 SAME_SHAPE = 1e-4
+# The view holds at most this many part triangles (each distinct mesh counted once): about 20 bytes
+# each once quantized, gzipped and base64-encoded, so a report stays near 12 MB whatever the
+# input, and a browser draws it smoothly. Larger assemblies are decimated for display only.
+DISPLAY_TRIANGLES = 600_000
+MIN_TRIANGLES = 500  # a mesh this small is never decimated: it would lose its shape
 _QUANT = 32767  # signed 16-bit vertex grid over half of each mesh's largest extent
 _SEVERITY = (INTERFERENCE, CLEARANCE, TOUCHING)  # colour of a part in several findings
 
@@ -50,7 +56,6 @@ class _Mesh:
     faces: np.ndarray  # (m, 3) int64
     centre: np.ndarray  # (3,) float64, centre of the mesh's box, frame-local
     step: float
-    relative: np.ndarray  # (n, 3) float64, vertices - centre, to recognise copies
 
 
 def render_html(
@@ -89,50 +94,58 @@ def render_html(
     origin = _scene_origin(bodies)
     by_name = {b.name: b for b in bodies}
 
-    meshes: list[_Mesh] = []
-    mesh_rows: list[dict] = []
-    shapes: dict[tuple, list[int]] = {}  # (vertex count, faces digest) -> indices into meshes
-    seen: dict[int, int] = {}  # id(body.mesh) -> index, for instances of one mesh
+    # Distinct display meshes: (vertices, faces) frame-local, found once per instance or copy.
+    shapes: list[tuple[np.ndarray, np.ndarray]] = []
+    relatives: list[np.ndarray] = []  # vertices - box centre, to recognise translated copies
+    by_topology: dict[tuple, list[int]] = {}  # (vertex count, faces digest) -> shape indices
+    seen: dict[int, int] = {}  # id(body.mesh) -> shape index, for instances of one mesh
 
-    def add_part_mesh(body: Body) -> tuple[int, np.ndarray]:
+    def shape_of(body: Body) -> tuple[int, np.ndarray]:
         """Index of the body's display mesh, and the frame-local box centre of this copy."""
         v = np.asarray(body.mesh.vertices, dtype=np.float64)
         centre = _box_centre(v)
         k = seen.get(id(body.mesh))
-        if k is not None:
-            return k, centre
-        f = np.asarray(body.mesh.faces, dtype=np.int64)
-        relative = v - centre
-        size = float(np.ptp(v, axis=0).max()) if len(v) else 0.0
-        key = (len(v), hashlib.sha256(f.tobytes()).hexdigest())
-        for k in shapes.get(key, []):
-            if np.abs(meshes[k].relative - relative).max(initial=0.0) <= SAME_SHAPE * size:
-                seen[id(body.mesh)] = k
-                return k, centre
-        k = add_mesh(v, f, None)
-        shapes.setdefault(key, []).append(k)
-        seen[id(body.mesh)] = k
+        if k is None:
+            f = np.asarray(body.mesh.faces, dtype=np.int64)
+            relative = v - centre
+            size = float(np.ptp(v, axis=0).max())
+            key = (len(v), hashlib.sha256(f.tobytes()).hexdigest())
+            same = (
+                j
+                for j in by_topology.get(key, [])
+                if np.abs(relatives[j] - relative).max(initial=0.0) <= SAME_SHAPE * size
+            )
+            k = next(same, None)
+            if k is None:
+                k = len(shapes)
+                shapes.append((v, f))
+                relatives.append(relative)
+                by_topology.setdefault(key, []).append(k)
+            seen[id(body.mesh)] = k
         return k, centre
 
-    def add_mesh(v: np.ndarray, f: np.ndarray, matrix: list[float] | None) -> int:
-        mesh = _quantize(v, f)
-        meshes.append(mesh)
-        mesh_rows.append({"matrix": matrix})
-        return len(meshes) - 1
-
     part_status = _part_statuses(result.findings)
-    parts = []
+    parts, placed = [], []
     names = [p.name for p in result.parts] or [b.name for b in bodies]
     for name in names:
         body = by_name.get(name)
         row = {"name": name, "mesh": None, "matrix": None, "status": part_status.get(name)}
         if body is not None and len(body.mesh.faces):
-            k, centre = add_part_mesh(body)
-            step = meshes[k].step
-            local = _translate(centre) @ np.diag([step, step, step, 1.0])
-            row["mesh"] = k
-            row["matrix"] = _columns(_translate(-origin) @ np.asarray(body.transform) @ local)
+            placed.append((row, body, *shape_of(body)))
         parts.append(row)
+
+    triangles = sum(len(f) for _, f in shapes)
+    shown = _simplified(shapes, budget=DISPLAY_TRIANGLES)
+    meshes = [
+        _quantize(v, f, centre=_box_centre(original))
+        for (v, f), (original, _) in zip(shown, shapes, strict=True)
+    ]
+    mesh_rows: list[dict] = [{"matrix": None} for _ in meshes]
+    for row, body, k, centre in placed:
+        step = meshes[k].step
+        local = _translate(centre) @ np.diag([step, step, step, 1.0])
+        row["mesh"] = k
+        row["matrix"] = _columns(_translate(-origin) @ np.asarray(body.transform) @ local)
 
     findings = []
     for f in result.findings:
@@ -189,6 +202,7 @@ def render_html(
         "meshes": mesh_rows,
         "parts": parts,
         "findings": findings,
+        "triangles": {"parts": triangles, "shown": sum(len(f) for _, f in shown)},
     }
     return _document(_json_for_script(data), blob)
 
@@ -210,19 +224,40 @@ def _scene_origin(bodies: Sequence[Body]) -> np.ndarray:
     return 0.5 * (lo + hi) if np.all(np.isfinite(lo)) else np.zeros(3)
 
 
+def _simplified(
+    shapes: Sequence[tuple[np.ndarray, np.ndarray]], *, budget: int
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The display meshes, decimated (quadric error, fast_simplification) when together they
+    hold more than ``budget`` triangles: each mesh above ``MIN_TRIANGLES`` keeps its share."""
+    total = sum(len(f) for _, f in shapes)
+    if total <= budget:
+        return list(shapes)
+    small = sum(len(f) for _, f in shapes if len(f) <= MIN_TRIANGLES)
+    keep = max(budget - small, 0) / max(total - small, 1)
+    out = []
+    for v, f in shapes:
+        target = max(MIN_TRIANGLES, int(len(f) * keep))
+        if len(f) > target:
+            mesh = trimesh.Trimesh(vertices=v, faces=f, process=False)
+            mesh = mesh.simplify_quadric_decimation(face_count=target)
+            v, f = np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64)
+        out.append((v, f))
+    return out
+
+
 def _box_centre(v: np.ndarray) -> np.ndarray:
     return 0.5 * (v.min(axis=0) + v.max(axis=0)) if len(v) else np.zeros(3)
 
 
-def _quantize(v: np.ndarray, f: np.ndarray) -> _Mesh:
-    """Vertices on a signed 16-bit grid around the box centre, one step for all three axes (a
-    uniform scale keeps angles, so flat shading and edge detection see the true shape)."""
-    centre = _box_centre(v)
+def _quantize(v: np.ndarray, f: np.ndarray, *, centre: np.ndarray | None = None) -> _Mesh:
+    """Vertices on a signed 16-bit grid around ``centre`` (default: the box centre), one step for
+    all three axes (a uniform scale keeps angles, so flat shading and edges see the true shape)."""
+    centre = _box_centre(v) if centre is None else centre
     relative = v - centre
     half = float(np.abs(relative).max(initial=0.0))
     step = half / _QUANT if half > 0 else 1.0
     grid = np.clip(np.rint(relative / step), -_QUANT, _QUANT).astype(np.int16)
-    return _Mesh(grid, f, centre, step, relative)
+    return _Mesh(grid, f, centre, step)
 
 
 def closest_points(a: Body, b: Body, finding: Finding) -> tuple[np.ndarray, np.ndarray]:

@@ -98,6 +98,10 @@
       ["fail on", s.fail_on.length ? s.fail_on.join(", ") : "nothing"],
       ["meshcheck", data.version],
     ];
+    const tri = data.triangles;
+    if (tri.shown < tri.parts) {
+      pairs.push(["view simplified to", tri.shown.toLocaleString("en") + " of " + tri.parts.toLocaleString("en") + " triangles"]);
+    }
     pairs.forEach(([k, v], i) => {
       if (i) settings.append(" \u00b7 ");
       settings.append(k + " ", el("b", null, v));
@@ -240,9 +244,11 @@
       renderer.domElement.style.height = "100%";
       camera.aspect = w / h;
       camera.updateProjectionMatrix();
-      render();
     }
-    window.addEventListener("resize", resize);
+    window.addEventListener("resize", () => {
+      resize();
+      requestRender();
+    });
 
     // Look at a sphere along the current viewing direction (or the default one).
     function lookAt(centre, r, direction) {
