@@ -3,6 +3,6 @@
 export {
   Box3, BufferAttribute, BufferGeometry, Color, DirectionalLight, DoubleSide, EdgesGeometry,
   Float32BufferAttribute, Group, HemisphereLight, LineBasicMaterial, LineSegments, Matrix4,
-  Mesh, MeshStandardMaterial, PerspectiveCamera, Scene, Sphere, Vector3, WebGLRenderer, REVISION,
+  Mesh, MeshStandardMaterial, PerspectiveCamera, Points, PointsMaterial, Scene, Sphere, Vector3, WebGLRenderer, REVISION,
 } from "three";
 export { OrbitControls } from "three/addons/controls/OrbitControls.js";

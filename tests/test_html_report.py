@@ -296,11 +296,14 @@ def test_report_in_chromium(checked, browser_page, tmp_path):
     result, _ = checked
     path = tmp_path / "report.html"
     path.write_text(render(checked, inputs=[HOSTILE]), encoding="utf-8")
+    requests = []
+    page.on("request", lambda r: requests.append(r.url))
     page.goto(path.as_uri())
     page.wait_for_function("document.body.dataset.ready")
     assert page.evaluate("document.body.dataset.ready") == "true"
     assert page.evaluate("window.__pwned") is None
     assert errors == []
+    assert requests == [path.as_uri()]  # the page itself, nothing else: no network
 
     # The 3D view drew something: a blank canvas is one colour.
     canvas = page.locator("#view canvas")

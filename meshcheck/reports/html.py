@@ -89,6 +89,17 @@ def render_html(
     -------
     str
         The document, UTF-8 text, ending with a newline. Byte-identical for identical arguments.
+
+    Examples
+    --------
+    >>> from meshcheck.pipeline import check_bodies
+    >>> cube = trimesh.creation.box(extents=[1, 1, 1])
+    >>> a = Body("a.stl", "a.stl", cube)
+    >>> b = Body("b.stl", "b.stl", cube.copy().apply_translation([0.7, 0, 0]))
+    >>> result = check_bodies([a, b], jobs=1)
+    >>> page = render_html(result, [a, b], fail_on=None, inputs=["a.stl", "b.stl"], version="0.1")
+    >>> page.startswith("<!DOCTYPE html>"), len(page) < 1_000_000
+    (True, True)
     """
     fail_on = resolve_fail_on(result, fail_on)
     origin = _scene_origin(bodies)

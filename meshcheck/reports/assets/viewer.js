@@ -155,12 +155,9 @@
       });
     const partMaterial = material(PART_COLOR, 0.18);
     const statusMaterials = {};
-    const selectedMaterials = {};
     for (const [status, color] of Object.entries(STATUS_COLORS)) {
       statusMaterials[status] = material(color, 0.3);
-      selectedMaterials[status] = material(color, 0.5);
     }
-    selectedMaterials.none = material(PART_COLOR, 0.6);
     const edgeMaterial = new T.LineBasicMaterial({ color: 0x30343a, transparent: true, opacity: 0.28 });
     const clashMaterial = material(CLASH_COLOR, 1.0);
 
@@ -186,7 +183,7 @@
       parts.add(mesh, lines);
       const box = geometries[part.mesh].boundingBox.clone().applyMatrix4(m);
       sceneBox.union(box);
-      partObjects.set(part.name, { mesh, base, box, status: part.status });
+      partObjects.set(part.name, { mesh, box });
     }
     scene.add(parts);
 
@@ -200,10 +197,14 @@
         objects.push(solid);
       }
       if (f.line !== null) {
+        // The closest points and the segment between them, drawn over everything (transparent
+        // objects are drawn last, in renderOrder), so the parts around them cannot hide them.
         const g = new T.BufferGeometry();
         g.setAttribute("position", new T.Float32BufferAttribute(f.line.flat(), 3));
         const color = f.approved !== null ? STATUS_COLORS.approved : STATUS_COLORS[f.status];
-        objects.push(new T.LineSegments(g, new T.LineBasicMaterial({ color, depthTest: false })));
+        const over = { color, depthTest: false, transparent: true };
+        objects.push(new T.LineSegments(g, new T.LineBasicMaterial(over)));
+        objects.push(new T.Points(g, new T.PointsMaterial({ ...over, size: 7, sizeAttenuation: false })));
       }
       for (const o of objects) {
         o.renderOrder = 3;
@@ -268,23 +269,14 @@
       lookAt(sceneSphere.center, 0.8 * radius, new T.Vector3(1, -1.2, 0.9));
     }
 
-    let selected = [];
     function frame(finding) {
-      for (const name of selected) {
-        const p = partObjects.get(name);
-        if (p) p.mesh.material = p.base;
-      }
-      selected = [finding.a, finding.b].filter((n) => partObjects.has(n));
+      const selected = [finding.a, finding.b].filter((n) => partObjects.has(n));
       const box = new T.Box3();
       if (finding.box) {
         box.set(new T.Vector3(...finding.box[0]), new T.Vector3(...finding.box[1]));
       }
       const union = new T.Box3();
-      for (const name of selected) {
-        const p = partObjects.get(name);
-        p.mesh.material = selectedMaterials[finding.approved !== null ? "approved" : finding.status];
-        union.union(p.box);
-      }
+      for (const name of selected) union.union(partObjects.get(name).box);
       if (box.isEmpty()) box.copy(union);
       if (box.isEmpty()) return;
       const sphere = box.getBoundingSphere(new T.Sphere());
@@ -321,7 +313,8 @@
       tr.tabIndex = 0;
       if (f.fails) tr.classList.add("fails");
       const status = el("td");
-      status.append(el("span", "badge " + key, f.status));
+      status.append(el("span", "badge " + f.status, f.status));
+      if (f.approved !== null) status.append(" ", el("span", "badge approved", "approved"));
       if (f.fails) status.append(" ", el("span", "fails-mark", "fails"));
       if (f.surface_only) status.append(" ", el("span", "note", "surface only"));
       const parts = el("td", "part");
