@@ -43,6 +43,7 @@ SAME_SHAPE = 1e-4
 # each once quantized, gzipped and base64-encoded, so a report stays near 12 MB whatever the
 # input, and a browser draws it smoothly. Larger assemblies are decimated for display only.
 DISPLAY_TRIANGLES = 600_000
+_CANDIDATES = 8  # earlier distinct meshes a new mesh is compared with, per topology
 MIN_TRIANGLES = 500  # a mesh this small is never decimated: it would lose its shape
 _QUANT = 32767  # signed 16-bit vertex grid over half of each mesh's largest extent
 _SEVERITY = (INTERFERENCE, CLEARANCE, TOUCHING)  # colour of a part in several findings
@@ -108,7 +109,7 @@ def render_html(
     # Distinct display meshes: (vertices, faces) frame-local, found once per instance or copy.
     shapes: list[tuple[np.ndarray, np.ndarray]] = []
     relatives: list[np.ndarray] = []  # vertices - box centre, to recognise translated copies
-    by_topology: dict[tuple, list[int]] = {}  # (vertex count, faces digest) -> shape indices
+    by_topology: dict[tuple, list[int]] = {}  # (vertex count, faces, extents) -> shape indices
     seen: dict[int, int] = {}  # id(body.mesh) -> shape index, for instances of one mesh
 
     def shape_of(body: Body) -> tuple[int, np.ndarray]:
@@ -120,10 +121,13 @@ def render_html(
             f = np.asarray(body.mesh.faces, dtype=np.int64)
             relative = v - centre
             size = float(np.ptp(v, axis=0).max())
-            key = (len(v), hashlib.sha256(f.tobytes()).hexdigest())
+            # Same vertex count, faces and (rounded) extents; then at most _CANDIDATES vertex
+            # comparisons, so a thousand distinct parts of one topology do not cost n^2.
+            extents = np.rint(np.ptp(v, axis=0) / (SAME_SHAPE * max(size, 1e-300)))
+            key = (len(v), hashlib.sha256(f.tobytes()).hexdigest(), extents.tobytes())
             same = (
                 j
-                for j in by_topology.get(key, [])
+                for j in by_topology.get(key, [])[-_CANDIDATES:]
                 if np.abs(relatives[j] - relative).max(initial=0.0) <= SAME_SHAPE * size
             )
             k = next(same, None)
