@@ -207,6 +207,23 @@ def test_large_assemblies_are_simplified_for_display(monkeypatch):
         np.testing.assert_allclose(radius, body.mesh.bounding_sphere.primitive.radius, rtol=0.03)
 
 
+def test_context_parts_become_hulls_when_decimation_is_not_enough(monkeypatch):
+    monkeypatch.setattr(html_report, "DISPLAY_TRIANGLES", 600)
+    # 4096 long thin triangles, in no finding: quadric decimation stops near 2600
+    rod = trimesh.creation.cylinder(radius=1, height=20, sections=64).subdivide().subdivide()
+    far = Body("far.stl", "far.stl", rod.apply_translation([10, 0, 0]))
+    a = box("a.stl", [0, 0, 0], [1, 1, 1])
+    b = box("b.stl", [0.5, 0, 0], [2, 1, 1])
+    bodies = [a, b, far]
+    result = check_bodies(bodies, jobs=1)
+    assert {(f.a, f.b) for f in result.findings} == {("a.stl", "b.stl")}
+    data, _ = embedded(render_html(result, bodies, fail_on=None, version="x"))
+    by_name = {p["name"]: data["meshes"][p["mesh"]] for p in data["parts"]}
+    assert by_name["a.stl"]["nf"] == by_name["b.stl"]["nf"] == 12  # kept as they are
+    assert by_name["far.stl"]["nf"] == len(rod.convex_hull.faces)
+    assert data["triangles"]["shown"] <= 600 < data["triangles"]["parts"]
+
+
 def test_clearance_line_joins_the_closest_points():
     """Edges 0.2 apart diagonally: x grows from a to b while y falls, so the box of the two
     points has them on its (x max, y min) diagonal, not on (min, max)."""

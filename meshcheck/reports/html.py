@@ -150,7 +150,8 @@ def render_html(
         parts.append(row)
 
     triangles = sum(len(f) for _, f in shapes)
-    shown = _simplified(shapes, budget=DISPLAY_TRIANGLES)
+    in_findings = {k for row, _, k, _ in placed if row["status"] is not None}
+    shown = _simplified(shapes, budget=DISPLAY_TRIANGLES, keep=in_findings)
     meshes = [
         _quantize(v, f, centre=_box_centre(original))
         for (v, f), (original, _) in zip(shown, shapes, strict=True)
@@ -240,23 +241,38 @@ def _scene_origin(bodies: Sequence[Body]) -> np.ndarray:
 
 
 def _simplified(
-    shapes: Sequence[tuple[np.ndarray, np.ndarray]], *, budget: int
+    shapes: Sequence[tuple[np.ndarray, np.ndarray]], *, budget: int, keep: Collection[int] = ()
 ) -> list[tuple[np.ndarray, np.ndarray]]:
-    """The display meshes, decimated (quadric error, fast_simplification) when together they
-    hold more than ``budget`` triangles: each mesh above ``MIN_TRIANGLES`` keeps its share."""
+    """The display meshes, within about ``budget`` triangles together.
+
+    First each mesh over ``MIN_TRIANGLES`` is decimated to its share (quadric error,
+    fast_simplification); that stops early on long thin CAD triangles, so if the total is still
+    over, the largest meshes not in ``keep`` (the parts in no finding, shown only for context)
+    are drawn as their convex hulls until it is not.
+    """
     total = sum(len(f) for _, f in shapes)
     if total <= budget:
         return list(shapes)
     small = sum(len(f) for _, f in shapes if len(f) <= MIN_TRIANGLES)
-    keep = max(budget - small, 0) / max(total - small, 1)
+    share = max(budget - small, 0) / max(total - small, 1)
     out = []
     for v, f in shapes:
-        target = max(MIN_TRIANGLES, int(len(f) * keep))
+        target = max(MIN_TRIANGLES, int(len(f) * share))
         if len(f) > target:
             mesh = trimesh.Trimesh(vertices=v, faces=f, process=False)
             mesh = mesh.simplify_quadric_decimation(face_count=target)
             v, f = np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64)
         out.append((v, f))
+    total = sum(len(f) for _, f in out)
+    for k in sorted(range(len(out)), key=lambda k: -len(out[k][1])):
+        if total <= budget:
+            break
+        if k in keep:
+            continue
+        hull = trimesh.Trimesh(vertices=out[k][0], faces=out[k][1], process=False).convex_hull
+        if len(hull.faces) < len(out[k][1]):
+            total += len(hull.faces) - len(out[k][1])
+            out[k] = (np.asarray(hull.vertices, np.float64), np.asarray(hull.faces, np.int64))
     return out
 
 
