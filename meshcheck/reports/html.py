@@ -22,7 +22,7 @@ import gzip
 import hashlib
 import json
 import math
-from collections.abc import Collection, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 from importlib import resources
 
@@ -150,8 +150,12 @@ def render_html(
         parts.append(row)
 
     triangles = sum(len(f) for _, f in shapes)
-    in_findings = {k for row, _, k, _ in placed if row["status"] is not None}
-    shown = _simplified(shapes, budget=DISPLAY_TRIANGLES, keep=in_findings)
+    # What a part may lose first: 0 in no finding, 1 only touching or approved, 2 otherwise.
+    tiers: dict[int, int] = {}
+    for row, _, k, _ in placed:
+        tier = {None: 0, TOUCHING: 1, "approved": 1}.get(row["status"], 2)
+        tiers[k] = max(tiers.get(k, 0), tier)
+    shown = _simplified(shapes, budget=DISPLAY_TRIANGLES, tiers=tiers)
     meshes = [
         _quantize(v, f, centre=_box_centre(original))
         for (v, f), (original, _) in zip(shown, shapes, strict=True)
@@ -241,15 +245,20 @@ def _scene_origin(bodies: Sequence[Body]) -> np.ndarray:
 
 
 def _simplified(
-    shapes: Sequence[tuple[np.ndarray, np.ndarray]], *, budget: int, keep: Collection[int] = ()
+    shapes: Sequence[tuple[np.ndarray, np.ndarray]],
+    *,
+    budget: int,
+    tiers: Mapping[int, int] | None = None,
 ) -> list[tuple[np.ndarray, np.ndarray]]:
     """The display meshes, within about ``budget`` triangles together.
 
     First each mesh over ``MIN_TRIANGLES`` is decimated to its share (quadric error,
     fast_simplification); that stops early on long thin CAD triangles, so if the total is still
-    over, the largest meshes not in ``keep`` (the parts in no finding, shown only for context)
-    are drawn as their convex hulls until it is not.
+    over, meshes are drawn as their convex hulls until it is not: those of tier 0 (parts in no
+    finding, shown for context) largest first, then tier 1 (parts only touching or approved).
+    Meshes of higher tiers (parts in an interference or clearance finding) keep their shape.
     """
+    tiers = {} if tiers is None else tiers
     total = sum(len(f) for _, f in shapes)
     if total <= budget:
         return list(shapes)
@@ -264,11 +273,9 @@ def _simplified(
             v, f = np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64)
         out.append((v, f))
     total = sum(len(f) for _, f in out)
-    for k in sorted(range(len(out)), key=lambda k: -len(out[k][1])):
-        if total <= budget:
+    for k in sorted(range(len(out)), key=lambda k: (tiers.get(k, 0), -len(out[k][1]))):
+        if total <= budget or tiers.get(k, 0) > 1:
             break
-        if k in keep:
-            continue
         hull = trimesh.Trimesh(vertices=out[k][0], faces=out[k][1], process=False).convex_hull
         if len(hull.faces) < len(out[k][1]):
             total += len(hull.faces) - len(out[k][1])
