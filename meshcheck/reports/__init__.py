@@ -5,14 +5,13 @@ one by name. Every format shows each finding's stable ID (``Finding.id``), its b
 there is a baseline, and renders part names (which come from files) as data: ``printable`` for
 text, escapes for Markdown, XML and JSON.
 
-``html`` is rendered by ``reports/html.py`` when that module is present (it draws the parts, so it
-also needs the bodies); ``FORMATS`` lists it only then.
+``html`` (``reports/html.py``) draws the parts too, so it also takes the bodies
+(``CheckResult.bodies``), the inputs and the version.
 """
 
 from __future__ import annotations
 
 import importlib
-import importlib.util
 from collections.abc import Sequence
 
 from ..results import CheckResult
@@ -24,18 +23,7 @@ from .common import (
     summary_line,
 )
 
-#: Formats whose module takes only the result.
-_MODULES = ("text", "json", "junit", "github", "sarif", "markdown")
-
-
-def _has_html() -> bool:
-    try:
-        return importlib.util.find_spec(f"{__name__}.html") is not None
-    except ImportError:  # pragma: no cover
-        return False
-
-
-FORMATS: tuple[str, ...] = (*_MODULES, "html") if _has_html() else _MODULES
+FORMATS = ("text", "json", "junit", "github", "sarif", "markdown", "html")
 
 
 def render(result: CheckResult, fmt: str = "text", *, inputs: Sequence[str] = ()) -> str:
@@ -51,8 +39,6 @@ def render(result: CheckResult, fmt: str = "text", *, inputs: Sequence[str] = ()
 
 
 def _render_html(result: CheckResult, *, inputs: Sequence[str]) -> str:
-    # HOOK for reports/html.py (written separately): imported here only, so the other formats
-    # work without it. Adjust the arguments at merge if its signature differs.
     from importlib import metadata
 
     from .html import render_html

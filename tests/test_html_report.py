@@ -1,0 +1,378 @@
+"""The HTML report: its data round-trips, hostile names stay text, it works in a real browser."""
+
+from __future__ import annotations
+
+import base64
+import dataclasses
+import gzip
+import io
+import json
+import os
+import re
+import socket
+import sys
+
+import numpy as np
+import pytest
+import trimesh
+
+from meshcheck.config import Approval
+from meshcheck.load import Body
+from meshcheck.pipeline import check_bodies
+from meshcheck.reports import html as html_report
+from meshcheck.reports.html import closest_points, render_html
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(__file__)), "scripts"))
+
+HOSTILE = (
+    "evil</script><script>window.__pwned=1</script>\"'\n\x1b[31m\u2028"
+    '<img src=x onerror="window.__pwned=2">&amp;'
+)
+
+
+def box(name: str, lower, upper) -> Body:
+    lower, upper = np.asarray(lower, float), np.asarray(upper, float)
+    mesh = trimesh.creation.box(extents=upper - lower)
+    mesh.apply_translation(0.5 * (lower + upper))
+    return Body(name=name, path=name, mesh=mesh)
+
+
+def assembly() -> list[Body]:
+    """Interference, touching, clearance and an approved interference, on boxes (no CoACD)."""
+    return [
+        box("base.stl", [0, 0, 0], [10, 10, 1]),
+        box("sunk.stl", [1, 1, 0.7], [3, 3, 3]),  # 0.3 into the base: interference
+        box("resting.stl", [5, 1, 1], [7, 3, 2]),  # on the base: touching
+        box("near.stl", [4, 4, 1.2], [5, 5, 2]),  # 0.2 above the base: clearance
+        box(HOSTILE, [8, 8, 0.5], [9, 9, 2]),  # 0.5 into the base, approved
+    ]
+
+
+@pytest.fixture(scope="module")
+def checked():
+    bodies = assembly()
+    result = check_bodies(
+        bodies,
+        clearance=0.25,
+        jobs=1,
+        approvals=[Approval("evil*", "base.stl", "press fit\n</script>\x1b[0m")],
+    )
+    return result, bodies
+
+
+def render(checked, **options) -> str:
+    result, bodies = checked
+    options = {"inputs": [b.path for b in bodies], "version": "0.1.0", **options}
+    return render_html(result, bodies, **options)
+
+
+def embedded(text: str) -> tuple[dict, bytes]:
+    """The report's JSON data and its inflated geometry buffer."""
+    data = re.search(r'<script type="application/json" id="meshcheck-data">(.*?)</script>', text)
+    blob = re.search(
+        r'<script type="application/octet-stream" id="meshcheck-geometry">(.*?)<', text
+    )
+    return json.loads(data.group(1)), gzip.decompress(base64.b64decode(blob.group(1)))
+
+
+def decoded_vertices(data: dict, buffer: bytes, k: int, matrix) -> np.ndarray:
+    """Vertices of display mesh ``k`` placed by a column-major 4x4 ``matrix``."""
+    m = data["meshes"][k]
+    grid = np.frombuffer(buffer, dtype="<i2", count=3 * m["nv"], offset=m["pos"]).reshape(-1, 3)
+    mat = np.asarray(matrix, dtype=np.float64).reshape(4, 4).T
+    return grid @ mat[:3, :3].T + mat[:3, 3]
+
+
+# ---------------------------------------------------------------------------------------------
+# the file itself
+
+
+def test_findings_of_every_status(checked):
+    result, _ = checked
+    statuses = {(f.a, f.b): (f.status, f.approval_reason) for f in result.findings}
+    assert statuses[("base.stl", "sunk.stl")] == ("interference", None)
+    assert statuses[("base.stl", "resting.stl")] == ("touching", None)
+    assert statuses[("base.stl", "near.stl")] == ("clearance", None)
+    assert statuses[("base.stl", HOSTILE)][1] == "press fit\n</script>\x1b[0m"
+
+
+def test_hostile_names_are_data(checked):
+    text = render(checked, units="mm</script>", inputs=[HOSTILE, "a\u2029b"])
+    # Exactly the four scripts of the template; no input opened or closed an element.
+    assert text.count("<script") == 4
+    assert text.count("</script>") == 4
+    assert "<img" not in text
+    for raw in ("\x1b", "\u2028", "\u2029", "\n\x1b"):
+        assert raw not in text
+    data, _ = embedded(text)
+    names = {p["name"] for p in data["parts"]}
+    assert HOSTILE in names
+    assert data["inputs"] == [HOSTILE, "a\u2029b"]
+    assert data["units"] == "mm</script>"
+    approved = [f for f in data["findings"] if f["approved"] is not None]
+    assert [(f["b"], f["approved"]) for f in approved] == [(HOSTILE, "press fit\n</script>\x1b[0m")]
+    assert not approved[0]["fails"]
+
+
+def test_summary_matches_the_report_module(checked):
+    from meshcheck.reports import summary
+
+    result, _ = checked
+    data, _ = embedded(render(checked))
+    assert data["summary"] == summary(result)
+    assert data["summary"]["passed"] is False
+    report_only = dataclasses.replace(result, settings=result.settings.replace(fail_on=()))
+    strict, _ = embedded(render((report_only, checked[1])))
+    assert strict["summary"]["passed"] is True
+    assert not any(f["fails"] for f in strict["findings"])
+
+
+def test_geometry_round_trips_within_the_grid(checked):
+    """Decoding the buffer and placing each part gives its world vertices, to 16-bit accuracy."""
+    _, bodies = checked
+    data, buffer = embedded(render(checked))
+    origin = None
+    for part in data["parts"]:
+        body = next(b for b in bodies if b.name == part["name"])
+        v = decoded_vertices(data, buffer, part["mesh"], part["matrix"])
+        world = np.asarray(body.world.vertices)
+        if origin is None:  # the view is relative to the assembly's centre
+            lo = np.min([b.world.bounds[0] for b in bodies], axis=0)
+            hi = np.max([b.world.bounds[1] for b in bodies], axis=0)
+            origin = 0.5 * (lo + hi)
+        step = np.ptp(world, axis=0).max() / 65534
+        np.testing.assert_allclose(v + origin, world, rtol=0, atol=step)
+
+
+def test_interference_volume_is_the_shared_solid(checked):
+    data, buffer = embedded(render(checked))
+    (sunk,) = [f for f in data["findings"] if f["b"] == "sunk.stl"]
+    m = data["meshes"][sunk["solid"]]
+    v = decoded_vertices(data, buffer, sunk["solid"], m["matrix"])
+    # base [0,10]^2 x [0,1], sunk [1,3]^2 x [0.7,3]: they share [1,3]^2 x [0.7,1]
+    extent = np.ptp(v, axis=0)
+    np.testing.assert_allclose(extent, [2, 2, 0.3], atol=1e-4)
+    clearance = next(f for f in data["findings"] if f["status"] == "clearance")
+    assert clearance["solid"] is None
+
+
+def test_instances_and_translated_copies_share_geometry():
+    plate = trimesh.creation.box(extents=[4, 4, 1])
+    bodies = []
+    for k in range(3):  # instances of one mesh in a glTF file: rotated, 10 apart
+        transform = trimesh.transformations.rotation_matrix(0.3 * k, [0, 0, 1])
+        transform[:3, 3] = [10 * k, 0, 0]
+        bodies.append(Body(name=f"inst{k}", path="a.glb", mesh=plate, transform=transform))
+    copy = plate.copy().apply_translation([0, 50, 1000])  # an STL file of the same part, moved
+    bodies.append(Body(name="copy.stl", path="copy.stl", mesh=copy))
+    other = trimesh.creation.box(extents=[4, 4, 2]).apply_translation([0, -50, 0])
+    bodies.append(Body(name="other.stl", path="other.stl", mesh=other))
+    result = check_bodies(bodies, jobs=1)
+    data, buffer = embedded(render_html(result, bodies, version="x"))
+    assert result.findings == []
+    assert len(data["meshes"]) == 2  # the plate once, the thicker box once
+    assert len({p["mesh"] for p in data["parts"]}) == 2
+    centre = 0.5 * (
+        np.min([b.world.bounds[0] for b in bodies], axis=0)
+        + np.max([b.world.bounds[1] for b in bodies], axis=0)
+    )
+    for part, body in zip(data["parts"], bodies, strict=True):
+        v = decoded_vertices(data, buffer, part["mesh"], part["matrix"]) + centre
+        np.testing.assert_allclose(v, body.world.vertices, rtol=0, atol=1e-3)
+
+
+def test_large_assemblies_are_simplified_for_display(monkeypatch):
+    monkeypatch.setattr(html_report, "DISPLAY_TRIANGLES", 3000)
+    spheres = []
+    for k in range(3):  # 5120 triangles each, distinct radii so nothing is shared
+        mesh = trimesh.creation.icosphere(subdivisions=4, radius=1.0 + 0.1 * k)
+        spheres.append(
+            Body(name=f"s{k}.stl", path=f"s{k}.stl", mesh=mesh.apply_translation([5 * k, 0, 0]))
+        )
+    small = box("small.stl", [0, 5, 0], [1, 6, 1])  # 12 triangles: kept as it is
+    bodies = [*spheres, small]
+    result = check_bodies(bodies, jobs=1)
+    data, buffer = embedded(render_html(result, bodies, version="x"))
+    assert data["triangles"]["parts"] == 3 * 5120 + 12
+    assert data["triangles"]["shown"] <= 3000 * 1.05
+    centre = 0.5 * (
+        np.min([b.world.bounds[0] for b in bodies], axis=0)
+        + np.max([b.world.bounds[1] for b in bodies], axis=0)
+    )
+    for part, body in zip(data["parts"], bodies, strict=True):
+        v = decoded_vertices(data, buffer, part["mesh"], part["matrix"]) + centre
+        if body is small:
+            np.testing.assert_allclose(v, body.world.vertices, rtol=0, atol=1e-3)
+            continue
+        assert data["meshes"][part["mesh"]]["nf"] < 1500
+        radius = np.linalg.norm(v - body.world.centroid, axis=1)
+        np.testing.assert_allclose(radius, body.mesh.bounding_sphere.primitive.radius, rtol=0.03)
+
+
+def test_context_parts_become_hulls_when_decimation_is_not_enough(monkeypatch):
+    monkeypatch.setattr(html_report, "DISPLAY_TRIANGLES", 600)
+    # 4096 long thin triangles, in no finding: quadric decimation stops near 2600
+    rod = trimesh.creation.cylinder(radius=1, height=20, sections=64).subdivide().subdivide()
+    far = Body("far.stl", "far.stl", rod.apply_translation([10, 0, 0]))
+    a = box("a.stl", [0, 0, 0], [1, 1, 1])
+    b = box("b.stl", [0.5, 0, 0], [2, 1, 1])
+    bodies = [a, b, far]
+    result = check_bodies(bodies, jobs=1)
+    assert {(f.a, f.b) for f in result.findings} == {("a.stl", "b.stl")}
+    data, _ = embedded(render_html(result, bodies, version="x"))
+    by_name = {p["name"]: data["meshes"][p["mesh"]] for p in data["parts"]}
+    assert by_name["a.stl"]["nf"] == by_name["b.stl"]["nf"] == 12  # kept as they are
+    assert by_name["far.stl"]["nf"] == len(rod.convex_hull.faces)
+    assert data["triangles"]["shown"] <= 600 < data["triangles"]["parts"]
+
+
+def test_clearance_line_joins_the_closest_points():
+    """Edges 0.2 apart diagonally: x grows from a to b while y falls, so the box of the two
+    points has them on its (x max, y min) diagonal, not on (min, max)."""
+    a = box("a.stl", [0, 0, 0], [1, 1, 1])
+    b = box("b.stl", [1.2, -1.2, 0], [2.2, -0.2, 1])
+    result = check_bodies([a, b], clearance=0.5, jobs=1)
+    (finding,) = result.findings
+    assert finding.status == "clearance"
+    p, q = closest_points(a, b, finding)
+    np.testing.assert_allclose(np.linalg.norm(q - p), finding.distance, rtol=1e-9)
+    np.testing.assert_allclose(p[:2], [1, 0], atol=1e-9)
+    np.testing.assert_allclose(q[:2], [1.2, -0.2], atol=1e-9)
+    data, _ = embedded(render_html(result, [a, b], version="x"))
+    line = np.asarray(data["findings"][0]["line"])
+    np.testing.assert_allclose(np.linalg.norm(line[1] - line[0]), finding.distance, rtol=1e-6)
+
+
+def test_names_nothing_from_the_machine(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    for name, lower, upper in (("a.stl", [0, 0, 0], [1, 1, 1]), ("b.stl", [0.5, 0, 0], [2, 1, 1])):
+        box(name, lower, upper).mesh.export(name)
+    from meshcheck.load import load_bodies
+    from meshcheck.pipeline import check
+
+    result = check(["a.stl", "b.stl"], jobs=1)
+    text = render_html(
+        result,
+        load_bodies(["a.stl", "b.stl"]),
+        inputs=["a.stl", "b.stl"],
+        version="0.1.0",
+    )
+    data, _ = embedded(text)
+    # Everything but the fixed assets (checked not to vary below) and the geometry's base64.
+    readable = text.replace(re.search(r'id="meshcheck-geometry">(.*?)<', text).group(1), "")
+    for asset in ("three.min.js", "viewer.js", "viewer.css", "three.LICENSE"):
+        readable = readable.replace(html_report._asset(asset), "")
+    for secret in (str(tmp_path), os.path.expanduser("~"), socket.gethostname(), sys.prefix):
+        assert secret not in readable
+    assert {p["name"] for p in data["parts"]} == {"a.stl", "b.stl"}
+    assert len(readable) < 10_000  # the assets were found and removed
+
+
+def test_output_is_deterministic(checked):
+    assert render(checked) == render(checked)
+
+
+def test_inlined_scripts_cannot_close_their_element():
+    with pytest.raises(ValueError):
+        html_report._script("x = '</SCRIPT>'")
+    with pytest.raises(ValueError):
+        html_report._script("x = '<!--'")
+    assert html_report._asset("three.min.js").startswith("/* three.js 0.187.0")
+    assert "MIT License" in html_report._asset("three.LICENSE")
+
+
+# ---------------------------------------------------------------------------------------------
+# in a real browser
+
+
+@pytest.fixture(scope="module")
+def browser_page():
+    if os.environ.get("CI"):  # CI installs both: a skip there would hide a broken report
+        import playwright  # noqa: F401
+    else:
+        pytest.importorskip("playwright")
+    from chromium import chromium_page, find_chromium
+
+    if find_chromium() is None:
+        if os.environ.get("CI"):
+            pytest.fail("chromium is not installed (.ci/run installs it)")
+        pytest.skip("chromium is not installed (apt-get install chromium)")
+    with chromium_page(width=1280, height=720, timeout=30) as (page, errors):
+        yield page, errors
+
+
+def pixel_spread(png: bytes) -> float:
+    from PIL import Image
+
+    pixels = np.asarray(Image.open(io.BytesIO(png)).convert("RGB"), dtype=np.float64)
+    return float(pixels.std(axis=(0, 1)).mean())
+
+
+@pytest.mark.slow
+def test_report_in_chromium(checked, browser_page, tmp_path):
+    page, errors = browser_page
+    result, _ = checked
+    path = tmp_path / "report.html"
+    path.write_text(render(checked, inputs=[HOSTILE]), encoding="utf-8")
+    requests = []
+    page.on("request", lambda r: requests.append(r.url))
+    page.goto(path.as_uri())
+    page.wait_for_function("document.body.dataset.ready")
+    assert page.evaluate("document.body.dataset.ready") == "true"
+    assert page.evaluate("window.__pwned") is None
+    assert errors == []
+    assert requests == [path.as_uri()]  # the page itself, nothing else: no network
+
+    # The 3D view drew something: a blank canvas is one colour.
+    canvas = page.locator("#view canvas")
+    assert pixel_spread(canvas.screenshot()) > 10
+    (tmp_path / "screenshot.png").write_bytes(page.screenshot())
+
+    # Header and table.
+    assert page.locator("#verdict").inner_text() == "FAIL"
+    rows = page.locator("#findings tbody tr")
+    assert rows.count() == len(result.findings)
+    ids = [rows.nth(k).get_attribute("data-id") for k in range(rows.count())]
+    assert ids == [f.id for f in result.findings]
+    hostile_row = page.locator("#findings tbody tr[data-status=approved]")
+    assert hostile_row.count() == 1
+    shown = hostile_row.inner_text()
+    assert "evil</script><script>window.__pwned=1</script>" in shown
+    assert "\\u001b[31m" in shown and "\\u2028" in shown  # control characters shown as escapes
+    assert "approved: press fit\\u000a</script>\\u001b[0m" in shown
+    inputs = page.locator("#header .inputs li").all_text_contents()  # folded: not "inner"
+    assert inputs == [
+        HOSTILE.replace("\n", "\\u000a").replace("\x1b", "\\u001b").replace("\u2028", "\\u2028")
+    ]
+
+    # Clicking a row frames that finding: the camera moves and looks at its location.
+    before = page.evaluate("window.meshcheckView.camera.position.toArray()")
+    sunk = next(f for f in result.findings if f.b == "sunk.stl")
+    page.locator(f"#findings tbody tr[data-id='{sunk.id}']").click()
+    after = page.evaluate("window.meshcheckView.camera.position.toArray()")
+    target = np.array(page.evaluate("window.meshcheckView.controls.target.toArray()"))
+    assert np.linalg.norm(np.subtract(after, before)) > 1.0
+    data, _ = embedded(path.read_text(encoding="utf-8"))
+    box = np.asarray(next(f for f in data["findings"] if f["id"] == sunk.id)["box"])
+    np.testing.assert_allclose(target, box.mean(axis=0), atol=1e-6)
+
+    # Filtering by status hides those rows only.
+    page.locator("#filters input[data-status=touching]").uncheck()
+    visible = page.locator("#findings tbody tr:visible")
+    assert visible.count() == len(result.findings) - 1
+    assert errors == []
+
+
+@pytest.mark.slow
+def test_report_without_findings_in_chromium(browser_page, tmp_path):
+    page, errors = browser_page
+    bodies = [box("a.stl", [0, 0, 0], [1, 1, 1]), box("b.stl", [3, 0, 0], [4, 1, 1])]
+    result = check_bodies(bodies, jobs=1)
+    path = tmp_path / "clear.html"
+    path.write_text(render_html(result, bodies, version="0.1.0"), encoding="utf-8")
+    page.goto(path.as_uri())
+    page.wait_for_function("document.body.dataset.ready")
+    assert page.locator("#verdict").inner_text() == "PASS"
+    assert "No findings" in page.locator("#findings tbody").inner_text()
+    assert pixel_spread(page.locator("#view canvas").screenshot()) > 5
+    assert errors == []
