@@ -274,11 +274,24 @@ def _simplified(
     for k in sorted(range(len(out)), key=lambda k: (tiers.get(k, 0), -len(out[k][1]))):
         if total <= budget or tiers.get(k, 0) > 1:
             break
-        hull = trimesh.Trimesh(vertices=out[k][0], faces=out[k][1], process=False).convex_hull
-        if len(hull.faces) < len(out[k][1]):
-            total += len(hull.faces) - len(out[k][1])
-            out[k] = (np.asarray(hull.vertices, np.float64), np.asarray(hull.faces, np.int64))
+        hull = _hull(out[k][0])
+        if hull is not None and len(hull[1]) < len(out[k][1]):
+            total += len(hull[1]) - len(out[k][1])
+            out[k] = hull
     return out
+
+
+def _hull(v: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """Convex hull (vertices, faces) of a point set; None when it is flat. Faces are not
+    consistently wound: the view draws both sides."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    try:
+        simplices = ConvexHull(v).simplices
+    except (QhullError, ValueError):
+        return None
+    used, faces = np.unique(simplices, return_inverse=True)
+    return np.asarray(v[used], np.float64), faces.reshape(-1, 3).astype(np.int64)
 
 
 def _box_centre(v: np.ndarray) -> np.ndarray:
