@@ -20,6 +20,7 @@ from .config import (
     Config,
     Groups,
     checked_number,
+    checked_scheduler,
     find_config,
     load_config,
     parse_fail_on,
@@ -28,6 +29,7 @@ from .errors import ConfigError
 from .results import Verdict
 
 DEFAULT_THRESHOLD = 0.1  # CoACD concavity threshold; see decompose.DEFAULT_OPTIONS
+SCHEDULER_VARIABLE = "MESHCHECK_SCHEDULER"  # the environment's default for --scheduler
 
 # ---------------------------------------------------------------------------------------------
 # The touching tolerance of a pair, when none is given. It comes from the pair alone, never from
@@ -115,6 +117,8 @@ class Settings:
         Cache directory; None neither reads nor writes a cache.
     jobs : int or None
         Worker processes; None: all cores.
+    scheduler : str or None
+        Address of a Dask scheduler: decomposition and pair verification run on its cluster.
     config_path : str or None
         The configuration file the settings came from, if any.
     """
@@ -129,6 +133,7 @@ class Settings:
     units: str | None = None
     cache_dir: str | None = None
     jobs: int | None = None
+    scheduler: str | None = None
     config_path: str | None = None
 
     def __post_init__(self):
@@ -140,6 +145,8 @@ class Settings:
             isinstance(self.jobs, bool) or not isinstance(self.jobs, int) or self.jobs < 1
         ):
             raise ConfigError(None, f"jobs must be a whole number of at least 1, not {self.jobs!r}")
+        if self.scheduler is not None:
+            object.__setattr__(self, "scheduler", checked_scheduler(self.scheduler))
         object.__setattr__(self, "fail_on", tuple(Verdict(s) for s in self.fail_on))
         object.__setattr__(self, "approvals", tuple(self.approvals))
 
@@ -159,6 +166,7 @@ class Settings:
         cache_dir: str | os.PathLike | None = None,
         use_cache: bool = True,
         jobs: int | None = None,
+        scheduler: str | None = None,
     ) -> Settings:
         """Merge options (None: not given) with a configuration file, and validate.
 
@@ -174,6 +182,9 @@ class Settings:
             default, which is interference plus clearance when a clearance is set.
         cache_dir : path, optional
             Cache directory; default the user's cache directory. ``use_cache=False`` disables it.
+        scheduler : str, optional
+            Dask scheduler address; default ``MESHCHECK_SCHEDULER``, then the file's
+            ``scheduler``. An empty string means none (run locally).
 
         Raises
         ------
@@ -209,6 +220,7 @@ class Settings:
             units=units,
             cache_dir=cache,
             jobs=jobs,
+            scheduler=pick(scheduler, os.environ.get(SCHEDULER_VARIABLE) or file.scheduler) or None,
             config_path=file.path,
         )
 
