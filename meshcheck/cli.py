@@ -175,7 +175,10 @@ def main(
     except MeshcheckError as exc:
         _fail(exc)
 
-    from .pipeline import check
+    from .progress import Progress
+
+    with Progress("starting", 0):  # numba, trimesh, scipy: seconds on a cold disk
+        from .pipeline import check
 
     error = None
     with warnings.catch_warnings(record=True) as caught:

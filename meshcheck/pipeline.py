@@ -121,14 +121,14 @@ def check_bodies(bodies: Sequence[Body], settings: Settings | None = None, **fie
     names = [_names(b) for b in bodies]
     _check_patterns(settings, names)
 
-    hulls = pack_convex(_world_hulls(bodies), is_hull=True)
-    diagonal, magnitude = part_sizes(hulls.lower, hulls.upper)
-    pairs = select_pairs(hulls, settings, names, diagonal, magnitude)
-    tolerance = _tolerances(settings, diagonal, magnitude, pairs)
-    reach = tolerance + (settings.clearance or 0.0)
-
-    hull_query = query_pairs(hulls, pairs, tolerance=tolerance, depth=False, max_distance=reach)
-    near = within(hull_query, reach)
+    with Progress("comparing hulls", 0):  # the first run in an environment compiles GJK here
+        hulls = pack_convex(_world_hulls(bodies), is_hull=True)
+        diagonal, magnitude = part_sizes(hulls.lower, hulls.upper)
+        pairs = select_pairs(hulls, settings, names, diagonal, magnitude)
+        tolerance = _tolerances(settings, diagonal, magnitude, pairs)
+        reach = tolerance + (settings.clearance or 0.0)
+        hull_query = query_pairs(hulls, pairs, tolerance=tolerance, depth=False, max_distance=reach)
+        near = within(hull_query, reach)
     pairs_near, tol_near, reach_near = pairs[near], tolerance[near], reach[near]
     with executor_for(jobs=settings.jobs, scheduler=settings.scheduler) as executor:
         pieces, owner, piece_count = decompose_parts(
