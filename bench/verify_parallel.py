@@ -73,7 +73,7 @@ def main(argv=None) -> None:
             sl = slice(0, n)
             start = time.perf_counter()
             serial = pipeline._verify(
-                bodies, pairs[sl], tolerance[sl], surfaces[sl], None, None, len
+                bodies, pairs[sl], tolerance[sl], surfaces[sl], None, None, _ignore
             )
             t_serial = time.perf_counter() - start
             start = time.perf_counter()

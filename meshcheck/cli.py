@@ -118,7 +118,16 @@ def _fail_on_option(ctx, param, values):
     "-j",
     type=click.IntRange(min=1),
     default=None,
-    help="Processes for decomposition. Default: all cores.",
+    help="Local worker processes for decomposition and pair verification (small runs verify "
+    "in this process). Default: all cores.",
+)
+@click.option(
+    "--scheduler",
+    default=None,
+    metavar="ADDRESS",
+    help="Run decomposition and pair verification on this Dask cluster (tcp://HOST:8786; "
+    'needs pip install "meshcheck[dask]"). Default: $MESHCHECK_SCHEDULER, then the config '
+    "file's scheduler; none runs locally.",
 )
 @click.option(
     "--export",
@@ -142,6 +151,7 @@ def main(
     cache_dir,
     no_cache,
     jobs,
+    scheduler,
     export_path,
 ):
     """Check the parts in FILES for interference, contact and clearance.
@@ -171,6 +181,7 @@ def main(
             cache_dir=cache_dir,
             use_cache=not no_cache,
             jobs=jobs,
+            scheduler=scheduler,
         )
     except MeshcheckError as exc:
         _fail(exc)

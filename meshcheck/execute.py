@@ -362,6 +362,8 @@ class DaskExecutor(Executor):
         self.task_count = 0
 
     def map(self, function, tasks, *, shared=None, progress=None, time_limit=None) -> list:
+        """See ``Executor.map``; ``time_limit`` is not enforced on a cluster (a Dask worker
+        cannot be killed per task): a CoACD overrun only takes longer there."""
         from distributed import wait
 
         shared = shared or {}
@@ -373,10 +375,30 @@ class DaskExecutor(Executor):
         for index in sorted(range(len(tasks)), key=lambda i: -tasks[i].size):
             running[self._submit(function, tasks[index], shared)] = index
         finished = 0
-        no_worker_since = None
+        healthy_at = time.monotonic()
+
+        def again(index: int, why: str) -> None:
+            """Send a task again (its worker or a value it needs was lost), or give up."""
+            attempts[index] += 1
+            if attempts[index] >= self.ATTEMPTS:
+                raise ExecutionError(
+                    self.address,
+                    f"a task was lost {self.ATTEMPTS} times on the cluster ({why}); "
+                    "workers keep dying?",
+                )
+            for key in tasks[index].needs:
+                old = self._scattered.get(key)
+                if old is not None and old.status != "finished":
+                    del self._scattered[key]
+            running[self._submit(function, tasks[index], shared)] = index
+
         try:
             while running:
-                done, _ = wait(list(running), timeout=1.0, return_when="FIRST_COMPLETED")
+                try:
+                    with self.client.as_current():
+                        done, _ = wait(list(running), timeout=1.0, return_when="FIRST_COMPLETED")
+                except TimeoutError:
+                    done = set()
                 for future in done:
                     index = running.pop(future)
                     if future.status == "finished":
@@ -387,39 +409,45 @@ class DaskExecutor(Executor):
                         finished += 1
                         if progress is not None:
                             progress(finished)
-                        continue
-                    # The task or a value it needs was lost with a worker: send it again.
-                    attempts[index] += 1
-                    if attempts[index] >= self.ATTEMPTS:
-                        raise ExecutionError(
-                            self.address,
-                            f"a task failed {self.ATTEMPTS} times on the cluster "
-                            f"({_describe(future)}); workers keep dying?",
-                        )
-                    for key in tasks[index].needs:
-                        old = self._scattered.get(key)
-                        if old is not None and old.status != "finished":
-                            del self._scattered[key]
-                    running[self._submit(function, tasks[index], shared)] = index
-                if not done:
-                    if self.client.status not in ("running", "connecting"):
-                        raise ExecutionError(self.address, "lost the Dask scheduler")
-                    workers = self.client.scheduler_info().get("workers", {})
-                    if workers:
-                        no_worker_since = None
-                    elif no_worker_since is None:
-                        no_worker_since = time.monotonic()
-                    elif time.monotonic() - no_worker_since > self.NO_WORKER_GRACE:
-                        raise ExecutionError(
-                            self.address,
-                            f"the cluster has had no worker for {self.NO_WORKER_GRACE:g} s",
-                        )
+                    else:
+                        again(index, _describe(future))
+                if done:
+                    healthy_at = time.monotonic()
+                    continue
+                # Nothing finished for a second: is anything still able to finish?
+                lost = [
+                    f
+                    for f, i in running.items()
+                    if any(
+                        self._scattered.get(k) is None or self._scattered[k].status != "finished"
+                        for k in tasks[i].needs
+                    )
+                ]
+                for future in lost:  # a value it needs died with its only worker
+                    future.cancel()
+                    again(running.pop(future), "a mesh it needs was lost with a worker")
+                if self._is_healthy():
+                    healthy_at = time.monotonic()
+                elif time.monotonic() - healthy_at > self.NO_WORKER_GRACE:
+                    raise ExecutionError(
+                        self.address,
+                        f"no scheduler or no worker for {self.NO_WORKER_GRACE:g} s; giving up",
+                    )
         except (OSError, TimeoutError) as exc:
             raise ExecutionError(self.address, f"lost the Dask scheduler ({exc})") from None
         finally:
             for future in running:
                 future.cancel()
         return results
+
+    def _is_healthy(self) -> bool:
+        """The client is connected and the cluster has at least one worker."""
+        if self.client.status != "running":
+            return False
+        try:
+            return bool(self.client.scheduler_info().get("workers"))
+        except Exception:  # the scheduler is gone or does not answer
+            return False
 
     def _submit(self, function: str, task: Task, shared: dict):
         import pickle
@@ -429,12 +457,11 @@ class DaskExecutor(Executor):
             if key not in self._scattered:
                 value = shared[key]
                 self.sent_bytes += len(pickle.dumps(value, protocol=5))
-                self._scattered[key] = self.client.scatter(value, hash=False)
+                # in a list, so a tuple value travels as one piece, not one per element
+                self._scattered[key] = self.client.scatter([value], hash=False)[0]
             needed[key] = self._scattered[key]
         self.task_count += 1
-        return self.client.submit(
-            _dask_call, function, needed, task.args, pure=False, retries=self.ATTEMPTS
-        )
+        return self.client.submit(_dask_call, function, needed, task.args, pure=False)
 
     def close(self) -> None:
         client, self.client = getattr(self, "client", None), None

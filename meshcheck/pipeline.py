@@ -262,9 +262,11 @@ def surfaces_near(
 
 
 #: Fewer pairs than this to verify are verified in this process: starting worker processes
-#: (imports, loading the compiled kernels) costs more than the pairs take (see
-#: bench/verify_parallel.py for the crossover).
-PARALLEL_MIN_PAIRS = 200
+#: (imports, loading the compiled kernels: ~1.8 s of CPU each) costs more than the pairs take.
+#: bench/verify_parallel.py on the shared 2-core machine (800-part assembly): a fresh 2-process
+#: pool took 3.5x the serial time at 200 pairs, 1.8x at 400, 1.3x at 720; the crossover is
+#: near 1,000 pairs.
+PARALLEL_MIN_PAIRS = 1000
 #: Pairs per task sent to a worker: enough to amortise a message, few enough to balance.
 PAIRS_PER_TASK = 16
 
