@@ -142,13 +142,27 @@ def _wait_for_workers(address: str, count: int, timeout: float) -> None:
         client.wait_for_workers(count, timeout=timeout)
 
 
+def _busy_worker(address: str, workers, *, deadline: float) -> subprocess.Popen:
+    """The worker process that is running a meshcheck task, as soon as one is."""
+    from distributed import Client
+
+    with Client(address, timeout=30) as client:
+        while time.monotonic() < deadline:
+            busy = [w for w, keys in client.processing().items() if keys]
+            if busy:
+                pid = client.run(os.getpid, workers=busy[:1])[busy[0]]
+                return next(w for w in workers if w.pid == pid)
+            time.sleep(0.05)
+    raise AssertionError("no worker ever ran a task")
+
+
 @pytest.mark.slow
 def test_dask_scheduler_and_workers_a_worker_killed_mid_run(tmp_path):
     pytest.importorskip("distributed")
     dask = os.path.join(os.path.dirname(sys.executable), "dask")
     if not os.path.exists(dask):
         pytest.skip("the dask command is not installed beside this Python")
-    paths = assembly(tmp_path / "parts", boxes=40)
+    paths = assembly(tmp_path / "parts", boxes=200)
     expected = json.loads(local_report(paths, tmp_path))
     port = free_port()
     address = f"tcp://127.0.0.1:{port}"
@@ -183,8 +197,9 @@ def test_dask_scheduler_and_workers_a_worker_killed_mid_run(tmp_path):
             env=env,
         )
         processes.started.append(run)
-        time.sleep(3.0)
-        os.kill(workers[0].pid, signal.SIGKILL)
+        victim = _busy_worker(address, workers, deadline=time.monotonic() + 120)
+        assert run.poll() is None  # the run is under way
+        os.kill(victim.pid, signal.SIGKILL)
         out, err = run.communicate(timeout=300)
         if run.returncode == 3:
             assert err.startswith(f"error: {address}: ") and err.count("\n") == 1
