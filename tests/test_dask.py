@@ -209,3 +209,20 @@ def test_dask_scheduler_and_workers_a_worker_killed_mid_run(tmp_path):
         assert "Traceback" not in err
     finally:
         processes.stop()
+
+
+def test_the_scheduler_comes_from_the_option_the_environment_or_the_config(tmp_path, monkeypatch):
+    from meshcheck.errors import ConfigError
+    from meshcheck.settings import Settings
+
+    config = tmp_path / "meshcheck.toml"
+    config.write_text('scheduler = "tcp://10.0.0.5:8786"\n')
+    assert Settings.from_options(config=config).scheduler == "tcp://10.0.0.5:8786"
+    monkeypatch.setenv("MESHCHECK_SCHEDULER", "tcp://10.0.0.6:8786")
+    assert Settings.from_options(config=config).scheduler == "tcp://10.0.0.6:8786"
+    given = Settings.from_options(config=config, scheduler="tcp://10.0.0.7:8786")
+    assert given.scheduler == "tcp://10.0.0.7:8786"
+    assert Settings.from_options(config=config, scheduler="").scheduler is None  # run locally
+    config.write_text("scheduler = 8786\n")
+    with pytest.raises(ConfigError, match="scheduler must be a scheduler address"):
+        Settings.from_options(config=config)
