@@ -230,9 +230,14 @@ class LocalPool(Executor):
     [0, 1, 2, 3, 4]
     """
 
+    #: Workers that die before saying they are ready: after this many, give up (a broken
+    #: environment would otherwise start workers forever).
+    MAX_FAILED_STARTS = 3
+
     def __init__(self, jobs: int | None = None):
         self.jobs = int(jobs or default_jobs())
         self.workers: list[_Worker] = []
+        self.failed_starts = 0
 
     def map(self, function, tasks, *, shared=None, progress=None, time_limit=None) -> list:
         from multiprocessing.connection import wait
@@ -251,6 +256,14 @@ class LocalPool(Executor):
             nonlocal finished
             worker.kill()
             self.workers.remove(worker)
+            if not worker.is_ready:
+                self.failed_starts += 1
+                if self.failed_starts >= self.MAX_FAILED_STARTS:
+                    raise ExecutionError(
+                        sys.executable,
+                        "worker processes exit before they start (python -m meshcheck._worker); "
+                        "run with -j 1 to check in this process",
+                    )
             if worker.task is not None:
                 finished += 1  # results[task] stays None: the caller decides what that means
                 if progress is not None:

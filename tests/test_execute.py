@@ -114,3 +114,12 @@ def test_only_meshcheck_functions_run():
         resolve("os:system")
     with pytest.raises(ValueError):
         Executor().map("subprocess:run", [Task((["true"],))])
+
+
+def test_workers_that_cannot_start_are_one_error_not_a_loop(monkeypatch):
+    from meshcheck.errors import ExecutionError
+
+    # a Python that cannot import meshcheck's worker: it exits at once
+    monkeypatch.setattr(sys, "executable", "/bin/false")
+    with LocalPool(1) as pool, pytest.raises(ExecutionError, match="exit before they start"):
+        pool.map("meshcheck.execute:echo", [Task((1,))])
