@@ -217,9 +217,8 @@ def load_file(path: str) -> list[Body]:
     ext = os.path.splitext(path)[1].lower()
     if ext not in SUPPORTED_EXTENSIONS:
         raise InputError(
-            path,
-            f"unsupported file type {ext or '(no extension)'}; "
-            f"supported: {', '.join(SUPPORTED_EXTENSIONS)}",
+            path, f"unsupported file type {ext or '(no extension)'}; "
+            f"supported: {', '.join(SUPPORTED_EXTENSIONS)}"
         )
     try:
         size = os.path.getsize(path)
@@ -386,9 +385,7 @@ def _read_3mf(path: str) -> list[tuple[str, trimesh.Trimesh, np.ndarray]]:
                 raise InputError(path, f"3MF component refers to missing object {missing}")
             sub = child.get("name") or f"component{k + 1}"
             yield from leaves(
-                child,
-                transform @ _3mf_transform(path, comp.get("transform")),
-                f"{label}/{sub}",
+                child, transform @ _3mf_transform(path, comp.get("transform")), f"{label}/{sub}",
                 depth + 1,
             )
 
@@ -503,8 +500,7 @@ def split_shells(mesh: trimesh.Trimesh) -> list[trimesh.Trimesh]:
             continue
         point = shells[k].vertices[0]
         containers = [
-            j
-            for j in range(n)
+            j for j in range(n)
             if j != k and closed[j] and volume[j] > 0.0 and _winding_number(shells[j], point) > 0.5
         ]
         if containers:
