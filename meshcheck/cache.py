@@ -1,4 +1,5 @@
-"""A content-addressed store of convex decompositions, one ``.npz`` file per mesh and setting.
+"""Content-addressed stores: convex decompositions (``.npz`` per mesh and setting) and pair
+verdicts (``.json`` per part pair, placement and setting).
 
 Modelled on black's ``src/black/cache.py``: a plain directory (the user's cache directory by
 default, any directory CI can persist), entries named by a key built from the mesh's content hash,
@@ -15,6 +16,30 @@ catches accidents. What keeps a forged entry from changing a verdict is that the
 decomposition only after checking that its pieces cover every triangle of the mesh
 (``decompose.covers``); a forged or stale entry that does not is recomputed. Pieces that cover the
 mesh but are too big only cost time: the verify stage decides every pair they let through.
+
+Pair verdicts (``PairCache``) are a different matter: a verdict cannot be checked without
+computing it again, and a forged ``clear`` for an interfering pair would turn a failing CI gate
+green, the one defect meshcheck must never have. What each way of trusting them buys:
+
+- Checking entries against the pieces (use a cached ``clear`` only when the convex pieces already
+  prove the pair clear) saves only the cheap pairs; the pairs whose surfaces come near, where the
+  8 ms go, would be verified every time.
+- Caching only verdicts that cannot hide a clash (``interference``) leaves every clear pair to be
+  verified again: no incremental re-check at all.
+- A secret key that signs entries (HMAC-SHA256) makes a forged entry a miss, for anyone who does
+  not hold the key. It is worth exactly as much as the key is kept apart from the entries: a key
+  file inside the cache directory would travel with the directory (a CI cache restored from a
+  shared store carries it), so whoever can write the store could read the key and sign.
+
+meshcheck signs, and keeps the key out of the cache directory: ``MESHCHECK_CACHE_SECRET`` when set
+(in CI, from the CI's secret store: a workflow run from a fork gets no secrets, so it can neither
+use nor poison signed entries), else a random key created once with mode 0600 in the user's state
+directory (``platformdirs.user_state_dir``, never inside a cache directory), refused when others
+can read or write it. A cache restored on a fresh CI machine without the secret therefore yields
+decompositions (checked on their own, see above) but no pair verdicts: they are computed again and
+signed with the new key. Every field of an entry is validated after the signature, and the key of
+an entry covers everything the verdict depends on (``pair_key``), so a genuine entry is never
+applied to another pair. What is left to trust is the key holder, as for any CI secret.
 """
 
 from __future__ import annotations
@@ -22,8 +47,10 @@ from __future__ import annotations
 import contextlib
 import functools
 import hashlib
+import hmac
 import itertools
 import json
+import math
 import os
 import tempfile
 import zipfile
@@ -33,6 +60,12 @@ import numpy as np
 # Bump when the layout of an entry or the meaning of a decomposition changes (e.g. the triangle
 # cover fix-up): old entries are then simply never looked up again.
 FORMAT_VERSION = 2
+# The same for pair verdict entries.
+PAIR_FORMAT_VERSION = 1
+# A pair entry is a few hundred bytes; a file larger than this is not read.
+MAX_PAIR_ENTRY_BYTES = 4096
+# The environment variable that carries the key pair verdicts are signed with.
+SECRET_VARIABLE = "MESHCHECK_CACHE_SECRET"
 
 
 def cache_key(digest: str, options: dict) -> str:
@@ -208,3 +241,290 @@ def _valid(points: np.ndarray, starts: np.ndarray, checksum: np.ndarray, key: st
     if not np.all(np.isfinite(points)):
         return False
     return checksum.tobytes() == _checksum(points, starts, key)
+
+
+# ---------------------------------------------------------------------------------------------
+# Pair verdicts
+
+
+def pair_key(
+    a: tuple[str, np.ndarray],
+    b: tuple[str, np.ndarray],
+    *,
+    tolerance: float,
+    clearance: float | None,
+    surfaces_apart: bool,
+) -> str:
+    """Key of a pair verdict: hex SHA-256 of everything the verdict depends on.
+
+    Parameters
+    ----------
+    a, b : (str, (4, 4) float64)
+        Each part's mesh digest (frame-local geometry) and its transform to world coordinates.
+        Both transforms go in bit for bit, which fixes b in a's frame exactly, and also where
+        the pair is: a verdict is not reused for a pair moved as a whole, because rounding at
+        other coordinates can change a verdict at the edge of the tolerance, and the verdict's
+        location is in world coordinates.
+    tolerance, clearance : float
+        The pair's touching tolerance and the clearance, model units (bit for bit).
+    surfaces_apart : bool
+        The convex pieces proved the surfaces beyond reach (``verify_pair``'s argument).
+
+    Returns
+    -------
+    key : str
+        64 hex characters; it also covers the pair format, meshcheck's version and verify
+        sources, and the versions of the libraries a verdict is computed with.
+    """
+
+    def placed(part):
+        digest, transform = part
+        matrix = np.ascontiguousarray(transform, dtype=np.float64).reshape(4, 4)
+        return [str(digest), matrix.tobytes().hex()]
+
+    payload = {
+        "format": PAIR_FORMAT_VERSION,
+        "code": verify_code_version(),
+        "a": placed(a),
+        "b": placed(b),
+        "tolerance": float(tolerance).hex(),
+        "clearance": None if clearance is None else float(clearance).hex(),
+        "surfaces_apart": bool(surfaces_apart),
+    }
+    text = json.dumps(payload, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+@functools.cache
+def verify_code_version() -> str:
+    """Digest of what computes a verdict: meshcheck's version and the source of its verify stage
+    and kernels, and the versions of numpy, trimesh, manifold3d and numba."""
+    import importlib.metadata
+
+    h = hashlib.sha256()
+    for package in ("meshcheck", "numpy", "trimesh", "manifold3d", "numba"):
+        try:
+            h.update(f"{package}={importlib.metadata.version(package)};".encode())
+        except importlib.metadata.PackageNotFoundError:
+            h.update(f"{package}=?;".encode())
+    here = os.path.dirname(os.path.abspath(__file__))
+    for name in ("verify.py", "results.py", os.path.join("geometry", "triangles.py")):
+        try:
+            with open(os.path.join(here, name), "rb") as f:
+                h.update(hashlib.sha256(f.read()).digest())
+        except OSError:
+            h.update(name.encode())
+    return h.hexdigest()
+
+
+def pair_secret() -> bytes | None:
+    """The key pair verdicts are signed with, or None when there is no usable one.
+
+    ``MESHCHECK_CACHE_SECRET`` when set and not empty; else the key file in the user's state
+    directory, created on first use (32 random bytes, hex, mode 0600). A key file that is not
+    a regular file of this user, readable or writable by others, or garbled gives None (and a
+    warning): pair verdicts are then neither read nor written.
+    """
+    value = os.environ.get(SECRET_VARIABLE)
+    if value:
+        return hashlib.sha256(value.encode("utf-8", "surrogateescape")).digest()
+    import platformdirs
+
+    path = os.path.join(platformdirs.user_state_dir("meshcheck"), "cache-secret")
+    try:
+        return _read_or_create_key(path)
+    except OSError as exc:
+        import warnings
+
+        from .errors import MeshcheckWarning
+
+        warnings.warn(
+            MeshcheckWarning(f"{path}: {exc.strerror or exc}; pair verdicts are not cached"),
+            stacklevel=2,
+        )
+        return None
+
+
+def _read_or_create_key(path: str) -> bytes:
+    import errno
+    import secrets
+    import stat
+
+    if not os.path.lexists(path):
+        os.makedirs(os.path.dirname(path), mode=0o700, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=os.path.dirname(path), prefix=".tmp-")  # mode 0600
+        try:
+            with os.fdopen(fd, "w") as f:
+                f.write(secrets.token_hex(32))
+            with contextlib.suppress(FileExistsError):  # another run made one first: use it
+                os.link(tmp, path)
+        finally:
+            os.unlink(tmp)
+    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
+    try:
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode) or info.st_size > 256:
+            raise OSError(errno.EINVAL, "the cache key file is not a small regular file")
+        if hasattr(os, "getuid") and (info.st_uid != os.getuid() or info.st_mode & 0o077):
+            raise OSError(errno.EPERM, "the cache key file is not private (owner only, 0600)")
+        text = os.read(fd, 256).decode("ascii", "replace").strip()
+    finally:
+        os.close(fd)
+    if len(text) != 64 or any(c not in "0123456789abcdef" for c in text):
+        raise OSError(errno.EINVAL, "the cache key file is garbled")
+    return bytes.fromhex(text)
+
+
+class PairCache:
+    """Pair verdicts stored under ``directory``, looked up by ``pair_key``, signed with a secret.
+
+    Parameters
+    ----------
+    directory : str
+        Cache root (the decomposition cache's); created on the first write.
+    secret : bytes
+        Key of the entries' HMAC-SHA256 (``pair_secret``); an entry signed with another key
+        is a miss.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> cache = PairCache(tempfile.mkdtemp(), secret=b"k" * 32)
+    >>> verdict = {"status": "touching", "distance": 0.0, "depth": None, "volume": None,
+    ...            "location": None, "is_surface_only": False}
+    >>> cache.put("ab" * 32, verdict)
+    >>> cache.get("ab" * 32) == verdict
+    True
+    >>> PairCache(cache.directory, secret=b"x" * 32).get("ab" * 32) is None
+    True
+    """
+
+    def __init__(self, directory: str, *, secret: bytes):
+        self.directory = os.fspath(directory)
+        self.root = os.path.join(self.directory, f"pairs-v{PAIR_FORMAT_VERSION}")
+        self._secret = bytes(secret)
+
+    def path(self, key: str) -> str:
+        """File of the entry for ``key``."""
+        return os.path.join(self.root, key[:2], f"{key}.json")
+
+    def get(self, key: str) -> dict | None:
+        """The verdict fields stored for ``key``, or None when missing, unsigned or unusable.
+
+        Returns
+        -------
+        verdict : dict or None
+            ``status`` (str), ``distance`` (float, inf allowed), ``depth`` and ``volume``
+            (float or None), ``location`` (three (3,) float64 arrays: centroid, lower, upper; or
+            None), ``is_surface_only`` (bool): exactly what ``put`` stored.
+        """
+        try:
+            with open(self.path(key), "rb") as f:
+                if os.fstat(f.fileno()).st_size > MAX_PAIR_ENTRY_BYTES:
+                    return None
+                raw = f.read(MAX_PAIR_ENTRY_BYTES + 1)
+            entry = json.loads(raw)
+        except (OSError, ValueError, RecursionError):
+            return None
+        if not isinstance(entry, dict) or set(entry) != {"key", "verdict", "mac"}:
+            return None
+        if entry["key"] != key or not isinstance(entry["mac"], str):
+            return None
+        if not hmac.compare_digest(entry["mac"], self._mac(key, entry["verdict"])):
+            return None
+        return _decode_verdict(entry["verdict"])
+
+    def put(self, key: str, verdict: dict) -> None:
+        """Store a verdict's fields (as ``get`` returns them) atomically, signed."""
+        fields = _encode_verdict(verdict)
+        entry = {"key": key, "verdict": fields, "mac": self._mac(key, fields)}
+        final = self.path(key)
+        try:
+            os.makedirs(os.path.dirname(final), exist_ok=True)
+            fd, tmp = tempfile.mkstemp(dir=os.path.dirname(final), prefix=".tmp-", suffix=".json")
+        except OSError:
+            return
+        try:
+            with os.fdopen(fd, "w", encoding="ascii") as f:
+                json.dump(entry, f, sort_keys=True, separators=(",", ":"))
+            os.replace(tmp, final)
+        except OSError:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+
+    def remove_stale_temporaries(self) -> None:
+        """Remove temporary files killed writers left (call once per run, not per entry)."""
+        with contextlib.suppress(OSError):
+            for entry in os.scandir(self.root):
+                if entry.is_dir():
+                    _remove_stale_temporaries(entry.path)
+
+    def _mac(self, key: str, fields) -> str:
+        text = json.dumps([key, fields], sort_keys=True, separators=(",", ":"))
+        return hmac.new(self._secret, text.encode(), hashlib.sha256).hexdigest()
+
+
+_STATUSES = ("interference", "touching", "clearance", "clear")
+
+
+def _encode_verdict(v: dict) -> dict:
+    def number(x):
+        return None if x is None else float(x).hex()
+
+    location = v["location"]
+    if location is not None:
+        location = [[float(c).hex() for c in np.asarray(p, dtype=np.float64)] for p in location]
+    return {
+        "status": str(v["status"]),
+        "distance": number(v["distance"]),
+        "depth": number(v["depth"]),
+        "volume": number(v["volume"]),
+        "location": location,
+        "surface_only": bool(v["is_surface_only"]),
+    }
+
+
+def _decode_verdict(fields) -> dict | None:
+    """The verdict fields of a signed entry, or None when any is out of its domain."""
+    if not isinstance(fields, dict) or set(fields) != {
+        "status", "distance", "depth", "volume", "location", "surface_only"
+    }:  # fmt: skip
+        return None
+
+    def number(x, *, optional=False, infinite=False):
+        if x is None and optional:
+            return None
+        if not isinstance(x, str) or len(x) > 40:
+            raise ValueError
+        value = float.fromhex(x)
+        if math.isnan(value) or value < 0 or (math.isinf(value) and not infinite):
+            raise ValueError
+        return value
+
+    try:
+        status = fields["status"]
+        if status not in _STATUSES or not isinstance(fields["surface_only"], bool):
+            return None
+        location = fields["location"]
+        if location is not None:
+            if not isinstance(location, list) or len(location) != 3:
+                return None
+            points = []
+            for p in location:
+                if not isinstance(p, list) or len(p) != 3 or not all(isinstance(c, str) for c in p):
+                    return None
+                xyz = np.array([float.fromhex(c) for c in p], dtype=np.float64)
+                if not np.all(np.isfinite(xyz)):
+                    return None
+                points.append(xyz)
+            location = tuple(points)
+        return {
+            "status": status,
+            "distance": number(fields["distance"], infinite=True),
+            "depth": number(fields["depth"], optional=True),
+            "volume": number(fields["volume"], optional=True),
+            "location": location,
+            "is_surface_only": fields["surface_only"],
+        }
+    except (ValueError, OverflowError, TypeError):
+        return None

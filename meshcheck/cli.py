@@ -177,7 +177,16 @@ def _report_option(ctx, param, values):
     "-j",
     type=click.IntRange(min=1),
     default=None,
-    help="Processes for decomposition. Default: all cores.",
+    help="Local worker processes for decomposition and pair verification (small runs verify "
+    "in this process). Default: all cores.",
+)
+@click.option(
+    "--scheduler",
+    default=None,
+    metavar="ADDRESS",
+    help="Run decomposition and pair verification on this Dask cluster (tcp://HOST:8786; "
+    'needs pip install "meshcheck[dask]"). Default: $MESHCHECK_SCHEDULER, then the config '
+    "file's scheduler; none runs locally.",
 )
 @click.option(
     "--export",
@@ -232,6 +241,7 @@ def _run(
     cache_dir,
     no_cache,
     jobs,
+    scheduler,
     export_path,
 ):
     from .settings import Settings
@@ -268,11 +278,15 @@ def _run(
             cache_dir=cache_dir,
             use_cache=not no_cache,
             jobs=jobs,
+            scheduler=scheduler,
         )
     except MeshcheckError as exc:
         _fail(exc)
 
-    from .pipeline import check
+    from .progress import Progress
+
+    with Progress("starting", 0):  # numba, trimesh, scipy: seconds on a cold disk
+        from .pipeline import check
 
     error = None
     with warnings.catch_warnings(record=True) as caught:

@@ -109,7 +109,7 @@ def approval_reason(
 # Configuration file
 
 CONFIG_NAMES = ("meshcheck.toml", "pyproject.toml")  # in one directory, meshcheck.toml wins
-_KEYS = ("tolerance", "clearance", "threshold", "units", "fail_on", "ignore", "groups")
+_KEYS = ("tolerance", "clearance", "threshold", "units", "fail_on", "ignore", "groups", "scheduler")
 
 
 @dataclass(frozen=True)
@@ -131,6 +131,8 @@ class Config:
         Check only pairs across two groups of parts.
     units : str or None
         Unit of mesh files that declare none, and of the report (``meshcheck.units``).
+    scheduler : str or None
+        Address of a Dask scheduler to run on (``--scheduler``).
     """
 
     path: str | None = None
@@ -141,6 +143,7 @@ class Config:
     approvals: tuple[Approval, ...] = ()
     groups: Groups | None = None
     units: str | None = None
+    scheduler: str | None = None
 
 
 def find_config(start: str | os.PathLike | None = None) -> str | None:
@@ -311,6 +314,13 @@ def load_config(path: str | os.PathLike) -> Config:
             patterns.append(tuple(value))
         groups = Groups(*patterns)
 
+    scheduler = doc.get("scheduler")
+    if scheduler is not None:
+        try:
+            scheduler = checked_scheduler(scheduler)
+        except ConfigError as exc:
+            fail(exc.reason)
+
     return Config(
         path=path,
         tolerance=number("tolerance"),
@@ -319,8 +329,20 @@ def load_config(path: str | os.PathLike) -> Config:
         fail_on=fail_on,
         approvals=tuple(approvals),
         groups=groups,
+        scheduler=scheduler,
         units=_unit(doc.get("units"), fail),
     )
+
+
+def checked_scheduler(value) -> str:
+    """A Dask scheduler address as given (``tcp://HOST:PORT``, ``HOST:PORT``...), checked to be a
+    short printable string; whether something answers there is found out when connecting."""
+    if not isinstance(value, str) or not value.strip():
+        raise ConfigError(None, "scheduler must be a scheduler address like tcp://HOST:8786")
+    value = value.strip()
+    if len(value) > 500 or not value.isprintable() or any(c.isspace() for c in value):
+        raise ConfigError(None, "scheduler must be a scheduler address like tcp://HOST:8786")
+    return value
 
 
 def _unit(value, fail) -> str | None:

@@ -10,21 +10,22 @@ piece nearest its centroid.
 Work is done once per distinct geometry: meshes are hashed in their own frame after moving their
 lowest corner to the origin, so instances of one mesh (a GLB node placed many times) and the same
 STL part at several positions share an entry; copies that differ only by float32 rounding reuse one
-decomposition (then re-covered against their own triangles). Misses are decomposed in parallel
-worker processes, each with one OpenMP thread, and stored in the cache. A mesh that CoACD has not
+decomposition (then re-covered against their own triangles). Misses are decomposed as ``execute``
+tasks (local worker processes with one OpenMP thread each, or a Dask cluster), and stored in the
+cache by this process alone. A mesh that CoACD has not
 finished within ``DEFAULT_TIME_LIMIT`` seconds is represented by its convex hull instead.
 """
 
 from __future__ import annotations
 
 import hashlib
-import os
 import warnings
 from collections.abc import Callable, Sequence
 
 import numpy as np
 
 from .errors import MeshcheckWarning
+from .execute import Executor, LocalPool, Task, default_jobs
 from .load import Body, is_closed
 
 # CoACD settings, measured with bench/coacd_settings.py on CAD-like parts of 4,400-7,900 triangles
@@ -265,22 +266,9 @@ def decompose_mesh(vertices: np.ndarray, faces: np.ndarray, options: dict) -> li
     return cover_triangles(vertices, faces, run_coacd(mesh, **options))
 
 
-def _worker_init() -> None:
-    """Run in each worker before CoACD loads: one OpenMP thread per process, no oversubscription."""
-    for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
-        os.environ[name] = "1"
-
-
-def _decompose_job(args: tuple[np.ndarray, np.ndarray, dict]) -> list[np.ndarray]:
-    return decompose_mesh(*args)
-
-
-def default_jobs() -> int:
-    """Cores this process may run on."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # pragma: no cover - not on Linux
-        return max(1, os.cpu_count() or 1)
+def decompose_task(store: dict, vertices, faces, options) -> list[np.ndarray]:
+    """``decompose_mesh`` as an ``execute`` task (the store is not used)."""
+    return decompose_mesh(vertices, faces, options)
 
 
 def local_geometry(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
@@ -316,6 +304,7 @@ def decompose_bodies(
     options: dict | None = None,
     progress: Callable[[int], None] | None = None,
     time_limit: float | None = DEFAULT_TIME_LIMIT,
+    executor: Executor | None = None,
 ) -> list[list[np.ndarray]]:
     """Convex pieces of each body in world coordinates, covering every triangle of the body.
 
@@ -339,6 +328,10 @@ def decompose_bodies(
         Seconds CoACD may spend on one mesh; a mesh that takes longer is represented by its
         convex hull (a valid, coarser cover) with a ``MeshcheckWarning``. None: no limit, and a
         single mesh is decomposed in this process.
+    executor : execute.Executor, optional
+        Where CoACD runs (a run's shared pool or Dask cluster); default a pool of ``jobs``
+        processes started for this call. A one-process ``Executor`` with a time limit is replaced
+        by one worker process, so an overrun can still be killed.
 
     Returns
     -------
@@ -415,8 +408,9 @@ def decompose_bodies(
     done += len(todo) - len(concave)
     if progress is not None and len(todo) > len(concave):
         progress(done)
-    tasks = [(*distinct[d], settings) for d in concave]
-    results = _run_jobs(tasks, jobs, progress, done, time_limit)
+    results = _decompose_concave(
+        [distinct[d] for d in concave], settings, jobs, executor, progress, done, time_limit
+    )
     for digest, pieces in zip(concave, results, strict=True):
         if pieces is None:  # overran the time limit or crashed: the hull covers every triangle
             local = distinct[digest][0]
@@ -452,119 +446,41 @@ def decompose_bodies(
     return out
 
 
-def _run_jobs(
-    tasks: list[tuple[np.ndarray, np.ndarray, dict]],
+def _decompose_concave(
+    meshes: list[tuple[np.ndarray, np.ndarray]],
+    options: dict,
     jobs: int | None,
+    executor: Executor | None,
     progress: Callable[[int], None] | None,
     done: int,
     time_limit: float | None,
 ) -> list[list[np.ndarray] | None]:
-    """Decompose each task; None for a task that overran ``time_limit`` or crashed its worker.
+    """CoACD on each mesh; None for a mesh that overran ``time_limit`` or crashed its worker.
 
-    Without a time limit and with one worker, tasks run in this process. Otherwise they run in
-    spawned worker processes (one OpenMP thread each), largest mesh first, and a worker whose task
-    overruns the limit is killed and replaced.
+    Without a time limit and with one job, meshes are decomposed in this process. Otherwise they
+    run in worker processes (or on the given executor), largest mesh first.
     """
-    workers = min(jobs or default_jobs(), len(tasks))
-    results: list[list[np.ndarray] | None] = [None] * len(tasks)
-    if not tasks:
-        return results
-    if workers <= 1 and time_limit is None:
-        for i, task in enumerate(tasks):
-            results[i] = _decompose_job(task)
-            if progress is not None:
-                progress(done + i + 1)
-        return results
+    if not meshes:
+        return []
+    tasks = [Task((v, f, options), size=len(f)) for v, f in meshes]
 
-    import multiprocessing
-    import time
-    from collections import deque
-    from multiprocessing.connection import wait
+    def report(finished: int) -> None:
+        if progress is not None:
+            progress(done + finished)
 
-    # Spawned workers start without the parent's OpenMP runtime, so the one-thread setting holds.
-    context = multiprocessing.get_context("spawn")
-    pending = deque(sorted(range(len(tasks)), key=lambda i: -len(tasks[i][1])))
-    live: dict = {}  # connection -> [process, task index or None, start time]
-    finished = 0
-
-    def spawn() -> None:
-        parent, child = context.Pipe()
-        process = context.Process(target=_worker_main, args=(child,), daemon=True)
-        process.start()
-        child.close()
-        live[parent] = [process, None, 0.0]
-
-    def retire(conn) -> None:
-        process = live.pop(conn)[0]
-        process.kill()
-        process.join()
-        conn.close()
-
+    own = None
+    if executor is None or (not isinstance(executor, LocalPool) and not executor.is_distributed):
+        workers = min(jobs or default_jobs(), len(tasks))
+        if executor is not None:
+            workers = 1
+        if workers <= 1 and time_limit is None:
+            executor = Executor()
+        else:
+            executor = own = LocalPool(workers)
     try:
-        for _ in range(max(workers, 1)):
-            spawn()
-        while finished < len(tasks):
-            now = time.monotonic()
-            timeout = None
-            if time_limit is not None:
-                starts = [t for _, i, t in live.values() if i is not None]
-                if starts:
-                    timeout = max(0.0, min(starts) + time_limit - now)
-            ready = wait(list(live), timeout=timeout)
-            for conn in ready:
-                _, index, _ = live[conn]
-                try:
-                    message = conn.recv()
-                except (EOFError, OSError):  # the worker died (CoACD crashed): fall back
-                    retire(conn)
-                    if index is not None:
-                        finished += 1
-                        if progress is not None:
-                            progress(done + finished)
-                    if pending:
-                        spawn()
-                    continue
-                if index is not None:
-                    if isinstance(message, BaseException):
-                        raise message
-                    results[index] = message
-                    finished += 1
-                    if progress is not None:
-                        progress(done + finished)
-                if pending:
-                    index = pending.popleft()
-                    conn.send(tasks[index])
-                    live[conn][1:] = [index, time.monotonic()]
-                else:
-                    live[conn][1] = None
-                    retire(conn)
-            if time_limit is not None:
-                now = time.monotonic()
-                for conn, (_, index, started) in list(live.items()):
-                    if index is not None and now - started > time_limit:
-                        retire(conn)  # results[index] stays None: the caller falls back
-                        finished += 1
-                        if progress is not None:
-                            progress(done + finished)
-                        if pending:
-                            spawn()
+        return executor.map(
+            "meshcheck.decompose:decompose_task", tasks, progress=report, time_limit=time_limit
+        )
     finally:
-        for conn in list(live):
-            retire(conn)
-    return results
-
-
-def _worker_main(conn) -> None:
-    """Worker loop: say ready, then decompose each task received until the pipe closes."""
-    _worker_init()
-    conn.send("ready")
-    while True:
-        try:
-            task = conn.recv()
-        except (EOFError, OSError):
-            return
-        try:
-            result = _decompose_job(task)
-        except Exception as exc:  # a bug: hand it to the parent to raise
-            result = exc
-        conn.send(result)
+        if own is not None:
+            own.close()

@@ -51,3 +51,8 @@ class OutputError(MeshcheckError):
 
 class MeshcheckWarning(UserWarning):
     """Something about an input deserves the user's attention but does not stop the check."""
+
+
+class ExecutionError(MeshcheckError):
+    """The work could not be run: a Dask scheduler that cannot be reached, workers that keep
+    dying. The inputs may be fine; the check did not happen (exit 3, never a pass)."""

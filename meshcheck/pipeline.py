@@ -28,13 +28,15 @@ import numpy as np
 
 from . import verify
 from .broadphase import candidate_pairs
+from .cache import PairCache, pair_key, pair_secret
 from .config import Approval, approval_reason
 from .decompose import decompose_bodies, local_geometry
 from .errors import MeshcheckWarning
+from .execute import Executor, Task, executor_for
 from .geometry import ConvexPack, Status, pack_convex, query_pairs
 from .load import Body, Limits, load_bodies
 from .progress import Progress
-from .results import CheckResult, Finding, Part, Verdict, finding_id
+from .results import CheckResult, Finding, Location, Part, Verdict, finding_id
 from .settings import (
     FLOAT32_ULPS,
     TOLERANCE_FRACTION,
@@ -131,20 +133,24 @@ def check_bodies(bodies: Sequence[Body], settings: Settings | None = None, **fie
     names = [_names(b) for b in bodies]
     _check_patterns(settings, names)
 
-    hulls = pack_convex(_world_hulls(bodies), is_hull=True)
-    diagonal, magnitude = part_sizes(hulls.lower, hulls.upper)
-    deflection = max((b.deflection for b in bodies), default=0.0)
-    pairs = select_pairs(hulls, settings, names, diagonal, magnitude, deflection)
-    tolerance = _tolerances(settings, bodies, diagonal, magnitude, pairs)
-    reach = tolerance + (settings.clearance or 0.0)
-
-    hull_query = query_pairs(hulls, pairs, tolerance=tolerance, depth=False, max_distance=reach)
-    near = within(hull_query, reach)
+    with Progress("comparing hulls", 0):
+        hulls = pack_convex(_world_hulls(bodies), is_hull=True)
+        diagonal, magnitude = part_sizes(hulls.lower, hulls.upper)
+        deflection = max((b.deflection for b in bodies), default=0.0)
+        pairs = select_pairs(hulls, settings, names, diagonal, magnitude, deflection)
+        tolerance = _tolerances(settings, bodies, diagonal, magnitude, pairs)
+        reach = tolerance + (settings.clearance or 0.0)
+        hull_query = query_pairs(hulls, pairs, tolerance=tolerance, depth=False, max_distance=reach)
+        near = within(hull_query, reach)
     pairs_near, tol_near, reach_near = pairs[near], tolerance[near], reach[near]
-    pieces, owner, piece_count = decompose_parts(bodies, np.unique(pairs_near), settings)
-    near_surfaces = surfaces_near(pieces, owner, pairs_near, tol_near, reach_near)
-
-    findings = verify_pairs(bodies, pairs_near, tol_near, near_surfaces, settings)
+    with executor_for(jobs=settings.jobs, scheduler=settings.scheduler) as executor:
+        pieces, owner, piece_count = decompose_parts(
+            bodies, np.unique(pairs_near), settings, executor=executor
+        )
+        near_surfaces = surfaces_near(pieces, owner, pairs_near, tol_near, reach_near)
+        findings = verify_pairs(
+            bodies, pairs_near, tol_near, near_surfaces, settings, executor=executor
+        )
     findings = approve(
         findings, settings.approvals, dict(zip([b.name for b in bodies], names, strict=True))
     )
@@ -201,9 +207,14 @@ def within(result, reach: np.ndarray) -> np.ndarray:
 
 
 def decompose_parts(
-    bodies: Sequence[Body], needed: np.ndarray, settings: Settings
+    bodies: Sequence[Body],
+    needed: np.ndarray,
+    settings: Settings,
+    *,
+    executor: Executor | None = None,
 ) -> tuple[ConvexPack, np.ndarray, np.ndarray]:
-    """Convex pieces of the parts in ``needed`` (indices into ``bodies``).
+    """Convex pieces of the parts in ``needed`` (indices into ``bodies``), CoACD running on
+    ``executor`` (default: ``settings.jobs`` local processes).
 
     Returns
     -------
@@ -221,6 +232,7 @@ def decompose_parts(
             cache_dir=settings.cache_dir,
             jobs=settings.jobs,
             progress=bar.update,
+            executor=executor,
         )
     count = np.zeros(len(bodies), dtype=np.int64)
     count[needed] = [len(p) for p in piece_lists]
@@ -265,51 +277,206 @@ def surfaces_near(
     return out
 
 
+#: Fewer pairs than this to verify are verified in this process: starting worker processes
+#: (imports, loading the compiled kernels: ~1.8 s of CPU each) costs more than the pairs take.
+#: bench/verify_parallel.py on the shared 2-core machine (800-part assembly): a fresh 2-process
+#: pool took 3.5x the serial time at 200 pairs, 1.8x at 400, 1.3x at 720; the crossover is
+#: near 1,000 pairs.
+PARALLEL_MIN_PAIRS = 1000
+#: Pairs per task sent to a worker: enough to amortise a message, few enough to balance.
+PAIRS_PER_TASK = 16
+
+
 def verify_pairs(
     bodies: Sequence[Body],
     pairs: np.ndarray,
     tolerance: np.ndarray,
     near_surfaces: np.ndarray,
     settings: Settings,
+    *,
+    executor: Executor | None = None,
 ) -> list[Finding]:
-    """Decide each pair on the real meshes; a finding for each pair that is not clear, sorted."""
-    findings = []
-    memo: dict = {}  # per-mesh data verify reuses across pairs; the bodies outlive the loop
+    """Decide each pair on the real meshes; a finding for each pair that is not clear, sorted.
+
+    Verdicts cached from an earlier run (``cache.PairCache``: same meshes, placement, tolerance
+    and clearance) are reused; the rest are verified, on ``executor``'s processes when there are
+    at least ``PARALLEL_MIN_PAIRS`` of them, and then cached. The findings do not depend on where
+    a verdict came from.
+    """
+    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    verdicts: list[verify.PairVerdict | None] = [None] * len(pairs)
+    cache = _pair_cache(settings)
+    keys: list[str] = []
+    if cache is not None:
+        for k, ((i, j), tol, is_near) in enumerate(
+            zip(pairs, tolerance, near_surfaces, strict=True)
+        ):
+            keys.append(
+                pair_key(
+                    (bodies[i].digest, bodies[i].transform),
+                    (bodies[j].digest, bodies[j].transform),
+                    tolerance=float(tol),
+                    clearance=settings.clearance,
+                    surfaces_apart=not is_near,
+                )
+            )
+            hit = cache.get(keys[k])
+            if hit is not None:
+                verdicts[k] = _verdict(hit)
+    todo = np.array([k for k, v in enumerate(verdicts) if v is None], dtype=np.int64)
+    hits = len(pairs) - len(todo)
     with Progress("checking", len(pairs)) as bar:
+        bar.update(hits)
+        computed = _verify(
+            bodies,
+            pairs[todo],
+            np.asarray(tolerance)[todo],
+            np.asarray(near_surfaces)[todo],
+            settings.clearance,
+            executor,
+            lambda done: bar.update(hits + done),
+        )
+    for k, verdict in zip(todo, computed, strict=True):
+        verdicts[k] = verdict
+        if cache is not None:
+            cache.put(keys[k], _fields(verdict))
+    if cache is not None and len(todo):
+        cache.remove_stale_temporaries()
+
+    findings = []
+    for (i, j), tol, verdict in zip(pairs, tolerance, verdicts, strict=True):
+        if verdict.status == Verdict.CLEAR:
+            continue
+        a, b = bodies[i], bodies[j]
+        (name_a, digest_a), (name_b, digest_b) = sorted([(a.name, a.digest), (b.name, b.digest)])
+        findings.append(
+            Finding(
+                a=name_a,
+                b=name_b,
+                status=verdict.status,
+                distance=verdict.distance,
+                depth=verdict.depth,
+                volume=verdict.volume,
+                location=verdict.location,
+                id=finding_id(name_a, digest_a, name_b, digest_b),
+                is_surface_only=verdict.is_surface_only,
+                tolerance=float(tol),
+            )
+        )
+    findings.sort(key=lambda f: (f.a, f.b))
+    return findings
+
+
+def verify_task(store: dict, items: list, clearance: float | None) -> list[verify.PairVerdict]:
+    """Verify a chunk of pairs in a worker: ``items`` are ``(key_a, key_b, tolerance,
+    surfaces_apart)``, the keys naming ``(vertices, faces)`` of world meshes in ``store``.
+
+    The meshes are rebuilt once per process (kept in ``store``), bit for bit the arrays the main
+    process holds, so each verdict is the one ``verify_pair`` gives there.
+    """
+    import trimesh
+
+    memo = store.setdefault(("verify", "memo"), {})
+    out = []
+    for key_a, key_b, tol, apart in items:
+        meshes = []
+        for key in (key_a, key_b):
+            mesh = store.get(("verify", "mesh", key))
+            if mesh is None:
+                vertices, faces = store[key]
+                mesh = trimesh.Trimesh(vertices, faces, process=False, validate=False)
+                store[("verify", "mesh", key)] = mesh
+            meshes.append(mesh)
+        out.append(
+            verify.verify_pair(
+                *meshes, tolerance=tol, clearance=clearance, surfaces_apart=apart, memo=memo
+            )
+        )
+    return out
+
+
+def _verify(bodies, pairs, tolerance, near_surfaces, clearance, executor, progress) -> list:
+    """Verdicts of ``pairs`` in order: here, or as tasks of ``PAIRS_PER_TASK`` pairs."""
+    parallel = executor is not None and (
+        executor.is_distributed or (executor.jobs > 1 and len(pairs) >= PARALLEL_MIN_PAIRS)
+    )
+    if not parallel:
+        memo: dict = {}  # per-mesh data verify reuses across pairs; the bodies outlive the loop
+        out = []
         for count, ((i, j), tol, is_near) in enumerate(
             zip(pairs, tolerance, near_surfaces, strict=True), start=1
         ):
-            a, b = bodies[i], bodies[j]
-            verdict = verify.verify_pair(
-                a.world,
-                b.world,
-                tolerance=float(tol),
-                clearance=settings.clearance,
-                surfaces_apart=not is_near,
-                memo=memo,
-            )
-            bar.update(count)
-            if verdict.status == Verdict.CLEAR:
-                continue
-            (name_a, digest_a), (name_b, digest_b) = sorted(
-                [(a.name, a.digest), (b.name, b.digest)]
-            )
-            findings.append(
-                Finding(
-                    a=name_a,
-                    b=name_b,
-                    status=verdict.status,
-                    distance=verdict.distance,
-                    depth=verdict.depth,
-                    volume=verdict.volume,
-                    location=verdict.location,
-                    id=finding_id(name_a, digest_a, name_b, digest_b),
-                    is_surface_only=verdict.is_surface_only,
+            out.append(
+                verify.verify_pair(
+                    bodies[i].world,
+                    bodies[j].world,
                     tolerance=float(tol),
+                    clearance=clearance,
+                    surfaces_apart=not is_near,
+                    memo=memo,
                 )
             )
-    findings.sort(key=lambda f: (f.a, f.b))
-    return findings
+            progress(count)
+        return out
+
+    # One shared value per distinct world mesh, named by the first body that has it.
+    key_of: dict[int, int] = {}
+    shared: dict = {}
+    for i in np.unique(pairs):
+        world = bodies[i].world
+        if id(world) not in key_of:
+            key_of[id(world)] = int(i)
+            shared[int(i)] = (
+                np.asarray(world.vertices, dtype=np.float64),
+                np.asarray(world.faces, dtype=np.int64),
+            )
+    items = [
+        (key_of[id(bodies[i].world)], key_of[id(bodies[j].world)], float(tol), not bool(near))
+        for (i, j), tol, near in zip(pairs, tolerance, near_surfaces, strict=True)
+    ]
+    tasks = [
+        Task(
+            (items[a : a + PAIRS_PER_TASK], clearance),
+            needs=tuple(sorted({k for it in items[a : a + PAIRS_PER_TASK] for k in it[:2]})),
+        )
+        for a in range(0, len(items), PAIRS_PER_TASK)
+    ]
+    results = executor.map(
+        "meshcheck.pipeline:verify_task",
+        tasks,
+        shared=shared,
+        progress=lambda done: progress(min(len(items), done * PAIRS_PER_TASK)),
+    )
+    out = []
+    for task, result in zip(tasks, results, strict=True):
+        if result is None:  # its worker died: verify here (a bug then shows its traceback)
+            result = Executor().map("meshcheck.pipeline:verify_task", [task], shared=shared)[0]
+        out.extend(result)
+    progress(len(items))
+    return out
+
+
+def _pair_cache(settings: Settings) -> PairCache | None:
+    """The run's pair verdict cache, or None without a cache directory or a signing key."""
+    if settings.cache_dir is None:
+        return None
+    secret = pair_secret()
+    return None if secret is None else PairCache(settings.cache_dir, secret=secret)
+
+
+def _verdict(fields: dict) -> verify.PairVerdict:
+    location = fields["location"]
+    if location is not None:
+        location = Location(*location)
+    return verify.PairVerdict(**(fields | {"location": location}))
+
+
+def _fields(verdict: verify.PairVerdict) -> dict:
+    where = verdict.location
+    points = None if where is None else (where.centroid, where.lower, where.upper)
+    return {f.name: getattr(verdict, f.name) for f in dataclasses.fields(verdict)} | {
+        "location": points
+    }
 
 
 def approve(

@@ -1,74 +1,155 @@
-"""Progress lines on stderr while loading, decomposing and checking, only on a terminal.
+"""What meshcheck is doing, on stderr: a line redrawn in place on a terminal, a few log lines
+without one.
 
-Nothing is printed when stderr is not a terminal (CI logs, pipes, tests), and never on stdout,
-which carries the report.
+- On a terminal, each stage draws ``label done/total`` at once and redraws it as items finish (at
+  most every 0.1 s); a stage that completes shows its total before the line is cleared.
+- Without a terminal (CI logs, pipes), a stage that is still running after ``QUIET_SECONDS`` gets
+  one line, ``meshcheck: label done/total ...``, then at most one more every ``LOG_INTERVAL``
+  seconds, and a closing ``... done in N s`` line. Quick stages print nothing, so a quick run's
+  stderr stays empty; a slow first run (compiling kernels, CoACD) is never silent for long.
+
+Never on stdout, which carries the report.
 """
 
 from __future__ import annotations
 
 import sys
+import threading
 import time
 from typing import TextIO
 
+#: A stage busy this long without a terminal gets a line saying what it is doing.
+QUIET_SECONDS = 2.0
+#: ... and at most one more line every this many seconds while it keeps running.
+LOG_INTERVAL = 15.0
+
 
 class Progress:
-    """One stage's counter, redrawn in place on stderr at most every 0.1 s.
+    """One stage's counter on stderr.
 
     Parameters
     ----------
     label : str
-        What is being counted, e.g. ``"decomposing"``.
+        What is being done, e.g. ``"decomposing"``.
     total : int
-        Number of items in the stage.
+        Number of items in the stage; 0 when not known (yet).
     stream : file, optional
-        Where to draw; default ``sys.stderr``. Nothing is drawn unless it is a terminal.
+        Where to write; default ``sys.stderr``.
+    quiet_seconds, log_interval : float
+        Without a terminal: the first line after this long, further lines at most this often.
 
     Examples
     --------
     >>> import io
     >>> with Progress("loading", 3, stream=io.StringIO()) as bar:
     ...     bar.update(3)
-    >>> bar.is_enabled
+    >>> bar.is_terminal
     False
     """
 
-    def __init__(self, label: str, total: int, *, stream: TextIO | None = None):
+    def __init__(
+        self,
+        label: str,
+        total: int,
+        *,
+        stream: TextIO | None = None,
+        quiet_seconds: float = QUIET_SECONDS,
+        log_interval: float = LOG_INTERVAL,
+    ):
         self.label = label
         self.total = int(total)
+        self.done = 0
         self.stream = sys.stderr if stream is None else stream
         try:
-            self.is_enabled = bool(self.stream.isatty())
+            self.is_terminal = bool(self.stream.isatty())
         except (AttributeError, ValueError):
-            self.is_enabled = False
+            self.is_terminal = False
+        self.is_enabled = self.is_terminal  # kept for callers of the terminal-only version
+        self._started = time.monotonic()
         self._last = 0.0
         self._drawn = False
+        self._logged = False
+        self._lock = threading.Lock()
+        self._closed = threading.Event()
+        self._ticker = None
+        if self.is_terminal:
+            self._draw()
+        else:
+            self._ticker = threading.Thread(
+                target=self._log_while_running,
+                args=(quiet_seconds, log_interval),
+                name=f"meshcheck-progress-{label}",
+                daemon=True,
+            )
+            self._ticker.start()
 
     def update(self, done: int) -> None:
         """Show ``done`` of ``total`` items finished."""
-        if not self.is_enabled:
+        self.done = int(done)
+        if not self.is_terminal:
             return
         now = time.monotonic()
-        if done < self.total and now - self._last < 0.1:
+        if self.done < self.total and now - self._last < 0.1:
             return
-        self._last = now
-        self.stream.write(f"\r{self.label} {done}/{self.total}")
-        self.stream.flush()
-        self._drawn = True
+        self._draw()
 
     def update_total(self, done: int, total: int) -> None:
         """Show ``done`` of ``total`` items, for stages that learn their total as they go."""
         self.total = int(total)
         self.update(done)
 
-    def close(self) -> None:
-        """Clear the line, leaving stderr as it was."""
-        if self.is_enabled and self._drawn:
-            self.stream.write("\r\033[K")
+    def close(self, *, is_complete: bool = True) -> None:
+        """End the stage: on a terminal show the total (when complete) and clear the line."""
+        if self._closed.is_set():
+            return
+        self._closed.set()
+        if self._ticker is not None:
+            self._ticker.join()
+        with self._lock:
+            if self.is_terminal and self._drawn:
+                if is_complete and self.total:
+                    self.done = max(self.done, self.total)
+                    self._write(f"\r{self._status()}")
+                self._write("\r\033[K")
+                self._drawn = False
+            elif self._logged:
+                seconds = time.monotonic() - self._started
+                state = "done" if is_complete else "stopped"
+                if is_complete and self.total:
+                    self.done = max(self.done, self.total)
+                self._write(f"meshcheck: {self._status()} {state} in {seconds:.0f} s\n")
+
+    def _status(self) -> str:
+        return f"{self.label} {self.done}/{self.total}" if self.total else f"{self.label}..."
+
+    def _draw(self) -> None:
+        with self._lock:
+            if self._closed.is_set():
+                return
+            self._last = time.monotonic()
+            self._write(f"\r{self._status()}\033[K")
+            self._drawn = True
+
+    def _log_while_running(self, quiet_seconds: float, log_interval: float) -> None:
+        wait = quiet_seconds
+        while not self._closed.wait(wait):
+            with self._lock:
+                if self._closed.is_set():
+                    return
+                status = self._status()
+                self._write(f"meshcheck: {status}{'' if status.endswith('...') else ' ...'}\n")
+                self._logged = True
+            wait = log_interval
+
+    def _write(self, text: str) -> None:
+        try:
+            self.stream.write(text)
             self.stream.flush()
-            self._drawn = False
+        except (OSError, ValueError):  # stderr closed: progress is not worth failing for
+            pass
 
     def __enter__(self) -> Progress:
         return self
 
-    def __exit__(self, *exc) -> None:
-        self.close()
+    def __exit__(self, exc_type, *exc) -> None:
+        self.close(is_complete=exc_type is None)

@@ -20,6 +20,7 @@ from .config import (
     Config,
     Groups,
     checked_number,
+    checked_scheduler,
     find_config,
     load_config,
     parse_fail_on,
@@ -28,6 +29,7 @@ from .errors import ConfigError
 from .results import Verdict
 
 DEFAULT_THRESHOLD = 0.1  # CoACD concavity threshold; see decompose.DEFAULT_OPTIONS
+SCHEDULER_VARIABLE = "MESHCHECK_SCHEDULER"  # the environment's default for --scheduler
 
 # ---------------------------------------------------------------------------------------------
 # The touching tolerance of a pair, when none is given. It comes from the pair alone, never from
@@ -115,6 +117,8 @@ class Settings:
         Cache directory; None neither reads nor writes a cache.
     jobs : int or None
         Worker processes; None: all cores.
+    scheduler : str or None
+        Address of a Dask scheduler: decomposition and pair verification run on its cluster.
     config_path : str or None
         The configuration file the settings came from, if any.
     step_deflection : float or None
@@ -136,6 +140,7 @@ class Settings:
     units: str | None = None
     cache_dir: str | None = None
     jobs: int | None = None
+    scheduler: str | None = None
     config_path: str | None = None
     fail_on_new: bool = False
     max_triangles: int | None = None
@@ -166,6 +171,8 @@ class Settings:
                 object.__setattr__(self, "units", unit_name(self.units))
             except ValueError as exc:
                 raise ConfigError(None, str(exc)) from None
+        if self.scheduler is not None:
+            object.__setattr__(self, "scheduler", checked_scheduler(self.scheduler))
         object.__setattr__(self, "fail_on", tuple(Verdict(s) for s in self.fail_on))
         object.__setattr__(self, "approvals", tuple(self.approvals))
 
@@ -187,6 +194,7 @@ class Settings:
         jobs: int | None = None,
         max_triangles: int | None = None,
         step_deflection: float | None = None,
+        scheduler: str | None = None,
     ) -> Settings:
         """Merge options (None: not given) with a configuration file, and validate.
 
@@ -203,6 +211,9 @@ class Settings:
             those statuses but fails only findings new against a baseline (``fail_on_new``).
         cache_dir : path, optional
             Cache directory; default the user's cache directory. ``use_cache=False`` disables it.
+        scheduler : str, optional
+            Dask scheduler address; default ``MESHCHECK_SCHEDULER``, then the file's
+            ``scheduler``. An empty string means none (run locally).
 
         Raises
         ------
@@ -241,6 +252,7 @@ class Settings:
             units=pick(units, file.units),
             cache_dir=cache,
             jobs=jobs,
+            scheduler=pick(scheduler, os.environ.get(SCHEDULER_VARIABLE) or file.scheduler) or None,
             config_path=file.path,
             fail_on_new=fail_on_new,
             max_triangles=max_triangles,

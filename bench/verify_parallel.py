@@ -1,0 +1,107 @@
+"""Where verifying pairs in worker processes starts to pay: serial against a fresh 2-process pool.
+
+Run from the repository root::
+
+    python bench/verify_parallel.py            # 400-part assembly, 25..all candidate pairs
+
+The assembly is bench/assemblies.py's grid. The script runs the pipeline's stages up to the verify
+stage once, then, for the first N pairs of the verify stage, times
+
+- ``serial``: ``pipeline._verify`` in this process (kernels already loaded here);
+- ``pool``: the same through a ``LocalPool(2)`` started for the call, so the time includes
+  starting the workers (their imports and compiled-kernel loads) and sending the meshes: what a
+  warm run pays when decomposition did not start the workers.
+
+and prints the ratio pool / serial. ``pipeline.PARALLEL_MIN_PAIRS`` should sit where it drops
+below 1. Both give identical verdicts (checked).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+
+from assemblies import write_assembly  # noqa: E402
+
+
+def verify_stage_input(paths: list[str], cache_dir: str):
+    """Bodies, and the pairs, tolerances and near flags the verify stage would get."""
+    from meshcheck import pipeline
+    from meshcheck.geometry import pack_convex, query_pairs
+    from meshcheck.load import load_bodies
+    from meshcheck.settings import Settings, part_sizes
+
+    settings = Settings(cache_dir=cache_dir)
+    bodies = load_bodies(paths)
+    names = [pipeline._names(b) for b in bodies]
+    hulls = pack_convex(pipeline._world_hulls(bodies), is_hull=True)
+    diagonal, magnitude = part_sizes(hulls.lower, hulls.upper)
+    pairs = pipeline.select_pairs(hulls, settings, names, diagonal, magnitude)
+    tolerance = pipeline._tolerances(settings, diagonal, magnitude, pairs)
+    query = query_pairs(hulls, pairs, tolerance=tolerance, depth=False, max_distance=tolerance)
+    near = pipeline.within(query, tolerance)
+    pairs, tolerance = pairs[near], tolerance[near]
+    pieces, owner, _ = pipeline.decompose_parts(bodies, np.unique(pairs), settings)
+    surfaces = pipeline.surfaces_near(pieces, owner, pairs, tolerance, tolerance)
+    return bodies, pairs, tolerance, surfaces
+
+
+def main(argv=None) -> None:
+    from meshcheck import pipeline
+    from meshcheck.execute import LocalPool
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--size", type=int, default=400)
+    args = parser.parse_args(argv)
+    with tempfile.TemporaryDirectory() as tmp:
+        paths, _ = write_assembly(args.size, tmp)
+        bodies, pairs, tolerance, surfaces = verify_stage_input(paths, os.path.join(tmp, "c"))
+        # warm this process's kernels and memo-free caches once
+        pipeline._verify(bodies, pairs[:5], tolerance[:5], surfaces[:5], None, None, _ignore)
+        print(f"{len(pairs)} pairs in the verify stage of a {args.size}-part assembly")
+        print(f"{'pairs':>6} {'serial s':>9} {'pool(2) s':>10} {'pool/serial':>12}")
+        sizes = [n for n in (25, 50, 100, 200, 400, 800, 1600) if n < len(pairs)] + [len(pairs)]
+        for n in sizes:
+            sl = slice(0, n)
+            start = time.perf_counter()
+            serial = pipeline._verify(
+                bodies, pairs[sl], tolerance[sl], surfaces[sl], None, None, _ignore
+            )
+            t_serial = time.perf_counter() - start
+            start = time.perf_counter()
+            with LocalPool(2) as pool:
+                parallel = pipeline._verify(
+                    bodies, pairs[sl], tolerance[sl], surfaces[sl], None, _Forced(pool), _ignore
+                )
+            t_pool = time.perf_counter() - start
+            assert [v.status for v in serial] == [v.status for v in parallel]
+            assert [v.distance for v in serial] == [v.distance for v in parallel]
+            print(f"{n:6d} {t_serial:9.2f} {t_pool:10.2f} {t_pool / t_serial:12.2f}")
+
+
+def _ignore(done: int) -> None:
+    """A progress callback that shows nothing."""
+
+
+class _Forced:
+    """A pool that claims to be distributed, so ``_verify`` uses it at any size."""
+
+    is_distributed = True
+
+    def __init__(self, pool):
+        self.pool, self.jobs = pool, pool.jobs
+
+    def map(self, *args, **kwargs):
+        return self.pool.map(*args, **kwargs)
+
+
+if __name__ == "__main__":
+    main()

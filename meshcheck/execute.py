@@ -1,0 +1,535 @@
+"""One map of tasks over this process, a local process pool, or a Dask cluster.
+
+The stages that are independent per item (decomposing a mesh, verifying a chunk of part pairs)
+hand their work to ``Executor.map``: a named meshcheck function, a list of ``Task``\\ s, and the
+``shared`` values (meshes) the tasks read by key. Results come back in task order, whatever ran
+where, so the report does not depend on how the work was spread.
+
+- ``Executor`` (``jobs=1``, or few tasks) runs the tasks here, one after another.
+- ``LocalPool`` keeps worker processes started as ``python -m meshcheck._worker``: fresh
+  interpreters that never import the caller's main module, so ``meshcheck.check`` works from a
+  script without a ``__main__`` guard, ``python -c``, stdin or a notebook. Each shared value is sent
+  to a worker once, the first time a task there needs it. A task that overruns ``time_limit`` or
+  kills its worker (CoACD crashes) gives None, and the worker is replaced.
+- ``DaskExecutor`` submits the tasks to a Dask distributed cluster; each shared value is scattered
+  to the cluster once. Dask is imported only here, only when a scheduler address is given.
+
+Functions are sent by name (``"meshcheck.decompose:decompose_task"``) and must live in meshcheck;
+each is called as ``function(store, *args)``, ``store`` mapping keys to shared values (it may also
+keep per-process memos under keys of its own).
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import sys
+import time
+from collections import deque
+from collections.abc import Callable, Hashable, Sequence
+from dataclasses import dataclass
+
+from .errors import ExecutionError
+
+# Environment of local workers: one thread per process for every threaded library, so jobs
+# processes use jobs cores and no more (CoACD's OpenMP would otherwise take every core each).
+_ONE_THREAD = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
+
+
+@dataclass(frozen=True)
+class Task:
+    """One call of the mapped function.
+
+    Attributes
+    ----------
+    args : tuple
+        Positional arguments after the store; picklable.
+    needs : tuple
+        Keys of the shared values the call reads from its store.
+    size : int
+        Rough cost, for ordering: the largest tasks start first.
+    """
+
+    args: tuple
+    needs: tuple[Hashable, ...] = ()
+    size: int = 0
+
+
+def default_jobs() -> int:
+    """Cores this process may run on."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def resolve(function: str) -> Callable:
+    """The meshcheck function named ``"meshcheck.module:name"``; nothing outside meshcheck."""
+    module, _, name = function.partition(":")
+    if not (module == "meshcheck" or module.startswith("meshcheck.")) or not name:
+        raise ValueError(f"not a meshcheck function: {function!r}")
+    return getattr(importlib.import_module(module), name)
+
+
+def call(function: str, store: dict, needs: Sequence[Hashable], args: tuple):
+    """Run one task: ``function(store, *args)`` after checking the store holds ``needs``."""
+    missing = [k for k in needs if k not in store]
+    if missing:
+        raise KeyError(f"shared values not sent: {missing[:3]}")
+    return resolve(function)(store, *args)
+
+
+class Executor:
+    """Runs tasks in this process, one after another; the base of the other executors.
+
+    Parameters
+    ----------
+    jobs : int
+        Processes the executor may use (1 here).
+
+    Examples
+    --------
+    >>> ex = Executor()
+    >>> ex.map("meshcheck.execute:echo", [Task((1,)), Task((2,))])
+    [1, 2]
+    """
+
+    jobs = 1
+    is_distributed = False
+
+    def map(
+        self,
+        function: str,
+        tasks: Sequence[Task],
+        *,
+        shared: dict | None = None,
+        progress: Callable[[int], None] | None = None,
+        time_limit: float | None = None,
+    ) -> list:
+        """Results of ``function`` on each task, in task order.
+
+        Parameters
+        ----------
+        function : str
+            ``"meshcheck.module:name"``, called as ``name(store, *task.args)``.
+        tasks : sequence of Task
+        shared : dict, optional
+            Values tasks read by key (``Task.needs``).
+        progress : callable, optional
+            Called with the number of tasks finished, as they finish.
+        time_limit : float, optional
+            Seconds a task may run; a task that overruns gives None. Enforced by killing the
+            worker, so only where tasks run in other processes (here: ignored).
+        """
+        store = dict(shared or {})
+        out = []
+        for done, task in enumerate(tasks, start=1):
+            out.append(call(function, store, task.needs, task.args))
+            if progress is not None:
+                progress(done)
+        return out
+
+    def close(self) -> None:
+        """Stop any processes the executor started."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def echo(store: dict, value):
+    """A task that returns its argument (for tests and examples)."""
+    return value
+
+
+def shared_length(store: dict, key):
+    """A task that returns the length of a shared value (for tests)."""
+    return len(store[key])
+
+
+def echo_inverse(store: dict, value):
+    """A task that returns ``1 / value`` (for tests of failing tasks)."""
+    return 1 / value
+
+
+def sleep_then_echo(store: dict, seconds: float, value):
+    """A task that sleeps, then returns its argument (for tests of time limits)."""
+    time.sleep(seconds)
+    return value
+
+
+def exit_worker(store: dict, code: int):
+    """A task that ends its process at once (for tests of lost workers)."""
+    os._exit(code)
+
+
+class _Worker:
+    """One ``python -m meshcheck._worker`` process and its two pipe ends."""
+
+    def __init__(self):
+        import subprocess
+        from multiprocessing.connection import Connection
+
+        env = dict(os.environ)
+        env.update(dict.fromkeys(_ONE_THREAD, "1"))
+        # The worker imports this very meshcheck, wherever it was imported from.
+        package_root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+        env["PYTHONPATH"] = os.pathsep.join(p for p in (package_root, env.get("PYTHONPATH")) if p)
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", "meshcheck._worker"],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            env=env,
+            close_fds=True,
+        )
+        self.send_end = Connection(os.dup(self.process.stdin.fileno()), readable=False)
+        self.receive_end = Connection(os.dup(self.process.stdout.fileno()), writable=False)
+        self.process.stdin.close()
+        self.process.stdout.close()
+        self.keys: set = set()
+        self.task: int | None = None  # index of the task running, None when idle
+        self.started = 0.0
+        self.is_ready = False
+
+    def fileno(self) -> int:
+        return self.receive_end.fileno()
+
+    def kill(self) -> None:
+        self.process.kill()
+        self.process.wait()
+        self.send_end.close()
+        self.receive_end.close()
+
+    def stop(self, timeout: float = 5.0) -> None:
+        """Close the pipe (the worker exits at EOF); kill it if it does not."""
+        import subprocess
+
+        self.send_end.close()
+        try:
+            self.process.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            self.process.wait()
+        self.receive_end.close()
+
+
+class LocalPool(Executor):
+    """Tasks over ``jobs`` local worker processes, started on first need and kept for the run.
+
+    Parameters
+    ----------
+    jobs : int, optional
+        Worker processes at most; default all cores.
+
+    Examples
+    --------
+    >>> with LocalPool(2) as pool:
+    ...     pool.map("meshcheck.execute:echo", [Task((k,)) for k in range(5)])
+    [0, 1, 2, 3, 4]
+    """
+
+    #: Workers that die before saying they are ready: after this many, give up (a broken
+    #: environment would otherwise start workers forever).
+    MAX_FAILED_STARTS = 3
+
+    def __init__(self, jobs: int | None = None):
+        self.jobs = int(jobs or default_jobs())
+        self.workers: list[_Worker] = []
+        self.failed_starts = 0
+
+    def map(self, function, tasks, *, shared=None, progress=None, time_limit=None) -> list:
+        from multiprocessing.connection import wait
+
+        shared = shared or {}
+        results: list = [None] * len(tasks)
+        if not tasks:
+            return results
+        pending = deque(sorted(range(len(tasks)), key=lambda i: -tasks[i].size))
+        wanted = min(self.jobs, len(tasks))
+        while len(self.workers) < wanted:
+            self.workers.append(_Worker())
+        finished = 0
+
+        def lost(worker: _Worker) -> None:
+            nonlocal finished
+            worker.kill()
+            self.workers.remove(worker)
+            if not worker.is_ready:
+                self.failed_starts += 1
+                if self.failed_starts >= self.MAX_FAILED_STARTS:
+                    raise ExecutionError(
+                        sys.executable,
+                        "worker processes exit before they start (python -m meshcheck._worker); "
+                        "run with -j 1 to check in this process",
+                    )
+            if worker.task is not None:
+                finished += 1  # results[task] stays None: the caller decides what that means
+                if progress is not None:
+                    progress(finished)
+            if pending and len(self.workers) < wanted:
+                self.workers.append(_Worker())
+
+        def start(worker: _Worker) -> None:
+            index = pending.popleft()
+            task = tasks[index]
+            try:
+                for key in task.needs:
+                    if key not in worker.keys:
+                        worker.send_end.send(("put", key, shared[key]))
+                        worker.keys.add(key)
+                worker.send_end.send(("run", function, task.needs, task.args))
+            except (BrokenPipeError, OSError):  # it died before taking the task: put it back
+                pending.appendleft(index)
+                worker.task = None
+                lost(worker)
+                return
+            worker.task, worker.started = index, time.monotonic()
+
+        try:
+            for worker in list(self.workers):  # idle workers kept from an earlier map
+                if worker.is_ready and worker.task is None and pending:
+                    start(worker)
+            while finished < len(tasks):
+                timeout = None
+                busy = [w.started for w in self.workers if w.task is not None]
+                if time_limit is not None and busy:
+                    timeout = max(0.0, min(busy) + time_limit - time.monotonic())
+                for worker in wait(list(self.workers), timeout=timeout):
+                    try:
+                        message = worker.receive_end.recv()
+                    except (EOFError, OSError):
+                        lost(worker)
+                        continue
+                    if message[0] == "error":
+                        raise RuntimeError(f"a meshcheck worker failed:\n{message[1]}")
+                    if message[0] == "ok":
+                        results[worker.task] = message[1]
+                        finished += 1
+                        if progress is not None:
+                            progress(finished)
+                    worker.task, worker.is_ready = None, True
+                    if pending:
+                        start(worker)
+                if time_limit is not None:
+                    now = time.monotonic()
+                    for worker in list(self.workers):
+                        if worker.task is not None and now - worker.started > time_limit:
+                            lost(worker)
+                if not self.workers and pending:
+                    self.workers.append(_Worker())
+        except BaseException:
+            self.close()  # workers in the middle of a task cannot be reused
+            raise
+        return results
+
+    def close(self) -> None:
+        for worker in self.workers:
+            if worker.task is None:
+                worker.stop()
+            else:
+                worker.kill()
+        self.workers = []
+
+
+class DaskExecutor(Executor):
+    """Tasks on a Dask distributed cluster; each shared value is scattered once.
+
+    Parameters
+    ----------
+    address : str
+        The scheduler, e.g. ``tcp://10.0.0.5:8786``.
+    connect_timeout : float
+        Seconds to wait for the scheduler before giving up.
+
+    Raises
+    ------
+    ExecutionError
+        Dask is not installed, or the scheduler cannot be reached.
+    """
+
+    is_distributed = True
+    #: A task whose worker died is resubmitted this many times before the run gives up.
+    ATTEMPTS = 3
+    #: Seconds the cluster may have no worker at all before the run gives up.
+    NO_WORKER_GRACE = 30.0
+
+    def __init__(self, address: str, *, connect_timeout: float = 10.0):
+        self.address = address
+        _probe(address, connect_timeout)
+        try:
+            from distributed import Client
+        except ImportError:
+            raise ExecutionError(
+                address, 'running on a cluster needs Dask: pip install "meshcheck[dask]"'
+            ) from None
+        try:
+            self.client = Client(address, timeout=connect_timeout, set_as_default=False)
+        except (OSError, TimeoutError) as exc:
+            raise ExecutionError(address, f"cannot reach the Dask scheduler ({exc})") from None
+        workers = self.client.scheduler_info().get("workers", {})
+        self.jobs = max(1, sum(int(w.get("nthreads", 1)) for w in workers.values()))
+        self._scattered: dict = {}  # key -> future of a shared value on the cluster
+        self.sent_bytes = 0  # pickled bytes of the shared values scattered (bench/dask.py)
+        self.task_count = 0
+
+    def map(self, function, tasks, *, shared=None, progress=None, time_limit=None) -> list:
+        """See ``Executor.map``; ``time_limit`` is not enforced on a cluster (a Dask worker
+        cannot be killed per task): a CoACD overrun only takes longer there."""
+        from distributed import wait
+
+        shared = shared or {}
+        results: list = [None] * len(tasks)
+        if not tasks:
+            return results
+        attempts = [0] * len(tasks)
+        running: dict = {}  # future -> task index
+        for index in sorted(range(len(tasks)), key=lambda i: -tasks[i].size):
+            running[self._submit(function, tasks[index], shared)] = index
+        finished = 0
+        healthy_at = time.monotonic()
+
+        def again(index: int, why: str) -> None:
+            """Send a task again (its worker or a value it needs was lost), or give up."""
+            attempts[index] += 1
+            if attempts[index] >= self.ATTEMPTS:
+                raise ExecutionError(
+                    self.address,
+                    f"a task was lost {self.ATTEMPTS} times on the cluster ({why}); "
+                    "workers keep dying?",
+                )
+            for key in tasks[index].needs:
+                old = self._scattered.get(key)
+                if old is not None and old.status != "finished":
+                    del self._scattered[key]
+            running[self._submit(function, tasks[index], shared)] = index
+
+        try:
+            while running:
+                try:
+                    with self.client.as_current():
+                        done, _ = wait(list(running), timeout=1.0, return_when="FIRST_COMPLETED")
+                except TimeoutError:
+                    done = set()
+                for future in done:
+                    index = running.pop(future)
+                    if future.status == "finished":
+                        kind, value = future.result()
+                        if kind == "error":
+                            raise RuntimeError(f"a meshcheck task failed on the cluster:\n{value}")
+                        results[index] = value
+                        finished += 1
+                        if progress is not None:
+                            progress(finished)
+                    else:
+                        again(index, _describe(future))
+                if done:
+                    healthy_at = time.monotonic()
+                    continue
+                # Nothing finished for a second: is anything still able to finish?
+                lost = [
+                    f
+                    for f, i in running.items()
+                    if any(
+                        self._scattered.get(k) is None or self._scattered[k].status != "finished"
+                        for k in tasks[i].needs
+                    )
+                ]
+                for future in lost:  # a value it needs died with its only worker
+                    future.cancel()
+                    again(running.pop(future), "a mesh it needs was lost with a worker")
+                if self._is_healthy():
+                    healthy_at = time.monotonic()
+                elif time.monotonic() - healthy_at > self.NO_WORKER_GRACE:
+                    raise ExecutionError(
+                        self.address,
+                        f"no scheduler or no worker for {self.NO_WORKER_GRACE:g} s; giving up",
+                    )
+        except (OSError, TimeoutError) as exc:
+            raise ExecutionError(self.address, f"lost the Dask scheduler ({exc})") from None
+        finally:
+            for future in running:
+                future.cancel()
+        return results
+
+    def _is_healthy(self) -> bool:
+        """The client is connected and the cluster has at least one worker."""
+        if self.client.status != "running":
+            return False
+        try:
+            return bool(self.client.scheduler_info().get("workers"))
+        except Exception:  # the scheduler is gone or does not answer
+            return False
+
+    def _submit(self, function: str, task: Task, shared: dict):
+        import pickle
+
+        needed = {}
+        for key in task.needs:
+            if key not in self._scattered:
+                value = shared[key]
+                self.sent_bytes += len(pickle.dumps(value, protocol=5))
+                # in a list, so a tuple value travels as one piece, not one per element
+                self._scattered[key] = self.client.scatter([value], hash=False)[0]
+            needed[key] = self._scattered[key]
+        self.task_count += 1
+        return self.client.submit(_dask_call, function, needed, task.args, pure=False)
+
+    def close(self) -> None:
+        client, self.client = getattr(self, "client", None), None
+        self._scattered = {}
+        if client is not None:
+            import contextlib
+
+            with contextlib.suppress(Exception):
+                client.close(timeout=5)
+
+
+def _dask_call(function: str, needed: dict, args: tuple):
+    """Run one task on a Dask worker; a bug comes back as text, not as a lost task."""
+    try:
+        return ("ok", call(function, dict(needed), tuple(needed), args))
+    except Exception:
+        import traceback
+
+        return ("error", traceback.format_exc())
+
+
+def _describe(future) -> str:
+    try:
+        exc = future.exception(timeout=1)
+    except Exception as err:  # the future itself is gone
+        exc = err
+    return f"{type(exc).__name__}: {exc}"[:200]
+
+
+def _probe(address: str, timeout: float) -> None:
+    """Fail at once, with one line, when nothing listens at a tcp:// scheduler address."""
+    import socket
+    from urllib.parse import urlsplit
+
+    parts = urlsplit(address if "://" in address else f"tcp://{address}")
+    if parts.scheme not in ("tcp", "tls"):
+        return  # inproc:// and others: left to Dask
+    try:
+        host, port = parts.hostname, parts.port
+    except ValueError:
+        raise ExecutionError(address, "not a scheduler address (tcp://HOST:PORT)") from None
+    if not host or port is None:
+        raise ExecutionError(address, "not a scheduler address (tcp://HOST:PORT)")
+    try:
+        socket.create_connection((host, port), timeout=min(timeout, 5.0)).close()
+    except OSError as exc:
+        raise ExecutionError(
+            address, f"cannot reach the Dask scheduler ({exc.strerror or exc})"
+        ) from None
+
+
+def executor_for(*, jobs: int | None = None, scheduler: str | None = None) -> Executor:
+    """The executor a run uses: a Dask cluster when ``scheduler`` is given, else local processes
+    (``jobs``, default all cores), else this process alone for ``jobs=1``."""
+    if scheduler:
+        return DaskExecutor(scheduler)
+    jobs = jobs or default_jobs()
+    return Executor() if jobs <= 1 else LocalPool(jobs)

@@ -1,0 +1,125 @@
+"""Running tasks: local worker processes that never import the caller's script, time limits,
+lost workers, and the README's API example run verbatim as a plain script."""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+import time
+
+import pytest
+
+from meshcheck.execute import Executor, LocalPool, Task, resolve
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def readme_api_example() -> str:
+    """The first Python block under README's "Python API" heading, verbatim."""
+    with open(os.path.join(ROOT, "README.md"), encoding="utf-8") as f:
+        text = f.read()
+    section = text[text.index("## Python API") :]
+    return re.search(r"```python\n(.*?)```", section, re.S).group(1)
+
+
+def _env(tmp_path) -> dict:
+    env = dict(os.environ)
+    # An empty cache (the bracket is concave: CoACD runs in worker processes) and no
+    # configuration file from the user.
+    env["XDG_CACHE_HOME"] = str(tmp_path / "cache")
+    env["XDG_CONFIG_HOME"] = str(tmp_path / "config")
+    env.pop("MESHCHECK_SCHEDULER", None)
+    return env
+
+
+EXPECTED = "touching sample_meshes/bracket.stl sample_meshes/plate.stl 0.0\npassed\n"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("how", ["script", "-c", "stdin"])
+def test_readme_api_example_runs_without_main_guard(tmp_path, how):
+    # Trap 4 of issue 9: with multiprocessing's spawn, workers re-imported the unguarded script,
+    # which called check() again in every worker: hundreds of tracebacks, no end.
+    code = readme_api_example()
+    assert "__main__" not in code
+    script = tmp_path / "example.py"
+    script.write_text(code)
+    if how == "script":
+        args, stdin = [sys.executable, str(script)], None
+    elif how == "-c":
+        args, stdin = [sys.executable, "-c", code], None
+    else:
+        args, stdin = [sys.executable, "-"], code
+    done = subprocess.run(
+        args,
+        cwd=ROOT,
+        env=_env(tmp_path),
+        input=stdin,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout == EXPECTED
+    assert "Traceback" not in done.stderr
+    # the concave bracket was decomposed in a worker and cached: workers really ran
+    assert any(
+        name.endswith(".npz") for _, _, files in os.walk(tmp_path / "cache") for name in files
+    )
+
+
+def test_pool_returns_results_in_task_order_and_reuses_workers():
+    tasks = [Task((k,), size=k) for k in range(7)]  # largest start first, results in order
+    with LocalPool(2) as pool:
+        assert pool.map("meshcheck.execute:echo", tasks) == list(range(7))
+        pids = {w.process.pid for w in pool.workers}
+        assert pool.map("meshcheck.execute:echo", tasks[:3]) == [0, 1, 2]
+        assert {w.process.pid for w in pool.workers} == pids
+
+
+def test_shared_values_travel_once_per_worker():
+    shared = {"m": list(range(1000))}
+    tasks = [Task(("m",), needs=("m",)) for _ in range(6)]
+    with LocalPool(1) as pool:
+        assert pool.map("meshcheck.execute:shared_length", tasks, shared=shared) == [1000] * 6
+        assert pool.workers[0].keys == {"m"}
+
+
+def test_overrun_gives_none_and_the_pool_goes_on():
+    tasks = [Task((30.0, "slow")), Task((0.0, "quick")), Task((0.0, "next"))]
+    started = time.monotonic()
+    with LocalPool(1) as pool:
+        out = pool.map("meshcheck.execute:sleep_then_echo", tasks, time_limit=3.0)
+    assert out[1:] == ["quick", "next"]
+    assert out[0] is None
+    assert time.monotonic() - started < 25
+
+
+def test_a_dead_worker_gives_none_and_is_replaced():
+    with LocalPool(1) as pool:
+        out = pool.map("meshcheck.execute:exit_worker", [Task((3,))])
+        assert out == [None]
+        assert pool.map("meshcheck.execute:echo", [Task(("alive",))]) == ["alive"]
+
+
+def test_a_bug_in_a_task_raises_with_the_workers_traceback():
+    with LocalPool(1) as pool, pytest.raises(RuntimeError, match="ZeroDivisionError"):
+        pool.map("meshcheck.execute:echo_inverse", [Task((0,))])
+
+
+def test_only_meshcheck_functions_run():
+    with pytest.raises(ValueError, match="not a meshcheck function"):
+        resolve("os:system")
+    with pytest.raises(ValueError):
+        Executor().map("subprocess:run", [Task((["true"],))])
+
+
+def test_workers_that_cannot_start_are_one_error_not_a_loop(monkeypatch):
+    from meshcheck.errors import ExecutionError
+
+    # a Python that cannot import meshcheck's worker: it exits at once
+    monkeypatch.setattr(sys, "executable", "/bin/false")
+    with LocalPool(1) as pool, pytest.raises(ExecutionError, match="exit before they start"):
+        pool.map("meshcheck.execute:echo", [Task((1,))])

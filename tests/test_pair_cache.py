@@ -1,0 +1,223 @@
+"""Pair verdicts: cached and reused only for the same meshes, placement and settings; the output
+does not depend on where a verdict came from (cache, this process, -j workers); a forged entry
+cannot turn a failing check into a pass."""
+
+from __future__ import annotations
+
+import json
+import os
+import stat
+
+import numpy as np
+import pytest
+import trimesh
+
+from meshcheck import pipeline, verify
+from meshcheck.cache import PairCache, pair_key, pair_secret
+from meshcheck.errors import MeshcheckWarning
+from meshcheck.report import render
+
+
+def write_row(directory, moved: float = 0.0) -> list[str]:
+    """Ten 10 mm boxes in a row: 0-1 interfere by 1 mm, 1-2 touch, 2-3 0.3 mm apart, the others
+    1 mm apart (clear at the clearance of 0.5 used here) but 8-9 touch; box 9 is shifted by
+    ``moved`` along y."""
+    os.makedirs(directory, exist_ok=True)
+    x = [0.0, 9.0, 19.0, 29.3]
+    while len(x) < 9:
+        x.append(x[-1] + 11.0)
+    x.append(x[-1] + 10.0)
+    paths = []
+    for k, xk in enumerate(x):
+        box = trimesh.creation.box(extents=[10, 10, 10])
+        box.apply_translation([xk, moved if k == 9 else 0.0, 0.0])
+        path = os.path.join(directory, f"box{k}.stl")
+        box.export(path)
+        paths.append(path)
+    return paths
+
+
+@pytest.fixture
+def counted(monkeypatch):
+    """Count the pairs verified in this process (the real verify_pair runs)."""
+    calls = []
+    real = verify.verify_pair
+
+    def spy(a, b, **kw):
+        calls.append(1)
+        return real(a, b, **kw)
+
+    monkeypatch.setattr(verify, "verify_pair", spy)
+    return calls
+
+
+def run(paths, cache_dir, **options):
+    options.setdefault("config", None)
+    result = pipeline.check(paths, cache_dir=cache_dir, clearance=0.5, **options)
+    return result, render(result, "json")
+
+
+def test_unchanged_rerun_verifies_nothing_and_output_is_identical(tmp_path, counted):
+    paths = write_row(tmp_path / "row")
+    cold, cold_json = run(paths, tmp_path / "c", jobs=1)
+    verified = len(counted)
+    assert verified == len(cold.checked_pairs) > 0
+    warm, warm_json = run(paths, tmp_path / "c", jobs=1)
+    assert len(counted) == verified  # nothing verified again
+    assert warm_json == cold_json
+    assert [str(f.status) for f in warm.findings] == [
+        "interference",
+        "touching",
+        "clearance",
+        "touching",
+    ]
+
+
+def test_after_one_part_moves_only_its_pairs_are_verified(tmp_path, counted):
+    run(write_row(tmp_path / "row"), tmp_path / "c", jobs=1)
+    before = len(counted)
+    moved, moved_json = run(write_row(tmp_path / "row", moved=0.5), tmp_path / "c", jobs=1)
+    with_box9 = [p for p in moved.checked_pairs if any(n.endswith("box9.stl") for n in p)]
+    assert len(counted) - before == len(with_box9) == 1
+    _, fresh_json = run(write_row(tmp_path / "row", moved=0.5), None, use_cache=False, jobs=1)
+    assert moved_json == fresh_json
+
+
+def test_parallel_verify_is_byte_identical_to_serial(tmp_path, monkeypatch, counted):
+    monkeypatch.setattr(pipeline, "PARALLEL_MIN_PAIRS", 0)
+    monkeypatch.setattr(pipeline, "PAIRS_PER_TASK", 2)
+    paths = write_row(tmp_path / "row")
+    _, serial = run(paths, None, use_cache=False, jobs=1)
+    serial_count = len(counted)
+    _, parallel_cold = run(paths, tmp_path / "c", jobs=2)
+    assert len(counted) == serial_count  # verified in the worker processes, not here
+    _, parallel_warm = run(paths, tmp_path / "c", jobs=2)
+    _, serial_warm = run(paths, tmp_path / "c", jobs=1)
+    assert serial == parallel_cold == parallel_warm == serial_warm
+    assert len(json.loads(serial)["results"]) == 4
+
+
+def _interfering_pair_key(paths, cache_dir):
+    """Key of the box0-box1 pair as the pipeline computes it."""
+    result, _ = run(paths, cache_dir, jobs=1)
+    (finding,) = [f for f in result.findings if str(f.status) == "interference"]
+    bodies = {b.name: b for b in result.bodies}
+    a, b = bodies[finding.a], bodies[finding.b]
+    order = [b_.name for b_ in result.bodies]
+    if order.index(a.name) > order.index(b.name):
+        a, b = b, a
+    return pair_key(
+        (a.digest, a.transform),
+        (b.digest, b.transform),
+        tolerance=finding.tolerance,
+        clearance=0.5,
+        surfaces_apart=False,
+    )
+
+
+CLEAR = {
+    "status": "clear",
+    "distance": float("inf"),
+    "depth": None,
+    "volume": None,
+    "location": None,
+    "is_surface_only": False,
+}
+
+
+def test_a_forged_clear_entry_cannot_turn_fail_into_pass(tmp_path):
+    paths = write_row(tmp_path / "row")
+    key = _interfering_pair_key(paths, tmp_path / "c")
+    # An attacker who can write the cache but does not hold the key signs with another one.
+    PairCache(tmp_path / "c", secret=b"guessed" * 5).put(key, CLEAR)
+    result, _ = run(paths, tmp_path / "c", jobs=1)
+    assert not result.passed
+    assert "interference" in [str(f.status) for f in result.findings]
+    # ... and an entry with the signature stripped, or garbage, is a miss too.
+    entry_path = PairCache(tmp_path / "c", secret=b"x").path(key)
+    with open(entry_path) as f:
+        entry = json.load(f)
+    for forged in ({**entry, "mac": ""}, {"key": key}, "garbage", {**entry, "verdict": None}):
+        with open(entry_path, "w") as f:
+            f.write(forged if isinstance(forged, str) else json.dumps(forged))
+        result, _ = run(paths, tmp_path / "c", jobs=1)
+        assert not result.passed
+
+
+def test_the_key_holder_is_the_trust_boundary(tmp_path):
+    # The same forged verdict signed with the real key is used: the signature is what stands
+    # between the cache and the verdict, so the test above would fail without it.
+    paths = write_row(tmp_path / "row")
+    key = _interfering_pair_key(paths, tmp_path / "c")
+    PairCache(tmp_path / "c", secret=pair_secret()).put(key, CLEAR)
+    result, _ = run(paths, tmp_path / "c", jobs=1)
+    assert "interference" not in [str(f.status) for f in result.findings]
+
+
+def test_the_key_file_is_private_and_outside_the_cache(tmp_path):
+    secret = pair_secret()
+    state = os.environ["XDG_STATE_HOME"]
+    path = os.path.join(state, "meshcheck", "cache-secret")
+    assert len(secret) == 32 and stat.S_IMODE(os.stat(path).st_mode) == 0o600
+    assert pair_secret() == secret  # created once
+    os.chmod(path, 0o644)
+    try:
+        with pytest.warns(MeshcheckWarning, match="not private"):
+            assert pair_secret() is None
+    finally:
+        os.chmod(path, 0o600)
+
+
+def test_the_environment_secret_wins(monkeypatch):
+    from_file = pair_secret()
+    monkeypatch.setenv("MESHCHECK_CACHE_SECRET", "from-ci")
+    a = pair_secret()
+    assert a != from_file
+    monkeypatch.setenv("MESHCHECK_CACHE_SECRET", "other")
+    assert a != pair_secret()
+
+
+@pytest.mark.parametrize(
+    "verdict",
+    [
+        {**CLEAR, "status": "passed"},
+        {**CLEAR, "distance": "nan"},
+        {**CLEAR, "location": [["0x1p+0"] * 3] * 2},
+        {**CLEAR, "surface_only": 1},
+    ],
+)
+def test_signed_entries_out_of_domain_are_misses(tmp_path, verdict):
+    cache = PairCache(tmp_path, secret=b"k")
+    cache.put("ab" * 32, CLEAR)
+    path = cache.path("ab" * 32)
+    with open(path) as f:
+        entry = json.load(f)
+    fields = {**entry["verdict"], **{k: v for k, v in verdict.items() if k in entry["verdict"]}}
+    if verdict["distance"] == "nan":
+        fields["distance"] = "nan"
+    entry["verdict"] = fields
+    entry["mac"] = cache._mac("ab" * 32, fields)
+    with open(path, "w") as f:
+        json.dump(entry, f)
+    assert cache.get("ab" * 32) is None
+
+
+def test_oversized_entries_are_not_read(tmp_path):
+    cache = PairCache(tmp_path, secret=b"k")
+    cache.put("cd" * 32, CLEAR)
+    with open(cache.path("cd" * 32), "a") as f:
+        f.write(" " * 10_000)
+    assert cache.get("cd" * 32) is None
+
+
+def test_the_key_covers_placement_tolerance_and_clearance():
+    base = dict(tolerance=1e-4, clearance=None, surfaces_apart=False)
+    a, b = ("d" * 64, np.eye(4)), ("e" * 64, np.eye(4))
+    key = pair_key(a, b, **base)
+    moved = np.eye(4)
+    moved[0, 3] = np.nextafter(0.0, 1.0)
+    assert pair_key(a, ("e" * 64, moved), **base) != key
+    assert pair_key(a, b, **{**base, "tolerance": np.nextafter(1e-4, 1.0)}) != key
+    assert pair_key(a, b, **{**base, "clearance": 0.0}) != key
+    assert pair_key(a, b, **{**base, "surfaces_apart": True}) != key
+    assert pair_key(b, a, **base) != key

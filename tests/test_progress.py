@@ -1,0 +1,63 @@
+"""Progress on stderr: a redrawn line on a terminal, a few log lines without one, nothing for
+quick stages, and the line reaches its total before it clears."""
+
+from __future__ import annotations
+
+import io
+import time
+
+from meshcheck.progress import Progress
+
+
+class _Terminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+def test_a_quick_stage_without_a_terminal_prints_nothing():
+    pipe = io.StringIO()
+    with Progress("checking", 5, stream=pipe) as bar:
+        bar.update(5)
+    assert pipe.getvalue() == ""
+
+
+def test_a_busy_stage_without_a_terminal_says_so_without_spamming():
+    pipe = io.StringIO()
+    with Progress("decomposing", 4, stream=pipe, quiet_seconds=0.1, log_interval=0.4) as bar:
+        bar.update(1)
+        time.sleep(1.0)  # silent work, e.g. compiling: lines at ~0.1 s, ~0.5 s, ~0.9 s
+        bar.update(3)
+    lines = pipe.getvalue().splitlines()
+    assert lines[0] == "meshcheck: decomposing 1/4 ..."
+    assert 2 <= len(lines) - 1 <= 4  # at most one line per interval while busy
+    assert lines[-1].startswith("meshcheck: decomposing 4/4 done in ")
+    assert all(line.startswith("meshcheck: ") for line in lines)
+    assert "\r" not in pipe.getvalue()
+
+
+def test_an_interrupted_stage_does_not_claim_it_finished():
+    pipe = io.StringIO()
+    try:
+        with Progress("checking", 4, stream=pipe, quiet_seconds=0.05) as bar:
+            bar.update(1)
+            time.sleep(0.3)
+            raise KeyboardInterrupt
+    except KeyboardInterrupt:
+        pass
+    assert pipe.getvalue().splitlines()[-1].startswith("meshcheck: checking 1/4 stopped in ")
+
+
+def test_the_terminal_line_appears_at_once_and_reaches_its_total_before_it_clears():
+    tty = _Terminal()
+    with Progress("decomposing", 3, stream=tty) as bar:
+        assert tty.getvalue() == "\rdecomposing 0/3\033[K"
+        bar.update(1)  # copies of one mesh share its decomposition: the count stops short
+    out = tty.getvalue()
+    assert out.endswith("\rdecomposing 3/3\r\033[K")
+
+
+def test_a_stage_of_unknown_size_says_what_it_does():
+    tty = _Terminal()
+    with Progress("starting", 0, stream=tty):
+        assert tty.getvalue() == "\rstarting...\033[K"
+    assert tty.getvalue().endswith("\r\033[K")
