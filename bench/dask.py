@@ -40,7 +40,7 @@ def main(argv=None) -> None:
     from distributed import LocalCluster
 
     from meshcheck import execute, pipeline
-    from meshcheck.report import render
+    from meshcheck.reports import render
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--size", type=int, default=2000)

@@ -19,7 +19,7 @@ from click.testing import CliRunner
 
 from meshcheck import pipeline
 from meshcheck.cli import main
-from meshcheck.report import render
+from meshcheck.reports import render
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SAMPLES = os.path.join(ROOT, "sample_meshes")

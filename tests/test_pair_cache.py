@@ -15,7 +15,7 @@ import trimesh
 from meshcheck import pipeline, verify
 from meshcheck.cache import PairCache, pair_key, pair_secret
 from meshcheck.errors import MeshcheckWarning
-from meshcheck.report import render
+from meshcheck.reports import render
 
 
 def write_row(directory, moved: float = 0.0) -> list[str]:
