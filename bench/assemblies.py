@@ -178,9 +178,7 @@ def run_size(size: int, jobs: int | None) -> dict:
 
         report = json.loads(warm[3])
         assert json.loads(cold[3]) == report, "cold and warm reports differ"
-        found = {
-            tuple(sorted((r["a"], r["b"]))): r["status"] for r in report["results"]
-        }
+        found = {tuple(sorted((r["a"], r["b"]))): r["status"] for r in report["results"]}
         interference = {p for p, s in found.items() if s == "interference"}
         fcl_pairs = {tuple(p) for p in json.loads(fcl[3])}
         decomposed = sum(1 for p in report["parts"] if p["pieces"] > 1)

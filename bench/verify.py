@@ -46,18 +46,34 @@ def main():
     pairs = []
     for n in (32, 256):
         plate = trimesh.boolean.difference(
-            [trimesh.creation.box(extents=[20, 20, 10]).apply_translation([0, 0, 5]),
-             cylinder(3.1, -1, 11, n)], engine="manifold")
-        free = trimesh.boolean.union([cylinder(3.0, -4, 11, n), cylinder(5, 11, 14, n)],
-                                     engine="manifold")
-        resting = trimesh.boolean.union([cylinder(3.0, -4, 10.5, n), cylinder(5, 10, 14, n)],
-                                        engine="manifold")
+            [
+                trimesh.creation.box(extents=[20, 20, 10]).apply_translation([0, 0, 5]),
+                cylinder(3.1, -1, 11, n),
+            ],
+            engine="manifold",
+        )
+        free = trimesh.boolean.union(
+            [cylinder(3.0, -4, 11, n), cylinder(5, 11, 14, n)], engine="manifold"
+        )
+        resting = trimesh.boolean.union(
+            [cylinder(3.0, -4, 10.5, n), cylinder(5, 10, 14, n)], engine="manifold"
+        )
         tris = len(plate.faces) + len(free.faces)
         pairs.append((f"bolt, 0.1 radial gap, in plate hole ({tris} tri)", plate, free, 0.1))
         pairs.append((f"bolt head resting on plate ({tris} tri)", plate, resting, 0.1))
-    bodies = load_bodies([f"sample_meshes/{f}" for f in (
-        "plate.stl", "bolt_m6_a.stl", "bolt_m6_b.stl", "bolt_m6_c.stl", "bolt_m8_oversized.stl",
-        "bracket.stl")])
+    bodies = load_bodies(
+        [
+            f"sample_meshes/{f}"
+            for f in (
+                "plate.stl",
+                "bolt_m6_a.stl",
+                "bolt_m6_b.stl",
+                "bolt_m6_c.stl",
+                "bolt_m8_oversized.stl",
+                "bracket.stl",
+            )
+        ]
+    )
     for b in bodies[1:]:
         pairs.append((f"sample: plate x {b.name.split('/')[-1]}", bodies[0].world, b.world, 0.5))
     print(f"{'pair':55s} {'verdict':12s} {'verify ms':>9s} {'fcl ms':>8s} {'ratio':>6s}")

@@ -45,9 +45,7 @@ def main(argv=None) -> None:
     os.chdir(ROOT)  # part names as README shows them: sample_meshes/...
     paths = sorted(glob.glob("sample_meshes/*.stl"))
     result = check(paths, jobs=1)
-    text = render_html(
-        result, load_bodies(paths), inputs=paths, version=version("meshcheck")
-    )
+    text = render_html(result, load_bodies(paths), inputs=paths, version=version("meshcheck"))
     with tempfile.TemporaryDirectory() as tmp:
         page_path = os.path.join(tmp, "report.html")
         with open(page_path, "w", encoding="utf-8") as f:

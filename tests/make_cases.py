@@ -30,6 +30,7 @@ import shutil
 import manifold3d
 import numpy as np
 import trimesh
+from meshes import box_between, fcl_distance
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 CASES = os.path.join(HERE, "cases")
@@ -39,11 +40,7 @@ N = 24  # facets around every round part: small meshes keep CoACD fast
 # --- shapes ---------------------------------------------------------------------------------
 
 
-def box(lower, upper) -> trimesh.Trimesh:
-    lower, upper = np.asarray(lower, float), np.asarray(upper, float)
-    b = trimesh.creation.box(extents=upper - lower)
-    b.apply_translation(0.5 * (lower + upper))
-    return b
+box = box_between  # boxes by their corners in this file
 
 
 def cylinder(radius, z0, z1, x=0.0, y=0.0, sections=N) -> trimesh.Trimesh:
@@ -100,20 +97,6 @@ def _solid(mesh: trimesh.Trimesh):
 
 def shared_volume(a, b) -> float:
     return float((_solid(a) ^ _solid(b)).volume())
-
-
-def fcl_distance(a, b) -> float:
-    import fcl
-
-    def obj(m):
-        model = fcl.BVHModel()
-        model.beginModel(len(m.vertices), len(m.faces))
-        model.addSubModel(np.asarray(m.vertices, float), np.asarray(m.faces, np.int32))
-        model.endModel()
-        return fcl.CollisionObject(model, fcl.Transform())
-
-    req = fcl.DistanceRequest(enable_nearest_points=True)
-    return float(fcl.distance(obj(a), obj(b), req, fcl.DistanceResult()))
 
 
 # --- cases ----------------------------------------------------------------------------------

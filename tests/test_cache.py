@@ -108,8 +108,16 @@ def _extra_array(path):
 
 @pytest.mark.parametrize(
     "damage",
-    [_truncate, _garbage, _empty, _wrong_shapes, _bad_starts, _flipped_value, _pickled,
-     _extra_array],
+    [
+        _truncate,
+        _garbage,
+        _empty,
+        _wrong_shapes,
+        _bad_starts,
+        _flipped_value,
+        _pickled,
+        _extra_array,
+    ],
 )
 def test_corrupt_entry_is_a_miss_and_is_rewritten(tmp_path, damage):
     cache = DecompositionCache(str(tmp_path))
@@ -166,9 +174,7 @@ def _writer(directory: str, barrier, seconds: float) -> None:
 def test_two_processes_writing_one_key_both_succeed(tmp_path):
     context = multiprocessing.get_context("spawn")
     barrier = context.Barrier(2)
-    procs = [
-        context.Process(target=_writer, args=(str(tmp_path), barrier, 0.5)) for _ in range(2)
-    ]
+    procs = [context.Process(target=_writer, args=(str(tmp_path), barrier, 0.5)) for _ in range(2)]
     for p in procs:
         p.start()
     for p in procs:

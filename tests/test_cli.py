@@ -13,6 +13,7 @@ from xml.etree import ElementTree
 import pytest
 import trimesh
 from click.testing import CliRunner
+from meshes import box
 
 from meshcheck.cli import main
 
@@ -41,23 +42,33 @@ def in_root(monkeypatch):
     monkeypatch.chdir(ROOT)
 
 
-def box(extents=(1.0, 1.0, 1.0), at=(0.0, 0.0, 0.0)) -> trimesh.Trimesh:
-    return trimesh.creation.box(extents=extents).apply_translation(at)
-
-
 # ------------------------------------------------------------------------------------------
 # Usage, broken inputs, configuration errors: no geometry needed
 
 
 def test_python_m_meshcheck_help():
     proc = subprocess.run(
-        [sys.executable, "-m", "meshcheck", "--help"], capture_output=True, text=True,
-        timeout=120, check=False, cwd=ROOT,
+        [sys.executable, "-m", "meshcheck", "--help"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+        cwd=ROOT,
     )
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.startswith("Usage: meshcheck [OPTIONS] FILES...")
-    for option in ("--format", "--clearance", "--tolerance", "--threshold", "--cache-dir",
-                   "--no-cache", "--output", "--fail-on", "--split", "--config"):
+    for option in (
+        "--format",
+        "--clearance",
+        "--tolerance",
+        "--threshold",
+        "--cache-dir",
+        "--no-cache",
+        "--output",
+        "--fail-on",
+        "--split",
+        "--config",
+    ):
         assert option in proc.stdout
 
 
@@ -152,8 +163,10 @@ def test_invalid_config_is_exit_2_naming_the_file(tmp_path, monkeypatch):
     result = run(["a.stl"])
     assert result.exit_code == 2
     config = tmp_path / "meshcheck.toml"
-    assert result.stderr == f"error: {config}: ignore entry 1 has no 'reason': " \
+    assert (
+        result.stderr == f"error: {config}: ignore entry 1 has no 'reason': "
         "say why the finding is approved\n"
+    )
 
 
 def test_explicit_config_file_that_is_missing_is_exit_2(tmp_path):
@@ -294,8 +307,9 @@ def test_github_report(in_root, cache_dir):
 
 def test_output_file(in_root, cache_dir, tmp_path):
     out = tmp_path / "report.json"
-    result = run([*SAMPLES, "--cache-dir", cache_dir, "--no-config", "--format", "json",
-                  "--output", out])
+    result = run(
+        [*SAMPLES, "--cache-dir", cache_dir, "--no-config", "--format", "json", "--output", out]
+    )
     assert result.exit_code == 1
     assert result.stdout == ""
     assert f"report written to {out}" in result.stderr
@@ -304,8 +318,15 @@ def test_output_file(in_root, cache_dir, tmp_path):
 
 def test_clearance_violation_fails(in_root, cache_dir):
     # the bracket stands 10.83 mm from bolt C
-    args = ["sample_meshes/bolt_m6_c.stl", "sample_meshes/bracket.stl", "--cache-dir", cache_dir,
-            "--no-config", "--format", "json"]
+    args = [
+        "sample_meshes/bolt_m6_c.stl",
+        "sample_meshes/bracket.stl",
+        "--cache-dir",
+        cache_dir,
+        "--no-config",
+        "--format",
+        "json",
+    ]
     near = run([*args, "--clearance", "11"])
     assert near.exit_code == 1
     doc = json.loads(near.stdout)

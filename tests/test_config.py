@@ -117,7 +117,8 @@ INVALID = {
         "unknown key 'status' in ignore entry 1 (known: a, b, id, reason)",
     ),
     "id and names": (
-        '[[ignore]]\nid = "abc"\na = "x"\nb = "y"\nreason = "r"\n', "either id or a and b",
+        '[[ignore]]\nid = "abc"\na = "x"\nb = "y"\nreason = "r"\n',
+        "either id or a and b",
     ),
     "id without reason": ('[[ignore]]\nid = "abc"\n', "has no 'reason'"),
     "pattern type": ('[[ignore]]\na = 1\nb = "y"\nreason = "r"\n', "a must be a non-empty string"),
@@ -153,7 +154,9 @@ def test_missing_config_file_is_a_config_error(tmp_path):
 
 def test_parse_fail_on_accepts_comma_lists_and_repeats():
     assert parse_fail_on(["touching,interference", "touching", " clearance "]) == (
-        "touching", "interference", "clearance",
+        "touching",
+        "interference",
+        "clearance",
     )
     assert parse_fail_on(["none"]) == ()
     assert parse_fail_on([]) is None
@@ -223,9 +226,7 @@ def test_check_applies_the_config_file(tmp_path):
 
     a, b = _two_overlapping_cubes(tmp_path)
     config = tmp_path / "meshcheck.toml"
-    config.write_text(
-        f'tolerance = 0.2\n[[ignore]]\na = "{a}"\nb = "*b.stl"\nreason = "shim"\n'
-    )
+    config.write_text(f'tolerance = 0.2\n[[ignore]]\na = "{a}"\nb = "*b.stl"\nreason = "shim"\n')
     result = check([a, b], config=config)
     (finding,) = result.findings
     assert result.tolerance == 0.2

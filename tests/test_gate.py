@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import trimesh
 from click.testing import CliRunner
+from meshes import box
 
 from meshcheck.cli import main
 from meshcheck.config import Approval, Groups
@@ -23,10 +24,6 @@ def run(args):
     assert "Traceback" not in result.stderr
     assert result.exception is None or isinstance(result.exception, SystemExit), result.exception
     return result
-
-
-def box(extents, at=(0.0, 0.0, 0.0)) -> trimesh.Trimesh:
-    return trimesh.creation.box(extents=extents).apply_translation(at)
 
 
 def write(tmp_path, name, mesh) -> str:
@@ -93,9 +90,7 @@ def test_group_patterns_also_match_the_name_relative_to_the_argument(tmp_path):
     write(folder, "frame.stl", box((1.0, 1.0, 1.0)))
     write(folder, "bolt.stl", box((1.0, 1.0, 1.0), at=(0.5, 0, 0)))
     (tmp_path / "meshcheck.toml").write_text('[groups]\na = ["frame.stl"]\nb = ["bolt.stl"]\n')
-    out = run(
-        [folder, "--no-cache", "--config", tmp_path / "meshcheck.toml", "--format", "json"]
-    )
+    out = run([folder, "--no-cache", "--config", tmp_path / "meshcheck.toml", "--format", "json"])
     assert out.exit_code == 1, out.stderr
     assert json.loads(out.stdout)["summary"]["pairs_checked"] == 1
 
@@ -192,8 +187,14 @@ def test_a_forged_cache_entry_cannot_turn_a_fail_into_a_pass(tmp_path):
     entries = sorted(cache.rglob("*.npz"))
     assert entries
     for entry in entries:  # one tiny piece a million units away, with a valid checksum
-        store.put(entry.stem, [np.array([[1e6, 1e6, 1e6], [1e6 + 1, 1e6, 1e6], [1e6, 1e6 + 1, 1e6],
-                                         [1e6, 1e6, 1e6 + 1]])])
+        store.put(
+            entry.stem,
+            [
+                np.array(
+                    [[1e6, 1e6, 1e6], [1e6 + 1, 1e6, 1e6], [1e6, 1e6 + 1, 1e6], [1e6, 1e6, 1e6 + 1]]
+                )
+            ],
+        )
     assert run(args).exit_code == 1
 
 

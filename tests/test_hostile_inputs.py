@@ -24,16 +24,13 @@ import numpy as np
 import pytest
 import trimesh
 from click.testing import CliRunner
+from meshes import box
 
 from meshcheck.cli import main
 from meshcheck.errors import ExitStatus, InputError
 from meshcheck.load import Limits, load_bodies
 
 CORE = "http://schemas.microsoft.com/3dmanufacturing/core/2015/02"
-
-
-def box(extents=(1.0, 1.0, 1.0), at=(0.0, 0.0, 0.0)) -> trimesh.Trimesh:
-    return trimesh.creation.box(extents=extents).apply_translation(at)
 
 
 def write_3mf(path, model: str, *, member: str = "3D/3dmodel.model") -> str:

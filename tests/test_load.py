@@ -13,15 +13,12 @@ import pytest
 import trimesh
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from meshes import box
 
 from meshcheck.errors import InputError, MeshcheckWarning
 from meshcheck.load import expand_paths, load_bodies, split_shells
 
 HYPOTHESIS = settings(derandomize=True, deadline=None, max_examples=40)
-
-
-def box(extents=(1.0, 1.0, 1.0), at=(0.0, 0.0, 0.0)) -> trimesh.Trimesh:
-    return trimesh.creation.box(extents=extents).apply_translation(at)
 
 
 def write_stl(path, mesh) -> str:

@@ -26,7 +26,10 @@ def make_result(
     fail_on = resolve_fail_on(fail_on, clearance=clearance)
     settings = Settings(tolerance=1e-5, clearance=clearance, fail_on=fail_on)
     return CheckResult(
-        findings=list(findings), parts=parts, settings=settings, checked_pairs=list(checked_pairs),
+        findings=list(findings),
+        parts=parts,
+        settings=settings,
+        checked_pairs=list(checked_pairs),
         warnings=list(warnings),
     )
 
@@ -34,10 +37,15 @@ def make_result(
 def finding(a, b, status, *, approved=None, distance=0.0) -> Finding:
     interfering = status == "interference"
     return Finding(
-        a=a, b=b, status=status, distance=distance,
-        depth=0.7 if interfering else None, volume=2.5 if interfering else None,
+        a=a,
+        b=b,
+        status=status,
+        distance=distance,
+        depth=0.7 if interfering else None,
+        volume=2.5 if interfering else None,
         location=Location(np.array([1.0, 2, 3]), np.zeros(3), np.ones(3)),
-        id=finding_id(a, "da", b, "db"), approval_reason=approved,
+        id=finding_id(a, "da", b, "db"),
+        approval_reason=approved,
     )
 
 
@@ -128,7 +136,8 @@ def test_junit_lists_clear_pairs_when_the_pipeline_names_them():
     root = ElementTree.fromstring(render(make_result(CLASH, checked_pairs=pairs), "junit"))
     names = sorted(c.get("name") for c in root.iter("testcase"))
     assert names == [
-        f"bolt.stl <-> plate.stl [{CLASH.id}]", "bolt.stl <-> spare.stl",
+        f"bolt.stl <-> plate.stl [{CLASH.id}]",
+        "bolt.stl <-> spare.stl",
         "plate.stl <-> spare.stl",
     ]
     assert root.get("failures") == "1"

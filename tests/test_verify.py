@@ -9,6 +9,7 @@ import pytest
 import trimesh
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
+from meshes import box_between, fcl_collide, fcl_distance
 from scipy.optimize import linprog, minimize
 
 from meshcheck import results
@@ -21,11 +22,7 @@ CLEAR = Verdict.CLEAR
 TOL = 1e-6
 
 
-def box(lower, upper) -> trimesh.Trimesh:
-    lower, upper = np.asarray(lower, float), np.asarray(upper, float)
-    b = trimesh.creation.box(extents=upper - lower)
-    b.apply_translation(0.5 * (lower + upper))
-    return b
+box = box_between  # boxes by their corners in this file
 
 
 def unit(offset=(0, 0, 0)) -> trimesh.Trimesh:
@@ -384,22 +381,14 @@ def test_mesh_distance_matches_brute_force_and_is_symmetric(ka, kb, ra, rb, off)
 @settings(derandomize=True, deadline=None, max_examples=40)
 @given(st.integers(0, 2), st.integers(0, 2), angles, angles, offsets)
 def test_mesh_distance_matches_fcl(ka, kb, ra, rb, off):
-    fcl = pytest.importorskip("fcl")
+    pytest.importorskip("fcl")
     a, b = _placed(ka, ra, (0, 0, 0)), _placed(kb, rb, off)
-
-    def obj(m):
-        model = fcl.BVHModel()
-        model.beginModel(len(m.vertices), len(m.faces))
-        model.addSubModel(np.asarray(m.vertices, float), np.asarray(m.faces, np.int32))
-        model.endModel()
-        return fcl.CollisionObject(model, fcl.Transform())
-
-    is_hit = fcl.collide(obj(a), obj(b), fcl.CollisionRequest(), fcl.CollisionResult()) > 0
+    is_hit = fcl_collide(a, b)
     v = verify_pair(a, b, tolerance=TOL, clearance=10.0)
     if is_hit:
         assert v.status in (Verdict.TOUCHING, Verdict.INTERFERENCE)
         return
-    expected = fcl.distance(obj(a), obj(b), fcl.DistanceRequest(), fcl.DistanceResult())
+    expected = fcl_distance(a, b)
     if v.status == Verdict.CLEARANCE:
         assert v.distance == pytest.approx(expected, abs=1e-6)
     else:  # fcl sees surfaces only: a part inside the other has a positive distance there

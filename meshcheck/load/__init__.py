@@ -284,9 +284,7 @@ def _read_step(path: str, options: _StepOptions):
     return list(assembly.items), assembly.unit, float(assembly.deflection)
 
 
-def _read(
-    path: str, budget: Budget, step: _StepOptions
-) -> tuple[list[Item], str | None, float]:
+def _read(path: str, budget: Budget, step: _StepOptions) -> tuple[list[Item], str | None, float]:
     """Cleaned (node, mesh, placement) items of one file, sorted by node, its declared unit, and
     how far its triangles may lie from the true surface (in that unit; 0 for mesh files)."""
     if not os.path.exists(path):
