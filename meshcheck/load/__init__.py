@@ -18,7 +18,8 @@ are the same on every run.
     else ``component<k>`` counting from 1); a name used twice gets ``_2``, ``_3``... in build order.
   - OBJ: the ``o``/``g`` name; STL: the ``solid`` name; unnamed ones ``geometry_<k>`` in file
     order (trimesh's names, made unique in file order).
-  - STEP: the names its reader gives, by the same rules (``load.step``, when present).
+  - STEP: the product name of each solid (``load.step``), repeated instances ``PRODUCT_1``,
+    ``PRODUCT_2``...; a STEP part is always ``PATH#PRODUCT``, even alone in its file.
 
   A geometry instanced by two nodes gives two parts that share one local mesh (``Body.mesh``)
   and differ by ``Body.transform``.
