@@ -26,13 +26,11 @@ import numpy as np
 
 from .errors import MeshcheckWarning
 from .execute import Executor, LocalPool, Task, default_jobs
-from .load import Body, is_closed
+from .load import Body, is_closed, local_geometry
 
-# CoACD settings, measured with bench/coacd_settings.py on CAD-like parts of 4,400-7,900 triangles
-# (plates with 40-60 holes, a slotted bracket, a pocketed housing, a 48-tooth gear). The verify
-# stage is exact, so the pieces only have to be a good filter: these take 0.7 s per part on one
-# core (1.8 s at most) where CoACD's defaults take 37 s (5-72 s), and leave 270 of 1000
-# close-but-clear probes near a piece, against 175 with CoACD's defaults and 370 for the bare hull.
+# CoACD settings chosen with bench/coacd_settings.py (its figures are in README, "CoACD settings").
+# The verify stage is exact, so the pieces only have to be a good filter: these are about fifty
+# times faster than CoACD's defaults and filter a little worse, well ahead of the bare hull.
 DEFAULT_THRESHOLD = 0.1  # concavity threshold (CoACD default 0.05)
 DEFAULT_OPTIONS = {
     "resolution": 300,  # surface samples for the concavity metric (default 2000)
@@ -49,9 +47,9 @@ DEFAULT_OPTIONS = {
     "seed": 0,  # CoACD is randomised: a fixed seed makes runs repeatable
 }
 
-# CoACD's time is erratic: on the 48-tooth gear of bench/coacd_settings.py, settings that take 1.5 s
-# took 151 s after a small change (bad early cuts split it into 757 pieces). Past this many seconds
-# per mesh the worker is killed and the part's hull stands in for its pieces: the check stays
+# CoACD's time is erratic (bench/coacd_settings.py --slow shows a small settings change taking a
+# gear a hundred times longer: bad early cuts split it into hundreds of pieces). Past this many
+# seconds per mesh the worker is killed and the part's hull stands in for its pieces: the check stays
 # exact, only slower for that part.
 DEFAULT_TIME_LIMIT = 20.0
 
@@ -269,30 +267,6 @@ def decompose_mesh(vertices: np.ndarray, faces: np.ndarray, options: dict) -> li
 def decompose_task(store: dict, vertices, faces, options) -> list[np.ndarray]:
     """``decompose_mesh`` as an ``execute`` task (the store is not used)."""
     return decompose_mesh(vertices, faces, options)
-
-
-def local_geometry(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
-    """A mesh's geometry up to translation, and its digest.
-
-    Returns
-    -------
-    local : (n, 3) float64
-        Vertices moved so their lowest corner (per-axis minimum) is the origin.
-    faces : (m, 3) int64
-        Triangles.
-    corner : (3,) float64
-        The lowest corner; ``local + corner`` is the mesh, up to rounding.
-    digest : str
-        Hex SHA-256 of ``local`` and ``faces``: equal for copies of a mesh moved by a translation
-        that leaves their coordinates' bits alone (instances, exact offsets).
-    """
-    vertices = np.asarray(mesh.vertices, dtype=np.float64)
-    faces = np.ascontiguousarray(mesh.faces, dtype=np.int64)
-    corner = vertices.min(axis=0) if len(vertices) else np.zeros(3)
-    local = np.ascontiguousarray(vertices - corner)
-    h = hashlib.sha256(local.tobytes())
-    h.update(faces.tobytes())
-    return local, faces, corner, h.hexdigest()
 
 
 def decompose_bodies(

@@ -30,11 +30,11 @@ from . import verify
 from .broadphase import candidate_pairs
 from .cache import PairCache, pair_key, pair_secret
 from .config import Approval, approval_reason
-from .decompose import decompose_bodies, local_geometry
+from .decompose import decompose_bodies
 from .errors import MeshcheckWarning
 from .execute import Executor, Task, executor_for
 from .geometry import ConvexPack, Status, pack_convex, query_pairs
-from .load import Body, Limits, load_bodies
+from .load import Body, Limits, load_bodies, local_geometry
 from .progress import Progress
 from .results import CheckResult, Finding, Location, Part, Verdict, finding_id
 from .settings import (
@@ -565,7 +565,7 @@ def _tolerances(
 def _world_hulls(bodies: Sequence[Body]) -> list[np.ndarray]:
     """Hull vertices of each body, world coordinates; qhull runs once per distinct geometry.
 
-    Geometry is compared up to translation (``decompose.local_geometry``), so instances of one
+    Geometry is compared up to translation (``load.local_geometry``), so instances of one
     mesh and copies of one part at other places share a hull.
     """
     from scipy.spatial import ConvexHull, QhullError

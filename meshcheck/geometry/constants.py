@@ -85,9 +85,9 @@ EPA_MAX_ITER = 128
 #: Shapes with more hull vertices than this walk the vertex adjacency (hill climbing) to find a
 #: support point; smaller ones are scanned. A walk touches few vertices (~40 of 1000, ~100 from
 #: a cold start) but in pointer-chasing order, while a scan streams memory the prefetcher
-#: loves: measured in the batch kernel on random ellipsoid hulls each used in one pair (cold
-#: cache), the scan stays faster up to ~1000 vertices (40: 1.7 vs 2.6 us per pair, 320: 5.6
-#: vs 27, 1000: 16 vs 31). Large body hulls queried in several pairs are warm and climb well.
+#: loves: on random ellipsoid hulls each used in one pair (cold cache) the scan stayed faster up to
+#: ~1000 vertices (bench/gjk.py measures the kernel). Large body hulls queried in several pairs
+#: are warm and climb well.
 HILL_CLIMB_MIN_VERTICES = 1024
 
 #: ``query_pairs(..., threads=N)`` spreads the pairs over N threads only from this many pairs

@@ -74,3 +74,27 @@ def mesh_digest(mesh: trimesh.Trimesh) -> str:
     h.update(np.ascontiguousarray(mesh.vertices, dtype=np.float64).tobytes())
     h.update(np.ascontiguousarray(mesh.faces, dtype=np.int64).tobytes())
     return h.hexdigest()
+
+
+def local_geometry(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
+    """A mesh's geometry up to translation, and its digest.
+
+    Returns
+    -------
+    local : (n, 3) float64
+        Vertices moved so their lowest corner (per-axis minimum) is the origin.
+    faces : (m, 3) int64
+        Triangles.
+    corner : (3,) float64
+        The lowest corner; ``local + corner`` is the mesh, up to rounding.
+    digest : str
+        Hex SHA-256 of ``local`` and ``faces``: equal for copies of a mesh moved by a translation
+        that leaves their coordinates' bits alone (instances, exact offsets).
+    """
+    vertices = np.asarray(mesh.vertices, dtype=np.float64)
+    faces = np.ascontiguousarray(mesh.faces, dtype=np.int64)
+    corner = vertices.min(axis=0) if len(vertices) else np.zeros(3)
+    local = np.ascontiguousarray(vertices - corner)
+    h = hashlib.sha256(local.tobytes())
+    h.update(faces.tobytes())
+    return local, faces, corner, h.hexdigest()

@@ -201,18 +201,10 @@ def overlapping_shells(mesh: trimesh.Trimesh) -> tuple[int, int] | None:
 
 
 def _winding_number(mesh: trimesh.Trimesh, point: np.ndarray) -> float:
-    """Generalised winding number of a closed mesh around ``point`` (1 inside, 0 outside).
+    """Generalised winding number of a closed mesh around ``point`` (1 inside, 0 outside): the
+    compiled kernel the verify stage uses (``geometry.triangles.winding_numbers``)."""
+    from ..geometry.triangles import winding_numbers
 
-    Sum of the triangles' signed solid angles (Van Oosterom and Strackee, 1983) over 4 pi.
-    """
-    tri = mesh.vertices[mesh.faces] - np.asarray(point, dtype=np.float64)
-    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
-    la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
-    det = np.einsum("ij,ij->i", a, np.cross(b, c))
-    den = (
-        la * lb * lc
-        + np.einsum("ij,ij->i", a, b) * lc
-        + np.einsum("ij,ij->i", b, c) * la
-        + np.einsum("ij,ij->i", c, a) * lb
-    )
-    return float(np.sum(2.0 * np.arctan2(det, den)) / (4.0 * np.pi))
+    points = np.asarray(point, dtype=np.float64).reshape(1, 3)
+    v = np.asarray(mesh.vertices, dtype=np.float64)
+    return float(winding_numbers(points, v, np.asarray(mesh.faces, dtype=np.int64))[0])
