@@ -49,8 +49,8 @@ DEFAULT_OPTIONS = {
 
 # CoACD's time is erratic (bench/coacd_settings.py --slow shows a small settings change taking a
 # gear a hundred times longer: bad early cuts split it into hundreds of pieces). Past this many
-# seconds per mesh the worker is killed and the part's hull stands in for its pieces: the check stays
-# exact, only slower for that part.
+# seconds per mesh the worker is killed and the part's hull stands in for its pieces: the check
+# stays exact, only slower for that part.
 DEFAULT_TIME_LIMIT = 20.0
 
 # A vertex counts as inside a piece when it is at most this fraction of the mesh's bounding-box
