@@ -169,23 +169,32 @@ class DecompositionCache:
         starts = np.concatenate([[0], np.cumsum(sizes, dtype=np.int64)]).astype(np.int64)
         checksum = np.frombuffer(_checksum(points, starts, key), dtype=np.uint8)
         final = self.path(key)
-        try:
-            os.makedirs(os.path.dirname(final), exist_ok=True)
-            fd, tmp = tempfile.mkstemp(dir=os.path.dirname(final), prefix=".tmp-", suffix=".npz")
-        except OSError:
-            return
-        try:
-            with os.fdopen(fd, "wb") as f:
-                np.savez(f, points=points, starts=starts, checksum=checksum)
-            os.replace(tmp, final)
-        except OSError:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp)
+        write_atomically(
+            final, ".npz", lambda f: np.savez(f, points=points, starts=starts, checksum=checksum)
+        )
         _remove_stale_temporaries(os.path.dirname(final))
 
 
 # A temporary file older than this was left by a writer that was killed before its os.replace.
 STALE_SECONDS = 3600.0
+
+
+def write_atomically(final: str, suffix: str, write) -> None:
+    """Write an entry at ``final`` through ``write(file)`` to a temporary file in the same
+    directory, then ``os.replace`` it into place: readers see a whole entry or none. A failure to
+    write only costs a recompute."""
+    try:
+        os.makedirs(os.path.dirname(final), exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=os.path.dirname(final), prefix=".tmp-", suffix=suffix)
+    except OSError:
+        return
+    try:
+        with os.fdopen(fd, "wb") as f:
+            write(f)
+        os.replace(tmp, final)
+    except OSError:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
 
 
 def _remove_stale_temporaries(directory: str) -> None:
@@ -438,19 +447,8 @@ class PairCache:
         """Store a verdict's fields (as ``get`` returns them) atomically, signed."""
         fields = _encode_verdict(verdict)
         entry = {"key": key, "verdict": fields, "mac": self._mac(key, fields)}
-        final = self.path(key)
-        try:
-            os.makedirs(os.path.dirname(final), exist_ok=True)
-            fd, tmp = tempfile.mkstemp(dir=os.path.dirname(final), prefix=".tmp-", suffix=".json")
-        except OSError:
-            return
-        try:
-            with os.fdopen(fd, "w", encoding="ascii") as f:
-                json.dump(entry, f, sort_keys=True, separators=(",", ":"))
-            os.replace(tmp, final)
-        except OSError:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp)
+        text = json.dumps(entry, sort_keys=True, separators=(",", ":")).encode("ascii")
+        write_atomically(self.path(key), ".json", lambda f: f.write(text))
 
     def remove_stale_temporaries(self) -> None:
         """Remove temporary files killed writers left (call once per run, not per entry)."""

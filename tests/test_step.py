@@ -376,7 +376,7 @@ def test_cli_reads_step_with_any_case_extension(files, tmp_path):
 
 
 def test_cache_returns_the_same_assembly_and_misses_on_garbage(files, tmp_path):
-    cache = TessellationCache(str(tmp_path / "cache"))
+    cache = TessellationCache(str(tmp_path / "cache"), secret=b"k" * 32)
     first = read_step(files["bolts"], cache=cache)
     data = open(files["bolts"], "rb").read()
     key = tessellation_key(data, DEFAULT_DEFLECTION_MM, 0.5)
@@ -397,3 +397,14 @@ def test_cache_returns_the_same_assembly_and_misses_on_garbage(files, tmp_path):
     assert cache.get(key) is None
     read_step(files["bolts"], cache=cache)
     assert cache.get(key) is not None
+
+
+def test_a_tessellation_entry_signed_with_another_key_is_a_miss(files, tmp_path):
+    # The tessellation is the part's geometry: an entry anyone could write (a plain checksum)
+    # could move a part out of a clash. Entries are signed with the cache's secret.
+    forger = TessellationCache(str(tmp_path / "cache"), secret=b"f" * 32)
+    ours = TessellationCache(str(tmp_path / "cache"), secret=b"k" * 32)
+    read_step(files["bolts"], cache=forger)
+    key = tessellation_key(open(files["bolts"], "rb").read(), DEFAULT_DEFLECTION_MM, 0.5)
+    assert forger.get(key) is not None
+    assert ours.get(key) is None

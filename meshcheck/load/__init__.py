@@ -271,7 +271,12 @@ def _read_step(path: str, options: _StepOptions):
     """(items, declared unit, deflection in that unit) of a STEP file."""
     from .step import TessellationCache, read_step
 
-    cache = None if options.cache_dir is None else TessellationCache(options.cache_dir)
+    cache = None
+    if options.cache_dir is not None:
+        from ..cache import pair_secret
+
+        secret = pair_secret()  # entries are signed, as pair verdicts are (see meshcheck.cache)
+        cache = None if secret is None else TessellationCache(options.cache_dir, secret=secret)
     try:
         assembly = read_step(
             path,

@@ -42,6 +42,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import hashlib
+import hmac
 import io
 import json
 import os
@@ -526,8 +527,9 @@ class TessellationCache:
         Cache root (shared with the decompositions); created on the first write.
     """
 
-    def __init__(self, directory: str):
+    def __init__(self, directory: str, *, secret: bytes):
         self.root = os.path.join(os.fspath(directory), f"tessellations-v{FORMAT_VERSION}")
+        self._secret = bytes(secret)
 
     def path(self, key: str) -> str:
         """File of the entry for ``key``."""
@@ -535,37 +537,31 @@ class TessellationCache:
 
     def get(self, key: str) -> StepAssembly | None:
         """The assembly stored for ``key``, or None when missing or unusable."""
+        from ..cache import _sizes_agree
+
         try:
+            if not _sizes_agree(self.path(key)):
+                return None
             with np.load(self.path(key), allow_pickle=False) as data:
                 if sorted(data.files) != _ARRAYS:
                     return None
                 arrays = {name: data[name] for name in _ARRAYS}
-        except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile):
+        except (OSError, ValueError, EOFError, KeyError, MemoryError, zipfile.BadZipFile):
             return None
         try:
-            return _unpack(arrays, key)
+            return _unpack(arrays, key, self._secret)
         except (ValueError, KeyError, TypeError, IndexError, UnicodeDecodeError):
             return None
 
     def put(self, key: str, assembly: StepAssembly) -> None:
         """Store ``assembly`` for ``key`` atomically; a failure to write only costs a re-read."""
-        arrays = _pack(assembly, key)
-        final = self.path(key)
-        try:
-            os.makedirs(os.path.dirname(final), exist_ok=True)
-            fd, tmp = tempfile.mkstemp(dir=os.path.dirname(final), prefix=".tmp-", suffix=".npz")
-        except OSError:
-            return
-        try:
-            with os.fdopen(fd, "wb") as f:
-                np.savez(f, **arrays)
-            os.replace(tmp, final)
-        except OSError:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp)
+        arrays = _pack(assembly, key, self._secret)
+        from ..cache import write_atomically
+
+        write_atomically(self.path(key), ".npz", lambda f: np.savez(f, **arrays))
 
 
-def _pack(assembly: StepAssembly, key: str) -> dict[str, np.ndarray]:
+def _pack(assembly: StepAssembly, key: str, secret: bytes) -> dict[str, np.ndarray]:
     meshes: list[trimesh.Trimesh] = []
     index: dict[int, int] = {}
     for _, mesh, _ in assembly.items:
@@ -589,12 +585,15 @@ def _pack(assembly: StepAssembly, key: str) -> dict[str, np.ndarray]:
             -1, 4, 4
         ),
     }
-    arrays["checksum"] = np.frombuffer(_checksum(arrays, key), dtype=np.uint8)
+    arrays["checksum"] = np.frombuffer(_checksum(arrays, key, secret), dtype=np.uint8)
     return arrays
 
 
-def _checksum(arrays: dict[str, np.ndarray], key: str) -> bytes:
-    h = hashlib.sha256(key.encode())
+def _checksum(arrays: dict[str, np.ndarray], key: str, secret: bytes) -> bytes:
+    """HMAC-SHA256 of the entry under the cache's secret: a tessellation is the part's geometry,
+    which nothing cheaper than tessellating again could check, so an entry not signed with this
+    machine's (or CI's) key is a miss."""
+    h = hmac.new(secret, key.encode(), hashlib.sha256)
     for name in _ARRAYS:
         if name != "checksum":
             h.update(name.encode())
@@ -602,7 +601,7 @@ def _checksum(arrays: dict[str, np.ndarray], key: str) -> bytes:
     return h.digest()
 
 
-def _unpack(arrays: dict[str, np.ndarray], key: str) -> StepAssembly | None:
+def _unpack(arrays: dict[str, np.ndarray], key: str, secret: bytes) -> StepAssembly | None:
     expected = {
         "header": (np.uint8, 1),
         "vertices": (np.float64, 2),
@@ -616,7 +615,7 @@ def _unpack(arrays: dict[str, np.ndarray], key: str) -> StepAssembly | None:
     for name, (dtype, ndim) in expected.items():
         if arrays[name].dtype != dtype or arrays[name].ndim != ndim:
             return None
-    if arrays["checksum"].tobytes() != _checksum(arrays, key):
+    if not hmac.compare_digest(arrays["checksum"].tobytes(), _checksum(arrays, key, secret)):
         return None
     header = json.loads(arrays["header"].tobytes().decode())
     vs, fs, mesh_of = arrays["vertex_starts"], arrays["face_starts"], arrays["mesh_of"]
