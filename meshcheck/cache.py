@@ -306,23 +306,26 @@ def pair_key(
 
 @functools.cache
 def verify_code_version() -> str:
-    """Digest of what computes a verdict: meshcheck's version and the source of its verify stage
-    and kernels, and the versions of numpy, trimesh, manifold3d and numba."""
+    """Digest of what computes a verdict: meshcheck's version, the source of its verify and depth
+    stages, the compiled kernels' binary, and the versions of numpy, trimesh and manifold3d."""
     import importlib.metadata
 
+    from .geometry import _kernels
+
     h = hashlib.sha256()
-    for package in ("meshcheck", "numpy", "trimesh", "manifold3d", "numba"):
+    for package in ("meshcheck", "numpy", "trimesh", "manifold3d"):
         try:
             h.update(f"{package}={importlib.metadata.version(package)};".encode())
         except importlib.metadata.PackageNotFoundError:
             h.update(f"{package}=?;".encode())
     here = os.path.dirname(os.path.abspath(__file__))
-    for name in ("verify.py", "results.py", os.path.join("geometry", "triangles.py")):
+    names = ("verify.py", "depth.py", "results.py", os.path.join("geometry", "triangles.py"))
+    for path in [*(os.path.join(here, n) for n in names), _kernels.__file__]:
         try:
-            with open(os.path.join(here, name), "rb") as f:
+            with open(path, "rb") as f:
                 h.update(hashlib.sha256(f.read()).digest())
         except OSError:
-            h.update(name.encode())
+            h.update(path.encode())
     return h.hexdigest()
 
 
