@@ -169,9 +169,10 @@ def _report_option(ctx, param, values):
     "--cache-dir",
     type=click.Path(file_okay=False),
     default=None,
-    help="Where decompositions are kept. Default: the user's cache directory.",
+    help="Where decompositions, pair verdicts and STEP tessellations are kept. Default: the "
+    "user's cache directory.",
 )
-@click.option("--no-cache", is_flag=True, help="Neither read nor write cached decompositions.")
+@click.option("--no-cache", is_flag=True, help="Neither read nor write any cache.")
 @click.option(
     "--jobs",
     "-j",

@@ -26,7 +26,7 @@ from .config import (
     parse_fail_on,
 )
 from .errors import ConfigError
-from .results import Verdict
+from .results import FINDING_STATUSES, Verdict
 
 DEFAULT_THRESHOLD = 0.1  # CoACD concavity threshold; see decompose.DEFAULT_OPTIONS
 SCHEDULER_VARIABLE = "MESHCHECK_SCHEDULER"  # the environment's default for --scheduler
@@ -151,19 +151,14 @@ class Settings:
             value = getattr(self, name)
             if value is not None:
                 object.__setattr__(self, name, checked_number(name, value, *NUMBER_RANGES[name]))
-        if self.jobs is not None and (
-            isinstance(self.jobs, bool) or not isinstance(self.jobs, int) or self.jobs < 1
-        ):
-            raise ConfigError(None, f"jobs must be a whole number of at least 1, not {self.jobs!r}")
-        if self.max_triangles is not None and (
-            isinstance(self.max_triangles, bool)
-            or not isinstance(self.max_triangles, int)
-            or self.max_triangles < 1
-        ):
-            raise ConfigError(
-                None,
-                f"max_triangles must be a whole number of at least 1, not {self.max_triangles!r}",
-            )
+        for name in ("jobs", "max_triangles"):
+            value = getattr(self, name)
+            if value is not None and (
+                isinstance(value, bool) or not isinstance(value, int) or value < 1
+            ):
+                raise ConfigError(
+                    None, f"{name} must be a whole number of at least 1, not {value!r}"
+                )
         if self.units is not None:
             from .units import unit_name
 
@@ -282,15 +277,7 @@ def resolve_fail_on(words: Sequence[str] | None, *, clearance: float | None) -> 
     chosen = {Verdict.INTERFERENCE, *(Verdict(w) for w in words or ())}
     if clearance is not None:
         chosen.add(Verdict.CLEARANCE)
-    order = (Verdict.INTERFERENCE, Verdict.CLEARANCE, Verdict.TOUCHING)
-    return tuple(s for s in order if s in chosen)
-
-
-def describe_tolerance(tolerance: float | None) -> str:
-    """How the touching tolerance is chosen, for reports."""
-    if tolerance is not None:
-        return f"{tolerance:.3g}"
-    return "per pair"
+    return tuple(s for s in FINDING_STATUSES if s in chosen)
 
 
 __all__ = [
