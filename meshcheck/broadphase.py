@@ -68,3 +68,71 @@ def candidate_pairs(
         i, j = i[distinct], j[distinct]
     pairs = np.stack([np.minimum(i, j), np.maximum(i, j)], axis=1).astype(np.int64)
     return pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
+
+
+def group_pairs(
+    lower: np.ndarray,
+    upper: np.ndarray,
+    first: np.ndarray,
+    count: np.ndarray,
+    pairs: np.ndarray,
+    margin: np.ndarray,
+    *,
+    chunk: int = 1 << 22,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Box pairs across given pairs of groups: for group pair ``k``, every box of one group
+    against every box of the other, kept when their gap along every axis is at most
+    ``margin[k]`` (as ``candidate_pairs``).
+
+    Parameters
+    ----------
+    lower, upper : (m, 3) float64
+        Box corners.
+    first, count : (g,) int64
+        Group ``q`` owns boxes ``first[q] .. first[q] + count[q] - 1``.
+    pairs : (k, 2) int64
+        Group pairs.
+    margin : (k,) float64
+        Largest gap that keeps a box pair of group pair ``k``.
+    chunk : int
+        Box pairs tested at once (bounds the memory).
+
+    Returns
+    -------
+    box_pairs : (p, 2) int64
+        ``(box of pairs[k, 0], box of pairs[k, 1])``, grouped by ``k`` in order.
+    row : (p,) int64
+        The group pair ``k`` of each box pair.
+
+    Examples
+    --------
+    >>> lo = np.array([[0.0, 0, 0], [5, 0, 0], [1.5, 0, 0]])
+    >>> first, count = np.array([0, 2]), np.array([2, 1])
+    >>> pairs, margin = np.array([[0, 1]]), np.array([0.5])
+    >>> box_pairs, row = group_pairs(lo, lo + 1.0, first, count, pairs, margin)
+    >>> box_pairs.tolist(), row.tolist()
+    ([[0, 2]], [0])
+    """
+    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    margin = np.broadcast_to(np.asarray(margin, dtype=np.float64), (len(pairs),))
+    na, nb = count[pairs[:, 0]], count[pairs[:, 1]]
+    sizes = na * nb
+    out_pairs, out_rows = [], []
+    k = 0
+    while k < len(pairs):
+        # as many group pairs as fit in one chunk (at least one)
+        end = k + max(1, int(np.searchsorted(np.cumsum(sizes[k:]), chunk, side="right")))
+        rows = np.repeat(np.arange(k, end), sizes[k:end])
+        offset = np.arange(len(rows)) - np.repeat(
+            np.cumsum(sizes[k:end]) - sizes[k:end], sizes[k:end]
+        )
+        a = first[pairs[rows, 0]] + offset // nb[rows]
+        b = first[pairs[rows, 1]] + offset % nb[rows]
+        m = margin[rows][:, None]
+        keep = np.all((lower[b] - upper[a] <= m) & (lower[a] - upper[b] <= m), axis=1)
+        out_pairs.append(np.stack([a[keep], b[keep]], axis=1))
+        out_rows.append(rows[keep])
+        k = end
+    if not out_pairs:
+        return np.empty((0, 2), dtype=np.int64), np.empty(0, dtype=np.int64)
+    return np.concatenate(out_pairs).astype(np.int64), np.concatenate(out_rows).astype(np.int64)

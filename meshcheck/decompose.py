@@ -26,7 +26,7 @@ import numpy as np
 
 from .errors import MeshcheckWarning
 from .execute import Executor, LocalPool, Task, default_jobs
-from .load import Body, is_closed, local_geometry
+from .load import Body, is_closed, local_geometries
 
 # CoACD settings chosen with bench/coacd_settings.py (its figures are in README, "CoACD settings").
 # The verify stage is exact, so the pieces only have to be a good filter: these are about fifty
@@ -279,6 +279,7 @@ def decompose_bodies(
     progress: Callable[[int], None] | None = None,
     time_limit: float | None = DEFAULT_TIME_LIMIT,
     executor: Executor | None = None,
+    geometry: dict | None = None,
 ) -> list[list[np.ndarray]]:
     """Convex pieces of each body in world coordinates, covering every triangle of the body.
 
@@ -306,6 +307,8 @@ def decompose_bodies(
         Where CoACD runs (a run's shared pool or Dask cluster); default a pool of ``jobs``
         processes started for this call. A one-process ``Executor`` with a time limit is replaced
         by one worker process, so an overrun can still be killed.
+    geometry : dict, optional
+        ``load.local_geometries`` of the bodies, when the caller has it already.
 
     Returns
     -------
@@ -320,14 +323,14 @@ def decompose_bodies(
         cache = DecompositionCache(cache_dir)
 
     # One entry per distinct frame-local geometry, in order of first appearance.
-    geometry: dict[int, tuple] = {}  # id(mesh) -> (local, faces, corner, digest)
+    if geometry is None:
+        geometry = local_geometries(bodies)
     names: dict[str, str] = {}  # digest -> name of the first body with that geometry
     for body in bodies:
-        if id(body.mesh) not in geometry:
-            geometry[id(body.mesh)] = local_geometry(body.mesh)
         names.setdefault(geometry[id(body.mesh)][3], body.name)
     distinct: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-    for local, faces, _, digest in geometry.values():
+    for body in bodies:
+        local, faces, _, digest = geometry[id(body.mesh)]
         distinct.setdefault(digest, (local, faces))
 
     pieces_of: dict[str, list[np.ndarray]] = {}

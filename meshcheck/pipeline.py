@@ -27,14 +27,14 @@ from collections.abc import Sequence
 import numpy as np
 
 from . import verify
-from .broadphase import candidate_pairs
+from .broadphase import candidate_pairs, group_pairs
 from .cache import PairCache, pair_key, pair_secret
 from .config import Approval, approval_reason
 from .decompose import decompose_bodies
 from .errors import MeshcheckWarning
 from .execute import Executor, Task, executor_for
 from .geometry import ConvexPack, Status, pack_convex, query_pairs
-from .load import Body, Limits, load_bodies, local_geometry
+from .load import Body, Limits, load_bodies, local_geometries
 from .progress import Progress
 from .results import CheckResult, Finding, Location, Part, Verdict, finding_id
 from .settings import (
@@ -133,8 +133,9 @@ def check_bodies(bodies: Sequence[Body], settings: Settings | None = None, **fie
     names = [_names(b) for b in bodies]
     _check_patterns(settings, names)
 
+    geometry = local_geometries(bodies)
     with Progress("comparing hulls", 0):
-        hulls = pack_convex(_world_hulls(bodies), is_hull=True)
+        hulls = pack_convex(_world_hulls(bodies, geometry), is_hull=True)
         diagonal, magnitude = part_sizes(hulls.lower, hulls.upper)
         deflection = max((b.deflection for b in bodies), default=0.0)
         pairs = select_pairs(hulls, settings, names, diagonal, magnitude, deflection)
@@ -145,7 +146,7 @@ def check_bodies(bodies: Sequence[Body], settings: Settings | None = None, **fie
     pairs_near, tol_near, reach_near = pairs[near], tolerance[near], reach[near]
     with executor_for(jobs=settings.jobs, scheduler=settings.scheduler) as executor:
         pieces, owner, piece_count = decompose_parts(
-            bodies, np.unique(pairs_near), settings, executor=executor
+            bodies, np.unique(pairs_near), settings, executor=executor, geometry=geometry
         )
         near_surfaces = surfaces_near(pieces, owner, pairs_near, tol_near, reach_near)
         findings = verify_pairs(
@@ -212,6 +213,7 @@ def decompose_parts(
     settings: Settings,
     *,
     executor: Executor | None = None,
+    geometry: dict | None = None,
 ) -> tuple[ConvexPack, np.ndarray, np.ndarray]:
     """Convex pieces of the parts in ``needed`` (indices into ``bodies``), CoACD running on
     ``executor`` (default: ``settings.jobs`` local processes).
@@ -233,6 +235,7 @@ def decompose_parts(
             jobs=settings.jobs,
             progress=bar.update,
             executor=executor,
+            geometry=geometry,
         )
     count = np.zeros(len(bodies), dtype=np.int64)
     count[needed] = [len(p) for p in piece_lists]
@@ -256,18 +259,16 @@ def surfaces_near(
     """
     if len(pairs) == 0:
         return np.zeros(0, dtype=bool)
-    piece_pairs = candidate_pairs(
-        pieces.lower, pieces.upper, margin=float(reach.max()), owner=owner
+    # Pieces are grouped by part (``decompose_parts``): test each pair's pieces against each
+    # other, rather than sweeping every piece of the assembly.
+    parts = int(max(owner.max(initial=-1), pairs.max())) + 1
+    count = np.bincount(owner, minlength=parts)
+    first = np.searchsorted(owner, np.arange(parts), side="left")
+    if np.any(owner[1:] < owner[:-1]):
+        raise ValueError("pieces must be grouped by part, in part order")
+    piece_pairs, row = group_pairs(
+        pieces.lower, pieces.upper, first, count, pairs, np.asarray(reach, dtype=np.float64)
     )
-    owners = np.sort(owner[piece_pairs], axis=1)
-    n = int(max(owner.max(), pairs.max())) + 1
-    part_key = pairs[:, 0] * n + pairs[:, 1]
-    order = np.argsort(part_key)
-    index = np.searchsorted(part_key, owners[:, 0] * n + owners[:, 1], sorter=order)
-    index = np.minimum(index, len(pairs) - 1)
-    row = order[index]
-    is_pair = part_key[row] == owners[:, 0] * n + owners[:, 1]
-    piece_pairs, row = piece_pairs[is_pair], row[is_pair]
     query = query_pairs(
         pieces, piece_pairs, tolerance=tolerance[row], depth=False, max_distance=reach[row]
     )
@@ -303,7 +304,7 @@ def verify_pairs(
     at least ``PARALLEL_MIN_PAIRS`` of them, and then cached. The findings do not depend on where
     a verdict came from.
     """
-    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    pairs = _oriented(bodies, np.asarray(pairs, dtype=np.int64).reshape(-1, 2))
     verdicts: list[verify.PairVerdict | None] = [None] * len(pairs)
     cache = _pair_cache(settings)
     keys: list[str] = []
@@ -365,6 +366,24 @@ def verify_pairs(
         )
     findings.sort(key=lambda f: (f.a, f.b))
     return findings
+
+
+def _oriented(bodies: Sequence[Body], pairs: np.ndarray) -> np.ndarray:
+    """``pairs`` with each pair's parts ordered by geometry and placement, not by where their
+    files came in the arguments: a verdict, bit for bit, and its cache key do not depend on the
+    order the files were given in."""
+    if not len(pairs):
+        return pairs
+    used = np.unique(pairs)
+    placed = sorted(used, key=lambda i: (bodies[i].digest, _placement_bytes(bodies[i])))
+    rank = np.empty(int(used.max()) + 1, dtype=np.int64)
+    rank[placed] = np.arange(len(placed))
+    swap = rank[pairs[:, 0]] > rank[pairs[:, 1]]
+    return np.where(swap[:, None], pairs[:, ::-1], pairs)
+
+
+def _placement_bytes(body: Body) -> bytes:
+    return np.ascontiguousarray(body.transform, dtype=np.float64).tobytes()
 
 
 def verify_task(store: dict, items: list, clearance: float | None) -> list[verify.PairVerdict]:
@@ -562,7 +581,7 @@ def _tolerances(
     return np.maximum(tol, deflection[pairs[:, 0]] + deflection[pairs[:, 1]])
 
 
-def _world_hulls(bodies: Sequence[Body]) -> list[np.ndarray]:
+def _world_hulls(bodies: Sequence[Body], geometry: dict) -> list[np.ndarray]:
     """Hull vertices of each body, world coordinates; qhull runs once per distinct geometry.
 
     Geometry is compared up to translation (``load.local_geometry``), so instances of one
@@ -575,7 +594,7 @@ def _world_hulls(bodies: Sequence[Body]) -> list[np.ndarray]:
     out = []
     for body in bodies:
         if id(body.mesh) not in by_mesh:
-            local, _, corner, digest = local_geometry(body.mesh)
+            local, _, corner, digest = geometry[id(body.mesh)]
             if digest not in by_digest:
                 try:
                     by_digest[digest] = local[np.sort(ConvexHull(local).vertices)]

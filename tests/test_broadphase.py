@@ -6,7 +6,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from meshcheck.broadphase import candidate_pairs
+from meshcheck.broadphase import candidate_pairs, group_pairs
 
 
 def brute_force(lower, upper, margin=0.0, owner=None):
@@ -79,3 +79,36 @@ def test_matches_brute_force(boxes, margin, owners, seed):
         got = candidate_pairs(lower, upper, margin=margin, owner=own)
         assert got.dtype == np.int64 and got.shape[1] == 2
         assert np.array_equal(got, brute_force(lower, upper, margin, own))
+
+
+@settings(derandomize=True, deadline=None, max_examples=200)
+@given(
+    boxes=st.lists(
+        st.tuples(st.tuples(coords, coords, coords), st.tuples(*[st.integers(0, 8)] * 3)),
+        min_size=1,
+        max_size=25,
+    ),
+    groups=st.integers(1, 5),
+    margins=st.lists(st.sampled_from([0.0, 0.5, 1.0, 3.0]), min_size=10, max_size=10),
+    chunk=st.sampled_from([1, 7, 1 << 22]),
+    seed=st.integers(0, 1000),
+)
+def test_group_pairs_matches_brute_force(boxes, groups, margins, chunk, seed):
+    """Every box of one group against every box of the other, each group pair with its own
+    margin: the box pairs brute force finds between those two groups, grouped by pair."""
+    lower = np.array([b[0] for b in boxes], dtype=np.float64).reshape(-1, 3)
+    upper = lower + np.array([b[1] for b in boxes], dtype=np.float64).reshape(-1, 3)
+    owner = np.sort(np.random.default_rng(seed).integers(0, groups, len(boxes)))
+    count = np.bincount(owner, minlength=groups)
+    first = np.searchsorted(owner, np.arange(groups))
+    pairs = np.array([(a, b) for a in range(groups) for b in range(a + 1, groups)])
+    pairs = pairs.reshape(-1, 2)
+    margin = np.array(margins[: len(pairs)] + [0.0] * max(0, len(pairs) - 10))
+    got, row = group_pairs(lower, upper, first, count, pairs, margin, chunk=chunk)
+    assert got.dtype == np.int64 and row.dtype == np.int64 and np.all(np.diff(row) >= 0)
+    expected = []
+    for k, (a, b) in enumerate(pairs):
+        for i, j in brute_force(lower, upper, margin[k]):
+            if {owner[i], owner[j]} == {a, b}:
+                expected.append((k, *((i, j) if owner[i] == a else (j, i))))
+    assert sorted(zip(row.tolist(), *got.T.tolist(), strict=True)) == sorted(expected)

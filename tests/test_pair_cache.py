@@ -83,6 +83,18 @@ def test_after_one_part_moves_only_its_pairs_are_verified(tmp_path, counted):
     assert moved_json == fresh_json
 
 
+def test_argument_order_changes_neither_verdicts_nor_cache_hits(tmp_path, counted):
+    paths = write_row(tmp_path / "row")
+    _, forward = run(paths, tmp_path / "c", jobs=1)
+    verified = len(counted)
+    _, backward = run(paths[::-1], tmp_path / "c", jobs=1)
+    assert len(counted) == verified  # every verdict found under the same key
+    _, fresh = run(paths[::-1], None, use_cache=False, jobs=1)
+    assert len(counted) == 2 * verified
+    results = [json.loads(report)["results"] for report in (forward, backward, fresh)]
+    assert results[0] == results[1] == results[2]  # every number, to the last bit
+
+
 def test_parallel_verify_is_byte_identical_to_serial(tmp_path, monkeypatch, counted):
     monkeypatch.setattr(pipeline, "PARALLEL_MIN_PAIRS", 0)
     monkeypatch.setattr(pipeline, "PAIRS_PER_TASK", 2)
@@ -103,9 +115,9 @@ def _interfering_pair_key(paths, cache_dir):
     (finding,) = [f for f in result.findings if str(f.status) == "interference"]
     bodies = {b.name: b for b in result.bodies}
     a, b = bodies[finding.a], bodies[finding.b]
-    order = [b_.name for b_ in result.bodies]
-    if order.index(a.name) > order.index(b.name):
-        a, b = b, a
+    index = {b_.name: k for k, b_ in enumerate(result.bodies)}
+    ((i, j),) = pipeline._oriented(result.bodies, np.array([[index[a.name], index[b.name]]]))
+    a, b = result.bodies[i], result.bodies[j]
     return pair_key(
         (a.digest, a.transform),
         (b.digest, b.transform),

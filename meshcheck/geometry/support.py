@@ -64,9 +64,9 @@ def _hull_vertices(arr: np.ndarray, is_hull: bool) -> tuple[np.ndarray, np.ndarr
     no_edges = np.empty((0, 2), dtype=np.int64)
     n = arr.shape[0]
     if n <= 4 or (is_hull and n <= HILL_CLIMB_MIN_VERTICES):
-        # A scan over a handful of points needs no hull; duplicates are harmless to a scan but
-        # cheap to drop.
-        return np.unique(arr, axis=0), no_edges
+        # A scan over a handful of points needs no hull, and duplicates are harmless to a scan
+        # (dropping them with np.unique cost more than the scans they save).
+        return arr, no_edges
     try:
         hull = ConvexHull(arr)
     except (QhullError, ValueError):
@@ -136,12 +136,11 @@ def pack_convex(shapes: Sequence[np.ndarray], *, is_hull: bool = False) -> Conve
     nbr_starts = np.zeros(total + 1, dtype=np.int64)
     np.cumsum(counts, out=nbr_starts[1:])
     nbrs = np.ascontiguousarray(edges[:, 1], dtype=np.int64)
-    m = len(verts_list)
-    lower = np.empty((m, 3), dtype=np.float64)
-    upper = np.empty((m, 3), dtype=np.float64)
-    for s, verts in enumerate(verts_list):
-        lower[s] = verts.min(axis=0)
-        upper[s] = verts.max(axis=0)
+    if verts_list:  # every shape has at least one point, so reduceat's segments are not empty
+        lower = np.minimum.reduceat(points, starts[:-1], axis=0)
+        upper = np.maximum.reduceat(points, starts[:-1], axis=0)
+    else:
+        lower = upper = np.empty((0, 3), dtype=np.float64)
     return ConvexPack(points, starts, nbr_starts, nbrs, lower, upper)
 
 

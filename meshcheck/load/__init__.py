@@ -67,7 +67,7 @@ import trimesh
 
 from .. import units as units_
 from ..errors import ConfigError, InputError
-from .body import Body, local_geometry, mesh_digest
+from .body import Body, local_geometries, local_geometry, mesh_digest
 from .gltf import read_gltf
 from .limits import Budget, Limits, check_placement, read_file
 from .mesh import clean_mesh, is_closed, overlapping_shells, split_shells, warn
@@ -82,6 +82,7 @@ __all__ = [
     "is_closed",
     "load_bodies",
     "load_file",
+    "local_geometries",
     "local_geometry",
     "mesh_digest",
     "split_body",

@@ -98,3 +98,13 @@ def local_geometry(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
     h = hashlib.sha256(local.tobytes())
     h.update(faces.tobytes())
     return local, faces, corner, h.hexdigest()
+
+
+def local_geometries(bodies) -> dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, str]]:
+    """``local_geometry`` of each distinct mesh of ``bodies``, by ``id(mesh)`` (the bodies keep
+    the meshes alive while the dict is used)."""
+    out: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, str]] = {}
+    for body in bodies:
+        if id(body.mesh) not in out:
+            out[id(body.mesh)] = local_geometry(body.mesh)
+    return out
