@@ -1,4 +1,4 @@
-"""Content-addressed stores: convex decompositions (``.npz`` per mesh and setting) and pair
+"""Content-addressed stores: convex decompositions (a binary file per mesh and setting) and pair
 verdicts (``.json`` per part pair, placement and setting).
 
 Modelled on black's ``src/black/cache.py``: a plain directory (the user's cache directory by
@@ -6,16 +6,19 @@ default, any directory CI can persist), entries named by a key built from the me
 the decomposition settings, the CoACD version and this file's format version. Entries are written
 to a temporary file in the same directory and moved into place with ``os.replace``, so a reader sees
 a whole entry or none, and two runs sharing the directory at once both succeed (the last writer
-wins with an identical entry). Arrays are read with ``allow_pickle=False``; an entry that is
-truncated, garbled, of the wrong shapes, or whose checksum does not match counts as a miss and is
-rewritten.
+wins with an identical entry). Entries are plain arrays behind a fixed header, never pickles; an
+entry that is truncated, garbled, of the wrong sizes, or whose checksum does not match counts as a
+miss and is rewritten.
 
 Trust: the cache is input from outside like any mesh (CI restores it from an artifact store), and
 its checksum is plain SHA-256 of public data, so anyone can forge an entry. The checksum only
 catches accidents. What keeps a forged entry from changing a verdict is that the pipeline uses a
 decomposition only after checking that its pieces cover every triangle of the mesh
 (``decompose.covers``); a forged or stale entry that does not is recomputed. Pieces that cover the
-mesh but are too big only cost time: the verify stage decides every pair they let through.
+mesh but are too big only cost time: the verify stage decides every pair they let through. An
+entry that also carries a valid signature under the run's key (below) was written by a run
+holding the key, from pieces that covered the mesh then, so it is used without the check (which
+costs Qhull on every piece, most of a warm run's decomposition stage).
 
 Pair verdicts (``PairCache``) are a different matter: a verdict cannot be checked without
 computing it again, and a forged ``clear`` for an interfering pair would turn a failing CI gate
@@ -52,14 +55,14 @@ import itertools
 import json
 import math
 import os
+import struct
 import tempfile
-import zipfile
 
 import numpy as np
 
 # Bump when the layout of an entry or the meaning of a decomposition changes (e.g. the triangle
 # cover fix-up): old entries are then simply never looked up again.
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3
 # The same for pair verdict entries.
 PAIR_FORMAT_VERSION = 1
 # A pair entry is a few hundred bytes; a file larger than this is not read.
@@ -107,10 +110,19 @@ def coacd_version() -> str:
 class DecompositionCache:
     """Convex pieces stored under ``directory``, looked up by ``cache_key``.
 
+    An entry is one binary file: a fixed header (magic, point and piece counts, a SHA-256
+    checksum, an HMAC-SHA256 signature or zeros), the pieces' start offsets (int64) and their
+    points (float64), little-endian. The counts are checked against the file's size before
+    anything else is read, so a header claiming (2^40, 3) points is a miss, not an allocation.
+
     Parameters
     ----------
     directory : str
         Cache root; created on the first write.
+    secret : bytes, optional
+        Key entries are signed with when written (``pair_secret``). ``lookup`` tells whether an
+        entry carries a valid signature under it: the pipeline then trusts its pieces without
+        checking that they cover the mesh, as it trusts signed pair verdicts.
 
     Examples
     --------
@@ -121,12 +133,18 @@ class DecompositionCache:
     [[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]]
     """
 
-    def __init__(self, directory: str):
+    MAGIC = b"MCPIECES"
+    HEADER = struct.Struct("<8sQQ32s32s")  # magic, points, pieces, checksum, signature
+    #: A file larger than this is not read (a decomposition is kilobytes to a few megabytes).
+    MAX_BYTES = 1 << 30
+
+    def __init__(self, directory: str, *, secret: bytes | None = None):
         self.root = os.path.join(os.fspath(directory), f"decompositions-v{FORMAT_VERSION}")
+        self._secret = None if secret is None else bytes(secret)
 
     def path(self, key: str) -> str:
         """File of the entry for ``key``."""
-        return os.path.join(self.root, key[:2], f"{key}.npz")
+        return os.path.join(self.root, key[:2], f"{key}.bin")
 
     def get(self, key: str) -> list[np.ndarray] | None:
         """The pieces stored for ``key``, or None when missing or unusable.
@@ -136,43 +154,75 @@ class DecompositionCache:
         pieces : list of (n_i, 3) float64, or None
             Exactly the arrays given to ``put`` (bit for bit).
         """
+        hit = self.lookup(key)
+        return None if hit is None else hit[0]
+
+    def lookup(self, key: str) -> tuple[list[np.ndarray], bool] | None:
+        """``(pieces, signed)`` for ``key``, or None when missing or unusable; ``signed`` is
+        True when the entry's signature is valid under this cache's secret."""
+        header = self.HEADER
         try:
-            if not _sizes_agree(self.path(key)):
-                return None
-            with np.load(self.path(key), allow_pickle=False) as data:
-                if sorted(data.files) != ["checksum", "points", "starts"]:
+            with open(self.path(key), "rb") as f:
+                size = os.fstat(f.fileno()).st_size
+                if size < header.size or size > self.MAX_BYTES:
                     return None
-                points, starts, checksum = data["points"], data["starts"], data["checksum"]
-        except (OSError, ValueError, EOFError, KeyError, MemoryError, zipfile.BadZipFile):
+                magic, n_points, n_pieces, checksum, signature = header.unpack(f.read(header.size))
+                if magic != self.MAGIC or size != header.size + 8 * (n_pieces + 1) + 24 * n_points:
+                    return None
+                body = f.read(size - header.size)
+        except (OSError, ValueError, struct.error):
             return None
-        if not _valid(points, starts, checksum, key):
+        if len(body) != size - header.size:
             return None
-        return [points[a:b].copy() for a, b in itertools.pairwise(starts)]
+        starts = np.frombuffer(body, dtype="<i8", count=n_pieces + 1)
+        points = np.frombuffer(body, dtype="<f8", offset=8 * (n_pieces + 1)).reshape(-1, 3)
+        if not _valid(points, starts) or not hmac.compare_digest(
+            checksum, _digest(hashlib.sha256(), key, body)
+        ):
+            return None
+        signed = self._secret is not None and hmac.compare_digest(
+            signature, _digest(hmac.new(self._secret, digestmod=hashlib.sha256), key, body)
+        )
+        points = points.astype(np.float64)  # a writable native copy
+        return [points[a:b] for a, b in itertools.pairwise(starts.tolist())], signed
 
     def put(self, key: str, pieces: list[np.ndarray]) -> None:
-        """Store ``pieces`` for ``key`` atomically; a failure to write only costs a recompute.
+        """Store ``pieces`` for ``key`` atomically, signed when the cache has a secret; a
+        failure to write only costs a recompute.
 
         Parameters
         ----------
         key : str
             From ``cache_key``.
         pieces : list of (n_i, 3) float64
-            Convex piece vertices.
+            Convex piece vertices, each with at least one point.
         """
-        points = np.ascontiguousarray(
-            np.concatenate([np.asarray(p, dtype=np.float64).reshape(-1, 3) for p in pieces])
-            if pieces
-            else np.empty((0, 3)),
-            dtype=np.float64,
-        )
-        sizes = [len(np.asarray(p).reshape(-1, 3)) for p in pieces]
-        starts = np.concatenate([[0], np.cumsum(sizes, dtype=np.int64)]).astype(np.int64)
-        checksum = np.frombuffer(_checksum(points, starts, key), dtype=np.uint8)
+        arrays = [np.asarray(p, dtype=np.float64).reshape(-1, 3) for p in pieces]
+        points = np.concatenate(arrays) if arrays else np.empty((0, 3))
+        starts = np.concatenate([[0], np.cumsum([len(a) for a in arrays])]).astype("<i8")
+        body = starts.tobytes() + np.ascontiguousarray(points, dtype="<f8").tobytes()
+        checksum = _digest(hashlib.sha256(), key, body)
+        signature = bytes(32)
+        if self._secret is not None:
+            signature = _digest(hmac.new(self._secret, digestmod=hashlib.sha256), key, body)
+        head = self.HEADER.pack(self.MAGIC, len(points), len(arrays), checksum, signature)
         final = self.path(key)
-        write_atomically(
-            final, ".npz", lambda f: np.savez(f, points=points, starts=starts, checksum=checksum)
-        )
+        write_atomically(final, ".bin", lambda f: f.write(head + body))
         _remove_stale_temporaries(os.path.dirname(final))
+
+
+def _digest(h, key: str, body: bytes) -> bytes:
+    """``h`` (a SHA-256 or HMAC-SHA256) over an entry's key and body."""
+    h.update(key.encode("ascii"))
+    h.update(body)
+    return h.digest()
+
+
+def _valid(points: np.ndarray, starts: np.ndarray) -> bool:
+    """True when ``starts`` cut ``points`` into non-empty pieces and every point is finite."""
+    if len(starts) < 1 or starts[0] != 0 or starts[-1] != len(points):
+        return False
+    return bool(np.all(np.diff(starts) > 0) and np.all(np.isfinite(points)))
 
 
 # A temporary file older than this was left by a writer that was killed before its os.replace.
@@ -214,6 +264,8 @@ def _sizes_agree(path: str) -> bool:
     Read before ``np.load``, so a header claiming a (2^40, 3) array is a miss, not an attempt
     to allocate 24 TiB.
     """
+    import zipfile
+
     with zipfile.ZipFile(path) as z:
         for info in z.infolist():
             with z.open(info) as f:
@@ -228,28 +280,6 @@ def _sizes_agree(path: str) -> bool:
                 ):
                     return False
     return True
-
-
-def _checksum(points: np.ndarray, starts: np.ndarray, key: str) -> bytes:
-    h = hashlib.sha256(key.encode())
-    h.update(np.ascontiguousarray(points, dtype=np.float64).tobytes())
-    h.update(np.ascontiguousarray(starts, dtype=np.int64).tobytes())
-    return h.digest()
-
-
-def _valid(points: np.ndarray, starts: np.ndarray, checksum: np.ndarray, key: str) -> bool:
-    """True when the arrays have the shapes and dtypes ``put`` writes and the checksum matches."""
-    if points.dtype != np.float64 or points.ndim != 2 or points.shape[1] != 3:
-        return False
-    if starts.dtype != np.int64 or starts.ndim != 1 or len(starts) < 1:
-        return False
-    if checksum.dtype != np.uint8 or checksum.shape != (32,):
-        return False
-    if starts[0] != 0 or starts[-1] != len(points) or np.any(np.diff(starts) <= 0):
-        return False
-    if not np.all(np.isfinite(points)):
-        return False
-    return checksum.tobytes() == _checksum(points, starts, key)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -280,6 +280,7 @@ def decompose_bodies(
     time_limit: float | None = DEFAULT_TIME_LIMIT,
     executor: Executor | None = None,
     geometry: dict | None = None,
+    secret: bytes | None = None,
 ) -> list[list[np.ndarray]]:
     """Convex pieces of each body in world coordinates, covering every triangle of the body.
 
@@ -309,6 +310,9 @@ def decompose_bodies(
         by one worker process, so an overrun can still be killed.
     geometry : dict, optional
         ``load.local_geometries`` of the bodies, when the caller has it already.
+    secret : bytes, optional
+        The run's cache key (``cache.pair_secret``): entries are signed with it, and entries
+        signed with it are used without checking that they cover their mesh.
 
     Returns
     -------
@@ -320,7 +324,7 @@ def decompose_bodies(
     if cache_dir is not None:
         from .cache import DecompositionCache
 
-        cache = DecompositionCache(cache_dir)
+        cache = DecompositionCache(cache_dir, secret=secret)
 
     # One entry per distinct frame-local geometry, in order of first appearance.
     if geometry is None:
@@ -340,11 +344,12 @@ def decompose_bodies(
 
         for digest in distinct:
             keys[digest] = cache_key(digest, settings)
-            hit = cache.get(keys[digest])
+            hit = cache.lookup(keys[digest])
             # The cache is input from outside: an entry is used only when its pieces cover every
-            # triangle of the mesh, which is all the filter's exactness rests on.
-            if hit is not None and covers(*distinct[digest], hit):
-                pieces_of[digest] = hit
+            # triangle of the mesh, which is all the filter's exactness rests on, or when it is
+            # signed with the run's key (written by a run that held it, from covering pieces).
+            if hit is not None and (hit[1] or covers(*distinct[digest], hit[0])):
+                pieces_of[digest] = hit[0]
     done = len(pieces_of)
     if progress is not None and done:
         progress(done)

@@ -116,7 +116,12 @@ def check(
                 )
             result = check_bodies(bodies, settings)
     finally:
-        # re-issue outside the recorder, so callers' filters (and the CLI) see them as usual
+        # Re-issue outside the recorder, so callers' filters (and the CLI) see them as usual;
+        # a message said twice (the same file's problem met by two stages) is said once.
+        first: dict = {}
+        for w in caught:
+            first.setdefault((w.category, str(w.message)), w)
+        caught = list(first.values())
         for w in caught:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
     messages = [str(w.message) for w in caught if issubclass(w.category, MeshcheckWarning)]
@@ -236,6 +241,7 @@ def decompose_parts(
             progress=bar.update,
             executor=executor,
             geometry=geometry,
+            secret=_cache_secret(settings),
         )
     count = np.zeros(len(bodies), dtype=np.int64)
     count[needed] = [len(p) for p in piece_lists]
@@ -477,10 +483,13 @@ def _verify(bodies, pairs, tolerance, near_surfaces, clearance, executor, progre
 
 def _pair_cache(settings: Settings) -> PairCache | None:
     """The run's pair verdict cache, or None without a cache directory or a signing key."""
-    if settings.cache_dir is None:
-        return None
-    secret = pair_secret()
+    secret = _cache_secret(settings)
     return None if secret is None else PairCache(settings.cache_dir, secret=secret)
+
+
+def _cache_secret(settings: Settings) -> bytes | None:
+    """The key the run's cache entries are signed with; None without a cache directory."""
+    return None if settings.cache_dir is None else pair_secret()
 
 
 def _verdict(fields: dict) -> verify.PairVerdict:

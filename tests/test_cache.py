@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import multiprocessing
 import os
 
@@ -76,34 +77,60 @@ def _empty(path):
     open(path, "wb").close()
 
 
-def _wrong_shapes(path):
-    with open(path, "wb") as f:
-        np.savez(f, points=np.zeros((4, 2)), starts=np.array([0, 4]), checksum=np.zeros(32, "u1"))
+def _rewrite(path, edit):
+    """Apply ``edit`` to the entry's header fields and body, and write it back."""
+    header = DecompositionCache.HEADER
+    data = open(path, "rb").read()
+    fields = list(header.unpack(data[: header.size]))
+    body = bytearray(data[header.size :])
+    edit(fields, body)
+    open(path, "wb").write(header.pack(*fields) + bytes(body))
+
+
+def _more_points_than_held(path):
+    def edit(fields, body):
+        fields[1] = 1 << 40  # a (2^40, 3) claim: a miss before any allocation
+
+    _rewrite(path, edit)
 
 
 def _bad_starts(path):
-    with open(path, "wb") as f:
-        np.savez(f, points=np.zeros((4, 3)), starts=np.array([0, 9]), checksum=np.zeros(32, "u1"))
+    def edit(fields, body):
+        body[8:16] = (9).to_bytes(8, "little")
+
+    _rewrite(path, edit)
 
 
 def _flipped_value(path):
-    with np.load(path) as data:
-        points, starts, checksum = data["points"].copy(), data["starts"], data["checksum"]
-    points[0, 0] += 1.0
-    with open(path, "wb") as f:
-        np.savez(f, points=points, starts=starts, checksum=checksum)
+    def edit(fields, body):
+        body[-1] ^= 1
+
+    _rewrite(path, edit)
 
 
-def _pickled(path):
-    with open(path, "wb") as f:
-        np.savez(f, points=np.array([object()], dtype=object), starts=[0], checksum=[0])
+def _wrong_magic(path):
+    def edit(fields, body):
+        fields[0] = b"NOTMINE!"
+
+    _rewrite(path, edit)
 
 
-def _extra_array(path):
-    with np.load(path) as data:
-        arrays = {k: data[k] for k in data.files}
-    with open(path, "wb") as f:
-        np.savez(f, extra=np.zeros(1), **arrays)
+def _extra_bytes(path):
+    def edit(fields, body):
+        body.extend(b"\0" * 24)
+
+    _rewrite(path, edit)
+
+
+def _nan_point_with_matching_checksum(path):
+    """A forged entry with a valid checksum (anyone can compute one) and a NaN coordinate."""
+    header = DecompositionCache.HEADER
+    data = open(path, "rb").read()
+    fields = list(header.unpack(data[: header.size]))
+    body = bytearray(data[header.size :])
+    body[-8:] = np.float64(np.nan).tobytes()
+    fields[3] = cache_module._digest(hashlib.sha256(), KEY, bytes(body))
+    open(path, "wb").write(header.pack(*fields) + bytes(body))
 
 
 @pytest.mark.parametrize(
@@ -112,11 +139,12 @@ def _extra_array(path):
         _truncate,
         _garbage,
         _empty,
-        _wrong_shapes,
+        _more_points_than_held,
         _bad_starts,
         _flipped_value,
-        _pickled,
-        _extra_array,
+        _wrong_magic,
+        _extra_bytes,
+        _nan_point_with_matching_checksum,
     ],
 )
 def test_corrupt_entry_is_a_miss_and_is_rewritten(tmp_path, damage):
@@ -194,7 +222,7 @@ def test_warm_run_gives_byte_identical_json(tmp_path):
     samples = os.path.join(os.path.dirname(__file__), "..", "sample_meshes")
     paths = [os.path.join(samples, f"{n}.stl") for n in ("plate", "bolt_m8_oversized", "bracket")]
     cold = render(check(paths, cache_dir=str(tmp_path), jobs=1), "json")
-    assert list(tmp_path.rglob("*.npz"))
+    assert list(tmp_path.rglob("*.bin"))
     warm = render(check(paths, cache_dir=str(tmp_path), jobs=1), "json")
     uncached = render(check(paths, cache_dir=None, jobs=2), "json")
     assert cold == warm == uncached

@@ -111,7 +111,7 @@ def test_a_local_cluster_gives_the_local_report(tmp_path):
     finally:
         cluster.close(timeout=20)
     entries = [n for _, _, files in os.walk(tmp_path / "cluster-cache") for n in files]
-    assert any(n.endswith(".npz") for n in entries) and any(n.endswith(".json") for n in entries)
+    assert any(n.endswith(".bin") for n in entries) and any(n.endswith(".json") for n in entries)
     assert not any(n.startswith(".tmp-") for n in entries)
 
 

@@ -277,7 +277,7 @@ def test_corrupt_cache_entry_is_recomputed(tmp_path, counted):
     kwargs = {"threshold": 0.05, "options": FAST, "cache_dir": str(tmp_path), **SERIAL}
     cold = decompose_bodies(bodies, **kwargs)
     cache = DecompositionCache(str(tmp_path))
-    (entry,) = [p for p in (tmp_path.rglob("*.npz"))]
+    (entry,) = [p for p in (tmp_path.rglob("*.bin"))]
     entry.write_bytes(entry.read_bytes()[:100])
     again = decompose_bodies(bodies, **kwargs)
     assert len(counted) == 2

@@ -66,7 +66,7 @@ def test_readme_api_example_runs_without_main_guard(tmp_path, how):
     assert "Traceback" not in done.stderr
     # the concave bracket was decomposed in a worker and cached: workers really ran
     assert any(
-        name.endswith(".npz") for _, _, files in os.walk(tmp_path / "cache") for name in files
+        name.endswith(".bin") for _, _, files in os.walk(tmp_path / "cache") for name in files
     )
 
 

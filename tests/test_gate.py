@@ -175,7 +175,15 @@ def crossing_bars():
     return ell_a, ell_b
 
 
-def test_a_forged_cache_entry_cannot_turn_a_fail_into_a_pass(tmp_path):
+FAR_PIECE = np.array(
+    [[1e6, 1e6, 1e6], [1e6 + 1, 1e6, 1e6], [1e6, 1e6 + 1, 1e6], [1e6, 1e6, 1e6 + 1]]
+)
+
+
+@pytest.mark.parametrize("signed_with", [None, b"guessed" * 5])
+def test_a_forged_cache_entry_cannot_turn_a_fail_into_a_pass(tmp_path, signed_with):
+    """One tiny piece a million units away, with a valid checksum (anyone can compute one),
+    unsigned or signed with a key that is not the run's: checked, found not to cover, redone."""
     from meshcheck.cache import DecompositionCache
 
     ell_a, ell_b = crossing_bars()
@@ -183,19 +191,33 @@ def test_a_forged_cache_entry_cannot_turn_a_fail_into_a_pass(tmp_path):
     cache = tmp_path / "cache"
     args = [a, b, "--cache-dir", cache, "--no-config", "-j", "1"]
     assert run(args).exit_code == 1
-    store = DecompositionCache(str(cache))
-    entries = sorted(cache.rglob("*.npz"))
+    store = DecompositionCache(str(cache), secret=signed_with)
+    entries = sorted(cache.rglob("*.bin"))
     assert entries
-    for entry in entries:  # one tiny piece a million units away, with a valid checksum
-        store.put(
-            entry.stem,
-            [
-                np.array(
-                    [[1e6, 1e6, 1e6], [1e6 + 1, 1e6, 1e6], [1e6, 1e6 + 1, 1e6], [1e6, 1e6, 1e6 + 1]]
-                )
-            ],
-        )
+    for entry in entries:
+        store.put(entry.stem, [FAR_PIECE])
     assert run(args).exit_code == 1
+
+
+def test_the_run_key_is_the_decomposition_cache_trust_boundary(tmp_path):
+    """The same forged entry signed with the run's own key is used as it is (so the test above
+    would fail if signatures were not checked): whoever holds the key is trusted, as for pair
+    verdicts; the key never lives in the cache directory."""
+    from meshcheck.cache import DecompositionCache, pair_secret
+
+    ell_a, ell_b = crossing_bars()
+    a, b = write(tmp_path, "a.stl", ell_a), write(tmp_path, "b.stl", ell_b)
+    cache = tmp_path / "cache"
+    args = [a, b, "--cache-dir", cache, "--no-config", "-j", "1", "--format", "json"]
+    assert run(args).exit_code == 1
+    store = DecompositionCache(str(cache), secret=pair_secret())
+    for entry in sorted(cache.rglob("*.bin")):
+        assert store.lookup(entry.stem)[1]  # the run signed what it wrote
+        store.put(entry.stem, [FAR_PIECE])
+    for entry in cache.rglob("pairs-v*/**/*.json"):
+        entry.unlink()  # so the verdict comes from the pieces, not from the pair cache
+    result = run(args)
+    assert json.loads(result.stdout)["results"] == []  # the far piece was believed
 
 
 def test_a_cache_entry_claiming_a_huge_array_is_a_miss(tmp_path):
@@ -205,13 +227,7 @@ def test_a_cache_entry_claiming_a_huge_array_is_a_miss(tmp_path):
     key = "ab" * 32
     store.put(key, [np.eye(3)])
     path = store.path(key)
-    import zipfile
-
-    with zipfile.ZipFile(path) as z:
-        members = {n: z.read(n) for n in z.namelist()}
-    header = members["points.npy"]
-    members["points.npy"] = header.replace(b"(3, 3)", b"(1099511627776, 3)")
-    with zipfile.ZipFile(path, "w") as z:
-        for name, data in members.items():
-            z.writestr(name, data)
+    data = bytearray(open(path, "rb").read())
+    data[8:16] = (1 << 40).to_bytes(8, "little")  # the point count
+    open(path, "wb").write(bytes(data))
     assert store.get(key) is None
