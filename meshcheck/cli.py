@@ -358,6 +358,9 @@ def _targets(ctx, fmt, output, reports) -> list[tuple[str, str]]:
 
 def _refuse_inputs_as_outputs(files, outputs) -> None:
     """A ConfigError when an output path is one of the input files (``-o part.stl``)."""
+    outputs = [path for path in outputs if path is not None and path != STDOUT]
+    if not outputs:
+        return
     inputs = {os.path.realpath(f) for f in files if os.path.isfile(f)}
     for path in outputs:
         if path is not None and path != STDOUT and os.path.realpath(path) in inputs:
