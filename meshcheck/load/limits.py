@@ -132,10 +132,13 @@ def check_placement(name: str, vertices: np.ndarray, transform: np.ndarray, limi
     transform = np.asarray(transform, dtype=np.float64)
     if not np.all(np.isfinite(transform)):
         raise InputError(name, "placement transform holds NaN or infinite values")
+    is_identity = np.array_equal(transform, _IDENTITY)  # a part stored where it sits
     with np.errstate(all="ignore"):
-        lo, hi = vertices.min(axis=0), vertices.max(axis=0)
-        corners = np.array([[(lo, hi)[k >> d & 1][d] for d in range(3)] for k in range(8)])
-        largest = _largest(corners @ transform[:3, :3].T + transform[:3, 3])
+        if is_identity:  # the placed box's corners are the box's own: the same answer, sooner
+            largest = _largest(vertices)
+        else:
+            corners = box_corners(vertices.min(axis=0), vertices.max(axis=0))
+            largest = _largest(corners @ transform[:3, :3].T + transform[:3, 3])
         if not largest <= limits.max_coordinate:  # the box's corners bound; the vertices decide
             largest = _largest(vertices @ transform[:3, :3].T + transform[:3, 3])
         if not largest <= limits.max_coordinate:
@@ -146,8 +149,19 @@ def check_placement(name: str, vertices: np.ndarray, transform: np.ndarray, limi
                 "meshcheck can check exactly",
             )
         linear = transform[:3, :3]
-        if np.linalg.det(linear / np.max(np.abs(linear), initial=0.0)) == 0.0:
+        if not is_identity and np.linalg.det(linear / np.max(np.abs(linear), initial=0.0)) == 0.0:
             raise InputError(name, "placement transform is singular (it flattens the part)")
+
+
+_IDENTITY = np.eye(4)
+#: Which corner of a box takes the upper bound on each axis: corner k, axis d <=> bit d of k.
+_UPPER = (np.arange(8)[:, None] >> np.arange(3) & 1).astype(bool)
+
+
+def box_corners(lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """The 8 corners ``(8, 3)`` of the box ``lower..upper``; corner k takes ``upper`` on axis d
+    when bit d of k is set."""
+    return np.where(_UPPER, upper, lower)
 
 
 def _largest(points: np.ndarray) -> float:
