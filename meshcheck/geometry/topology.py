@@ -15,12 +15,17 @@ from . import _kernels
 __all__ = ["degenerate_triangles", "group_rows", "is_closed", "shell_labels"]
 
 
-def group_rows(keys) -> tuple[np.ndarray, np.ndarray]:
+def group_rows(keys, *, by_sorting: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Group the equal rows of an integer array, numbering groups by their first row.
+
+    A hash table does it in linear time; keys that collide in it beyond a fixed amount of probing
+    (a crafted file) are grouped by sorting instead, in O(n log n). Both give the same answer.
 
     Parameters
     ----------
     keys : (n, c) int64
+    by_sorting : bool
+        Sort from the start (the path crafted keys take; for tests).
 
     Returns
     -------
@@ -36,7 +41,9 @@ def group_rows(keys) -> tuple[np.ndarray, np.ndarray]:
     ([0, 1], [0, 1, 0])
     """
     keys = np.ascontiguousarray(keys, dtype=np.int64)
-    return _kernels.group_rows(keys.reshape(len(keys), -1))
+    if keys.ndim != 2:
+        keys = keys.reshape(len(keys), -1)
+    return _kernels.group_rows(keys, bool(by_sorting))
 
 
 def degenerate_triangles(vertices, faces) -> tuple[np.ndarray, np.ndarray]:

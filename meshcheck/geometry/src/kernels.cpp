@@ -456,10 +456,11 @@ double point_distance_fn(V3 p, const double* v, const int64_t* f, int64_t m) {
     return point_mesh_distance(p, v, f, m);
 }
 
-// group_rows(keys (n, c) int64) -> (first (g,) int64, inverse (n,) int64)
+// group_rows(keys (n, c) int64, by_sorting) -> (first (g,) int64, inverse (n,) int64)
 PyObject* group_rows_py(PyObject*, PyObject* args) {
     PyObject* ko;
-    if (!PyArg_ParseTuple(args, "O", &ko)) return nullptr;
+    int by_sorting = 0;
+    if (!PyArg_ParseTuple(args, "O|p", &ko, &by_sorting)) return nullptr;
     Array k, inverse, first;
     k.a = reinterpret_cast<PyArrayObject*>(
         PyArray_FROMANY(ko, NPY_INT64, 2, 2, NPY_ARRAY_C_CONTIGUOUS | NPY_ARRAY_ALIGNED));
@@ -467,7 +468,10 @@ PyObject* group_rows_py(PyObject*, PyObject* args) {
     const int64_t cols = k.len(1);
     std::vector<int64_t> heads;
     Py_BEGIN_ALLOW_THREADS;
-    group_rows(k.i8(), k.len(), cols, inverse.i8(), heads);
+    if (by_sorting)
+        group_rows_sorted(k.i8(), k.len(), cols, inverse.i8(), heads);
+    else
+        group_rows(k.i8(), k.len(), cols, inverse.i8(), heads);
     Py_END_ALLOW_THREADS;
     if (!new_array(1, static_cast<npy_intp>(heads.size()), NPY_INT64, first)) return nullptr;
     std::copy(heads.begin(), heads.end(), first.i8());
