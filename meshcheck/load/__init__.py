@@ -65,17 +65,16 @@ import numpy as np
 from .. import units as units_
 from ..errors import ConfigError, InputError
 from .body import Body, local_geometry, mesh_digest
-from .limits import Budget, Limits, box_corners, check_placement
-from .mesh import is_closed, split_shells, warn
-from .read import (
+from .files import (
     SUPPORTED_EXTENSIONS,
     FileRead,
-    Item,
     StepOptions,
     is_multi,
     read,
     read_files,
 )
+from .limits import Budget, Limits, box_corners, check_placement
+from .mesh import is_closed, split_shells, warn
 
 __all__ = [
     "SUPPORTED_EXTENSIONS",
@@ -225,17 +224,8 @@ def load_bodies(
     seen: set[str] = set()
     sizes = []
     for (path, rel), file_read in zip(files, reads, strict=True):
-        file_bodies = _place(
-            path,
-            rel,
-            file_read.meshes(),
-            file_read.declared,
-            report,
-            units,
-            budget.limits,
-            file_read.deflection,
-        )
-        sizes.append((_diagonal(file_bodies), path))
+        file_bodies, diagonal = _place(path, rel, file_read, report, units, budget.limits)
+        sizes.append((diagonal, path))
         for body in file_bodies:
             for part in split_body(body) if split else [body]:
                 if part.name in seen:
@@ -268,61 +258,46 @@ def load_file(path: str, *, units: str | None = None, limits: Limits | None = No
     budget = Budget(limits or Limits())
     file_read = read(path, budget, StepOptions(None, None, units))
     report = units_.report_unit([file_read.declared], units)
-    return _place(
-        path,
-        os.path.basename(path),
-        file_read.meshes(),
-        file_read.declared,
-        report,
-        units,
-        budget.limits,
-        file_read.deflection,
-    )
+    return _place(path, os.path.basename(path), file_read, report, units, budget.limits)[0]
 
 
 def _place(
     path: str,
     rel: str,
-    items: list[Item],
-    declared: str | None,
+    file_read: FileRead,
     report: str,
     units: str | None,
     limits: Limits,
-    deflection: float = 0.0,
-) -> list[Body]:
-    """Bodies of one file's items, placed in world coordinates in the report unit."""
-    file_unit = declared or units or units_.DEFAULT_UNIT
+) -> tuple[list[Body], float]:
+    """Bodies of one file, placed in world coordinates in the report unit, and the diagonal of
+    their bounding box."""
+    file_unit = file_read.declared or units or units_.DEFAULT_UNIT
     factor = units_.scale(file_unit, report)
     to_report = np.diag([factor, factor, factor, 1.0])
-    multi = is_multi(path, items)
-    bodies = []
-    for node, mesh, placement in items:
+    multi = is_multi(path, file_read.items)
+    meshes = file_read.meshes()
+    bounds = [(v.min(axis=0), v.max(axis=0)) for v, _, _ in file_read.geometries]
+    bodies, corners = [], []
+    for node, g, placement in file_read.items:
         name = f"{path}#{node}" if multi else path
         transform = placement if factor == 1.0 else to_report @ placement
-        check_placement(name, mesh.vertices, transform, limits)
+        check_placement(name, file_read.geometries[g][0], transform, limits, bounds=bounds[g])
+        if np.array_equal(transform, _IDENTITY):
+            corners.extend(bounds[g])
+        else:
+            corners.append(box_corners(*bounds[g]) @ transform[:3, :3].T + transform[:3, 3])
         body = Body(
             name,
             path,
-            mesh,
+            meshes[g],
             transform,
             relative_name=f"{rel}#{node}" if multi else rel,
             units=report,
-            deflection=deflection * factor,
+            deflection=file_read.deflection * factor,
         )
         bodies.append(body)
-    return bodies
-
-
-def _diagonal(bodies: list[Body]) -> float:
-    """Bounding-box diagonal of a file's bodies, world coordinates."""
-    lower, upper = np.full(3, np.inf), np.full(3, -np.inf)
-    for body in bodies:
-        vertices = np.asarray(body.mesh.vertices)
-        world = box_corners(vertices.min(axis=0), vertices.max(axis=0))
-        if not np.array_equal(body.transform, _IDENTITY):
-            world = world @ body.transform[:3, :3].T + body.transform[:3, 3]
-        lower, upper = np.minimum(lower, world.min(axis=0)), np.maximum(upper, world.max(axis=0))
-    return float(np.linalg.norm(upper - lower))
+    corners = np.vstack(corners)
+    return bodies, float(np.linalg.norm(corners.max(axis=0) - corners.min(axis=0)))
 
 
 def _warn_mixed_units(sizes: list[tuple[float, str]], report: str) -> None:

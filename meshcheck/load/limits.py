@@ -119,7 +119,14 @@ def read_file(path: str, limits: Limits) -> bytes:
         os.close(fd)
 
 
-def check_placement(name: str, vertices: np.ndarray, transform: np.ndarray, limits: Limits) -> None:
+def check_placement(
+    name: str,
+    vertices: np.ndarray,
+    transform: np.ndarray,
+    limits: Limits,
+    *,
+    bounds: tuple[np.ndarray, np.ndarray] | None = None,
+) -> None:
     """Refuse a placement that is not finite, flattens the part, or overflows its coordinates.
 
     Parameters
@@ -128,17 +135,19 @@ def check_placement(name: str, vertices: np.ndarray, transform: np.ndarray, limi
         The mesh in its own frame.
     transform : (4, 4) float64
         Frame -> world, report units.
+    bounds : ((3,), (3,)) float64, optional
+        The per-axis minimum and maximum of ``vertices``, when the caller has them.
     """
     transform = np.asarray(transform, dtype=np.float64)
     if not np.all(np.isfinite(transform)):
         raise InputError(name, "placement transform holds NaN or infinite values")
     is_identity = np.array_equal(transform, _IDENTITY)  # a part stored where it sits
     with np.errstate(all="ignore"):
-        if is_identity:  # the placed box's corners are the box's own: the same answer, sooner
-            largest = _largest(vertices)
+        lo, hi = bounds if bounds is not None else (vertices.min(axis=0), vertices.max(axis=0))
+        if is_identity:  # the box's own corners, unmoved
+            largest = max(_largest(lo), _largest(hi))
         else:
-            corners = box_corners(vertices.min(axis=0), vertices.max(axis=0))
-            largest = _largest(corners @ transform[:3, :3].T + transform[:3, 3])
+            largest = _largest(box_corners(lo, hi) @ transform[:3, :3].T + transform[:3, 3])
         if not largest <= limits.max_coordinate:  # the box's corners bound; the vertices decide
             largest = _largest(vertices @ transform[:3, :3].T + transform[:3, 3])
         if not largest <= limits.max_coordinate:

@@ -51,7 +51,6 @@ PARALLEL_MIN_BYTES = 32 << 20
 #: Files per task sent to a worker: enough to amortise a message, few enough to balance.
 FILES_PER_TASK = 64
 
-Item = tuple[str, trimesh.Trimesh, np.ndarray]  # (node, local mesh, placement in the file's unit)
 
 
 @dataclass(frozen=True)
@@ -93,10 +92,9 @@ class FileRead:
         """Triangles of every placed item."""
         return sum(len(self.geometries[g][1]) for _, g, _ in self.items)
 
-    def meshes(self) -> list[Item]:
-        """(node, mesh, placement) of each item; instances of one geometry share its mesh."""
-        built = [as_mesh(v, f, closed=closed) for v, f, closed in self.geometries]
-        return [(node, built[g], placement) for node, g, placement in self.items]
+    def meshes(self) -> list[trimesh.Trimesh]:
+        """A mesh for each geometry (its instances share it)."""
+        return [as_mesh(v, f, closed=closed) for v, f, closed in self.geometries]
 
 
 def is_multi(path: str, items: Sequence) -> bool:
@@ -278,7 +276,7 @@ def read_files(
         if progress is not None:
             progress(min(done_tasks * per_task, len(parallel)), total)
 
-    results = executor.map("meshcheck.load.read:read_task", tasks, progress=report)
+    results = executor.map("meshcheck.load.files:read_task", tasks, progress=report)
     outcome: dict[int, tuple] = {}
     for chunk, result in zip(chunks, results, strict=True):
         for k, one in zip(chunk, result or (), strict=False):
