@@ -18,6 +18,7 @@ files are read here. Either way the outcome is the one a serial read gives, bit 
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import warnings
 from collections.abc import Callable, Sequence
@@ -50,7 +51,6 @@ PARALLEL_MIN_FILES = 2000
 PARALLEL_MIN_BYTES = 32 << 20
 #: Files per task sent to a worker: enough to amortise a message, few enough to balance.
 FILES_PER_TASK = 64
-
 
 
 @dataclass(frozen=True)
@@ -219,8 +219,8 @@ def read_files(
     overlaps: bool = False,
     executor=None,
     progress: Callable[[int, int], None] | None = None,
-    min_files: int = PARALLEL_MIN_FILES,
-    min_bytes: int = PARALLEL_MIN_BYTES,
+    min_files: int | None = None,
+    min_bytes: int | None = None,
 ) -> list[FileRead]:
     """``read`` of every file, in order; in ``executor``'s processes when it pays.
 
@@ -233,7 +233,8 @@ def read_files(
     executor : execute.Executor, optional
         The run's executor. Files are read in its processes when it has local processes
         (``jobs > 1``, not a Dask cluster: loading stays on the client) and there are at least
-        ``min_files`` files of ``WORKER_EXTENSIONS`` holding at least ``min_bytes`` bytes.
+        ``min_files`` files of ``WORKER_EXTENSIONS`` holding at least ``min_bytes`` bytes
+        (default ``PARALLEL_MIN_FILES`` and ``PARALLEL_MIN_BYTES``).
     progress : callable, optional
         Called as ``progress(done, total)`` as files are read.
 
@@ -243,6 +244,8 @@ def read_files(
         The first file in ``paths`` that cannot be checked, as a serial read raises it.
     """
     total = len(paths)
+    min_files = PARALLEL_MIN_FILES if min_files is None else min_files
+    min_bytes = PARALLEL_MIN_BYTES if min_bytes is None else min_bytes
     parallel = [
         k for k, p in enumerate(paths) if os.path.splitext(p)[1].lower() in WORKER_EXTENSIONS
     ]
@@ -315,10 +318,34 @@ def read_task(
                 result = _read(path, budget, step, overlaps=overlaps)
             except MeshcheckError as exc:
                 result = (type(exc), exc.path, exc.reason)
+        if isinstance(result, FileRead):
+            result = _narrow(result)
         out.append((budget.events, [_portable(w) for w in caught], result))
         if not isinstance(result, FileRead):
             break
     return out
+
+
+def _narrow(read: FileRead) -> FileRead:
+    """The same values in fewer bytes for the trip to the parent: float32 vertices when every
+    coordinate is one (an STL's always are), int32 faces when the indices fit."""
+    geometries = []
+    for v, f, closed in read.geometries:
+        narrow = v.astype(np.float32)
+        if np.array_equal(narrow, v):  # compared as float64: exact, signed zeros kept
+            v = narrow
+        if len(v) <= np.iinfo(np.int32).max:
+            f = f.astype(np.int32)
+        geometries.append((v, f, closed))
+    return dataclasses.replace(read, geometries=geometries)
+
+
+def _widen(read: FileRead) -> FileRead:
+    """``_narrow`` undone: float64 vertices and int64 faces, bit for bit a serial read's."""
+    geometries = [
+        (v.astype(np.float64), f.astype(np.int64), closed) for v, f, closed in read.geometries
+    ]
+    return dataclasses.replace(read, geometries=geometries)
 
 
 def _replay(path: str, budget: Budget, outcome: tuple) -> FileRead:
@@ -334,7 +361,7 @@ def _replay(path: str, budget: Budget, outcome: tuple) -> FileRead:
         kind, where, reason = result
         raise kind(where, reason)
     budget.take(path, result.triangles, len(result.items))
-    return result
+    return _widen(result)
 
 
 class _Recorder(Budget):
