@@ -14,7 +14,7 @@ from test_load import write_3mf, write_gltf
 from meshcheck.errors import InputError
 from meshcheck.execute import LocalPool
 from meshcheck.load import expand_paths, load_bodies
-from meshcheck.load.files import StepOptions, read_files
+from meshcheck.load.files import StepOptions, parallel_pays, read_files
 from meshcheck.load.limits import Budget, Limits
 
 STEP = StepOptions(None, None, None)
@@ -72,8 +72,7 @@ def read_both(paths, executor):
                 STEP,
                 overlaps=True,
                 executor=each,
-                min_files=0,
-                min_bytes=0,
+                parallel=True,
             )
         out.append((reads, [str(w.message) for w in caught]))
     return out
@@ -101,10 +100,8 @@ def test_parallel_reading_gives_the_serial_arrays_and_warnings(tmp_path, pool):
     assert [r.overlaps for r in serial].count([(1, 2)]) == 1
 
 
-def test_parallel_loading_gives_the_serial_bodies(tmp_path, pool, monkeypatch):
+def test_parallel_loading_gives_the_serial_bodies(tmp_path, pool):
     """Through load_bodies and the run's executor: names, digests, placements, order."""
-    from meshcheck.load import files
-
     folder = tmp_path / "parts"
     assembly(folder)
     for split in (False, True):
@@ -112,9 +109,7 @@ def test_parallel_loading_gives_the_serial_bodies(tmp_path, pool, monkeypatch):
         for executor in (None, pool):
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always")
-                monkeypatch.setattr(files, "PARALLEL_MIN_FILES", 0 if executor else 10**9)
-                monkeypatch.setattr(files, "PARALLEL_MIN_BYTES", 0)
-                bodies = load_bodies([str(folder)], split=split, executor=executor)
+                bodies = load_bodies([str(folder)], split=split, executor=executor, parallel=True)
             runs.append((bodies, [str(w.message) for w in caught]))
         (serial, serial_warned), (parallel, parallel_warned) = runs
         assert serial_warned == parallel_warned
@@ -137,7 +132,7 @@ def test_the_first_failing_file_in_argument_order_is_the_error(tmp_path, pool):
     for executor in (None, pool):
         with pytest.raises(InputError) as raised, warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            read_files(paths, Budget(Limits()), STEP, executor=executor, min_files=0, min_bytes=0)
+            read_files(paths, Budget(Limits()), STEP, executor=executor, parallel=True)
         errors.append(str(raised.value))
     assert errors[0] == errors[1]
     assert errors[0].startswith(f"{early}: truncated binary STL")
@@ -156,8 +151,7 @@ def test_the_run_budget_is_kept_in_file_order(tmp_path, pool):
                 Budget(Limits(max_triangles=350)),
                 STEP,
                 executor=executor,
-                min_files=0,
-                min_bytes=0,
+                parallel=True,
             )
         errors.append(str(raised.value))
     assert errors[0] == errors[1]
@@ -181,10 +175,15 @@ def test_files_of_a_lost_worker_are_read_here(tmp_path):
     assert_same(serial, parallel)
 
 
-def test_small_runs_and_clusters_read_here(tmp_path, pool):
-    """Below the thresholds, or with a Dask executor (loading stays on the client), no task is
-    sent: the pool starts no worker for it."""
+def test_small_runs_and_clusters_read_here(tmp_path):
+    """When reading in workers does not pay, or the executor is a Dask cluster (loading stays on
+    the client), no task is sent."""
     paths = expand_paths([str(p) for p in assembly(tmp_path / "parts")])
+    assert not parallel_pays(paths, 2)
+    big = tmp_path / "big.obj"
+    trimesh.creation.icosphere(subdivisions=4).export(big)  # ~170 kB of text to parse
+    assert parallel_pays([str(big)] * 400, 2) and not parallel_pays([str(big)] * 400, 1)
+    assert not parallel_pays([str(big)] * 2, 2)
 
     class Counting(LocalPool):
         sent = 0
@@ -195,7 +194,7 @@ def test_small_runs_and_clusters_read_here(tmp_path, pool):
 
     with Counting(2) as counting, warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        read_files(paths, Budget(Limits()), STEP, executor=counting)  # default thresholds
+        read_files(paths, Budget(Limits()), STEP, executor=counting)  # does not pay
         counting.is_distributed = True
-        read_files(paths, Budget(Limits()), STEP, executor=counting, min_files=0, min_bytes=0)
+        read_files(paths, Budget(Limits()), STEP, executor=counting, parallel=True)
     assert Counting.sent == 0

@@ -165,6 +165,7 @@ def load_bodies(
     step_deflection: float | None = None,
     progress: Callable[[int, int], None] | None = None,
     executor=None,
+    parallel: bool | None = None,
 ) -> list[Body]:
     """Load every body of every file, in world coordinates and one report unit.
 
@@ -188,7 +189,10 @@ def load_bodies(
         Called as ``progress(done, total)`` as files are read, counting files.
     executor : execute.Executor, optional
         The run's executor: with local worker processes, many mesh files are read there
-        (``read.read_files``); the bodies, names, warnings and errors are the same either way.
+        (``files.read_files``); the bodies, names, warnings and errors are the same either way.
+    parallel : bool, optional
+        Read in the executor's processes: True always, False never, None (default) when it pays
+        (``files.parallel_pays``).
 
     Returns
     -------
@@ -217,6 +221,7 @@ def load_bodies(
         overlaps=not split,
         executor=executor,
         progress=progress,
+        parallel=parallel,
     )
     report = units_.report_unit([r.declared for r in reads], units)
 

@@ -1,7 +1,7 @@
 """One file -> cleaned mesh arrays, in this process or in the run's worker processes.
 
-``read_files`` reads every file of a run. Files are read here one after another, or, when there
-are enough of them to pay for starting workers (``PARALLEL_MIN_FILES``, ``PARALLEL_MIN_BYTES``),
+``read_files`` reads every file of a run. Files are read here one after another, or, when the
+reading they hold pays for starting workers and shipping the arrays back (``parallel_pays``),
 mesh files (``WORKER_EXTENSIONS``) are read in the executor's local processes while STEP and 3MF
 files are read here. Either way the outcome is the one a serial read gives, bit for bit:
 
@@ -43,12 +43,17 @@ SUPPORTED_EXTENSIONS = (".stl", ".obj", ".ply", ".off", ".glb", ".gltf", ".3mf",
 #: run's budget has left, which only this process knows).
 WORKER_EXTENSIONS = (".stl", ".obj", ".ply", ".off", ".glb", ".gltf")
 
-#: Files are read in parallel only when there are at least this many worker files and bytes:
-#: a worker costs ~1 s of CPU to start (imports), which a few hundred small files do not repay.
-#: bench/load_parallel.py on the shared 2-core machine (one-part binary STL files of ~23 kB,
-#: 2 fresh workers against this process): ... (see PARALLEL_MIN_FILES' measurement there).
-PARALLEL_MIN_FILES = 2000
-PARALLEL_MIN_BYTES = 32 << 20
+#: Estimated seconds of worker time per byte of a file: reading, cleaning, closedness, shells.
+#: Binary formats (STL as CAD writes it, binary PLY, GLB) are fast to parse; text is ~10x slower.
+#: bench/load_parallel.py: ~23 kB binary STL files 0.18 ms each (8e-9 s/B); ~13 kB OBJ files
+#: 1.0 ms each (7.5e-8 s/B). An ASCII STL is counted as binary: the estimate errs on serial.
+SECONDS_PER_BYTE = {
+    ".stl": 8e-9, ".ply": 8e-9, ".glb": 8e-9, ".obj": 75e-9, ".off": 75e-9, ".gltf": 75e-9,
+}  # fmt: skip
+#: Seconds per file that reading in a worker adds here: the arrays' trip back, checks replayed.
+SECONDS_PER_FILE = 1e-4
+#: Seconds a pool of fresh workers costs before it reads anything (their imports, in parallel).
+START_SECONDS = 0.6
 #: Files per task sent to a worker: enough to amortise a message, few enough to balance.
 FILES_PER_TASK = 64
 
@@ -219,8 +224,7 @@ def read_files(
     overlaps: bool = False,
     executor=None,
     progress: Callable[[int, int], None] | None = None,
-    min_files: int | None = None,
-    min_bytes: int | None = None,
+    parallel: bool | None = None,
 ) -> list[FileRead]:
     """``read`` of every file, in order; in ``executor``'s processes when it pays.
 
@@ -231,12 +235,14 @@ def read_files(
     budget, step, overlaps
         As for ``read``.
     executor : execute.Executor, optional
-        The run's executor. Files are read in its processes when it has local processes
-        (``jobs > 1``, not a Dask cluster: loading stays on the client) and there are at least
-        ``min_files`` files of ``WORKER_EXTENSIONS`` holding at least ``min_bytes`` bytes
-        (default ``PARALLEL_MIN_FILES`` and ``PARALLEL_MIN_BYTES``).
+        The run's executor. Files of ``WORKER_EXTENSIONS`` are read in its processes when it has
+        local ones (``jobs > 1``; not a Dask cluster: loading stays on the client) and
+        ``parallel`` says so.
     progress : callable, optional
         Called as ``progress(done, total)`` as files are read.
+    parallel : bool, optional
+        True: read in the executor's processes whenever it has local ones; False: never;
+        None (default): when ``parallel_pays``.
 
     Raises
     ------
@@ -244,18 +250,13 @@ def read_files(
         The first file in ``paths`` that cannot be checked, as a serial read raises it.
     """
     total = len(paths)
-    min_files = PARALLEL_MIN_FILES if min_files is None else min_files
-    min_bytes = PARALLEL_MIN_BYTES if min_bytes is None else min_bytes
-    parallel = [
+    in_workers = [
         k for k, p in enumerate(paths) if os.path.splitext(p)[1].lower() in WORKER_EXTENSIONS
     ]
-    if (
-        executor is None
-        or executor.is_distributed
-        or executor.jobs <= 1
-        or len(parallel) < max(min_files, 2)
-        or _size(paths[k] for k in parallel) < min_bytes
-    ):
+    local = executor is not None and not executor.is_distributed and executor.jobs > 1
+    if parallel is None and local:
+        parallel = parallel_pays([paths[k] for k in in_workers], executor.jobs)
+    if not (local and parallel and in_workers):
         out = []
         for done, path in enumerate(paths, start=1):
             out.append(read(path, budget, step, overlaps=overlaps))
@@ -265,8 +266,8 @@ def read_files(
 
     from ..execute import Task
 
-    per_task = max(1, min(FILES_PER_TASK, len(parallel) // (4 * executor.jobs)))
-    chunks = [parallel[a : a + per_task] for a in range(0, len(parallel), per_task)]
+    per_task = max(1, min(FILES_PER_TASK, len(in_workers) // (4 * executor.jobs)))
+    chunks = [in_workers[a : a + per_task] for a in range(0, len(in_workers), per_task)]
     tasks = [
         Task(
             ([paths[k] for k in chunk], budget.limits, step, overlaps),
@@ -277,7 +278,7 @@ def read_files(
 
     def report(done_tasks: int) -> None:  # files read by the workers, roughly
         if progress is not None:
-            progress(min(done_tasks * per_task, len(parallel)), total)
+            progress(min(done_tasks * per_task, len(in_workers)), total)
 
     results = executor.map("meshcheck.load.files:read_task", tasks, progress=report)
     outcome: dict[int, tuple] = {}
@@ -286,7 +287,7 @@ def read_files(
             outcome[k] = one  # a chunk stops at its first failing file; a lost one gives None
 
     out = []
-    done = len(parallel)
+    done = len(in_workers)
     for k, path in enumerate(paths):
         if k in outcome:
             out.append(_replay(path, budget, outcome[k]))
@@ -296,6 +297,21 @@ def read_files(
             if progress is not None:
                 progress(done, total)
     return out
+
+
+def parallel_pays(paths: Sequence[str], jobs: int) -> bool:
+    """Whether reading ``paths`` in ``jobs`` fresh worker processes beats reading them here.
+
+    The reading they hold (``SECONDS_PER_BYTE`` of each file's size) shared by ``jobs``
+    processes must save more than the workers' start (``START_SECONDS``) and the arrays' trip
+    back (``SECONDS_PER_FILE`` each).
+    """
+    work = 0.0
+    for path in paths:
+        per_byte = SECONDS_PER_BYTE.get(os.path.splitext(path)[1].lower(), 0.0)
+        work += per_byte * _size([path])
+    saved = work * (1.0 - 1.0 / jobs) - SECONDS_PER_FILE * len(paths)
+    return jobs > 1 and saved > START_SECONDS
 
 
 def read_task(
