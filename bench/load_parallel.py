@@ -16,6 +16,16 @@ in one process and alternating (best of ``--repeat``):
   (an unchanged re-run whose pair verdicts are all cached);
 - ``warm pool``: through workers already started (a run whose later stages start them anyway).
 
+With ``--compare-with CHECKOUT`` (a source tree of another meshcheck version, its kernels built
+with ``python setup.py build_ext --inplace``) it also times that version's serial loading of the
+same files in a subprocess, alternating with this one's::
+
+    git archive OLD_COMMIT | tar -x -C /tmp/old && (cd /tmp/old && python setup.py build_ext -i)
+    python bench/load_parallel.py --sizes 2000 --compare-with /tmp/old
+
+(To time the old version without xxhash, as its own environment had it, put an ``xxhash.py``
+that raises ImportError into CHECKOUT.)
+
 It prints the ratios pool / serial, and what ``load.files.parallel_pays`` decides for each size
 (its constants should make it say yes where the fresh pool's ratio is below 1). Both give
 identical bodies (names, digests, placements; checked).
@@ -48,6 +58,35 @@ def load(paths, executor=None):
         return time.perf_counter() - start, bodies
 
 
+_OTHER = """
+import sys, time, warnings
+from meshcheck.load import load_bodies
+paths = sys.argv[1:]
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore")
+    load_bodies(paths[:10])
+    start = time.perf_counter()
+    load_bodies(paths)
+print(time.perf_counter() - start)
+"""
+
+
+def other_serial(checkout: str, paths: list[str]) -> float:
+    """Serial loading time of the meshcheck in ``checkout``, in a fresh process."""
+    import subprocess
+
+    root = os.path.abspath(checkout)  # also the working directory: -c puts it first on the path
+    out = subprocess.run(
+        [sys.executable, "-c", _OTHER, *paths],
+        env=dict(os.environ, PYTHONPATH=root),
+        cwd=root,
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    return float(out.stdout.split()[-1])
+
+
 def same(a, b) -> bool:
     return len(a) == len(b) and all(
         x.name == y.name
@@ -67,6 +106,7 @@ def main(argv=None) -> None:
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--repeat", type=int, default=2, help="best of this many runs")
     parser.add_argument("--format", choices=["stl", "obj"], default="stl")
+    parser.add_argument("--compare-with", metavar="CHECKOUT", help="another meshcheck's tree")
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         paths, _ = write_assembly(max(args.sizes), tmp)
@@ -80,15 +120,18 @@ def main(argv=None) -> None:
                 paths[k] = obj
         load(paths[:10])  # this process's imports, once
         print(f"{args.format.upper()} files, {args.jobs} jobs")
+        other = f" {'other ms/file':>14} {'other/serial':>13}" if args.compare_with else ""
         print(
             f"{'files':>6} {'MiB':>6} {'serial s':>9} {'ms/file':>8} {'pool s':>7} "
-            f"{'pool/serial':>12} {'warm s':>7} {'warm/serial':>12} {'pays?':>6}"
+            f"{'pool/serial':>12} {'warm s':>7} {'warm/serial':>12} {'pays?':>6}{other}"
         )
         for n in args.sizes:
             chosen = paths[:n]
             mib = sum(os.path.getsize(p) for p in chosen) / (1 << 20)
-            serial = fresh = warm = np.inf
+            serial = fresh = warm = before = np.inf
             for _ in range(args.repeat):
+                if args.compare_with:
+                    before = min(before, other_serial(args.compare_with, chosen))
                 seconds, expected = load(chosen)
                 serial = min(serial, seconds)
                 with LocalPool(args.jobs) as pool:
@@ -98,10 +141,11 @@ def main(argv=None) -> None:
                 with LocalPool(args.jobs) as pool:
                     pool.map("meshcheck.execute:echo", [Task((k,)) for k in range(args.jobs)])
                     warm = min(warm, load(chosen, pool)[0])
+            compared = f" {1e3 * before / n:14.3f} {before / serial:13.2f}" if other else ""
             print(
                 f"{n:6d} {mib:6.0f} {serial:9.2f} {1e3 * serial / n:8.3f} {fresh:7.2f} "
                 f"{fresh / serial:12.2f} {warm:7.2f} {warm / serial:12.2f} "
-                f"{'yes' if files.parallel_pays(chosen, args.jobs) else 'no':>6}"
+                f"{'yes' if files.parallel_pays(chosen, args.jobs) else 'no':>6}{compared}"
             )
 
 
