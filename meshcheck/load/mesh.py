@@ -62,14 +62,6 @@ def warn(name: str, reason: str) -> None:
     warnings.warn(MeshcheckWarning(f"{name}: {reason}"), stacklevel=3)
 
 
-def clean_mesh(vertices, faces, name: str, *, max_coordinate: float = np.inf) -> trimesh.Trimesh:
-    """Validated mesh: finite, vertices merged, triangles with a repeated vertex dropped.
-
-    ``as_mesh`` of ``clean_arrays``; see there.
-    """
-    return as_mesh(*clean_arrays(vertices, faces, name, max_coordinate=max_coordinate))
-
-
 def clean_arrays(
     vertices, faces, name: str, *, max_coordinate: float = np.inf
 ) -> tuple[np.ndarray, np.ndarray]:

@@ -61,7 +61,7 @@ def read_scene(path: str, data: bytes, ext: str, budget: Budget) -> list[Item]:
 
 
 class Soup(NamedTuple):
-    """A mesh as arrays, before cleaning (what ``clean_mesh`` reads of a ``trimesh.Trimesh``)."""
+    """A mesh as arrays, before cleaning (what ``clean_arrays`` reads of a ``trimesh.Trimesh``)."""
 
     vertices: np.ndarray
     faces: np.ndarray
