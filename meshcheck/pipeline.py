@@ -19,6 +19,7 @@ one.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import os
 import warnings
@@ -99,7 +100,10 @@ def check(
 
     caught: list[warnings.WarningMessage] = []
     try:
-        with warnings.catch_warnings(record=True) as caught:
+        with (
+            warnings.catch_warnings(record=True) as caught,
+            executor_for(jobs=settings.jobs, scheduler=settings.scheduler) as executor,
+        ):
             warnings.simplefilter("always", MeshcheckWarning)
             with Progress("loading", 0) as bar:
                 limits = None
@@ -113,8 +117,9 @@ def check(
                     cache_dir=settings.cache_dir,
                     step_deflection=settings.step_deflection,
                     progress=bar.update_total,
+                    executor=executor,
                 )
-            result = check_bodies(bodies, settings)
+            result = check_bodies(bodies, settings, executor=executor)
     finally:
         # Re-issue outside the recorder, so callers' filters (and the CLI) see them as usual;
         # a message said twice (the same file's problem met by two stages) is said once.
@@ -128,10 +133,18 @@ def check(
     return dataclasses.replace(result, warnings=[*result.warnings, *messages])
 
 
-def check_bodies(bodies: Sequence[Body], settings: Settings | None = None, **fields) -> CheckResult:
+def check_bodies(
+    bodies: Sequence[Body],
+    settings: Settings | None = None,
+    *,
+    executor: Executor | None = None,
+    **fields,
+) -> CheckResult:
     """Run the check on bodies already loaded; see ``check``.
 
     ``settings`` defaults to ``Settings(**fields)`` (there ``cache_dir=None`` means no cache).
+    ``executor`` is the run's (left open); default: one for ``settings.jobs`` and
+    ``settings.scheduler``, closed at the end.
     """
     if settings is None:
         settings = Settings(**fields)
@@ -149,7 +162,11 @@ def check_bodies(bodies: Sequence[Body], settings: Settings | None = None, **fie
         hull_query = query_pairs(hulls, pairs, tolerance=tolerance, depth=False, max_distance=reach)
         near = within(hull_query, reach)
     pairs_near, tol_near, reach_near = pairs[near], tolerance[near], reach[near]
-    with executor_for(jobs=settings.jobs, scheduler=settings.scheduler) as executor:
+    with (
+        contextlib.nullcontext(executor)
+        if executor is not None
+        else executor_for(jobs=settings.jobs, scheduler=settings.scheduler)
+    ) as executor:
         pieces, owner, piece_count = decompose_parts(
             bodies, np.unique(pairs_near), settings, executor=executor, geometry=geometry
         )

@@ -58,21 +58,23 @@ is kept. Each of those raises a ``MeshcheckWarning`` whose message starts with t
 from __future__ import annotations
 
 import os
-import warnings
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
 
 import numpy as np
-import trimesh
 
 from .. import units as units_
 from ..errors import ConfigError, InputError
 from .body import Body, local_geometries, local_geometry, mesh_digest
-from .gltf import read_gltf
-from .limits import Budget, Limits, check_placement, read_file
-from .mesh import clean_mesh, is_closed, overlapping_shells, split_shells, warn
-from .scene import read_scene
-from .threemf import read_3mf
+from .files import (
+    SUPPORTED_EXTENSIONS,
+    FileRead,
+    StepOptions,
+    is_multi,
+    read,
+    read_files,
+)
+from .limits import Budget, Limits, box_corners, check_placement
+from .mesh import is_closed, split_shells, warn
 
 __all__ = [
     "SUPPORTED_EXTENSIONS",
@@ -89,14 +91,10 @@ __all__ = [
     "split_shells",
 ]
 
-STEP_EXTENSIONS = (".step", ".stp")
-SUPPORTED_EXTENSIONS = (".stl", ".obj", ".ply", ".off", ".glb", ".gltf", ".3mf", *STEP_EXTENSIONS)
+_IDENTITY = np.eye(4)
 
 #: Files whose bounding-box diagonals differ by this factor or more get a "mixed units?" warning.
 MIXED_UNITS_RATIO = 500.0
-
-Item = tuple[str, trimesh.Trimesh, np.ndarray]  # (node, local mesh, placement in the file's unit)
-
 
 # --------------------------------------------------------------------------------------------
 # Paths
@@ -167,6 +165,8 @@ def load_bodies(
     cache_dir: str | None = None,
     step_deflection: float | None = None,
     progress: Callable[[int, int], None] | None = None,
+    executor=None,
+    parallel: bool | None = None,
 ) -> list[Body]:
     """Load every body of every file, in world coordinates and one report unit.
 
@@ -187,7 +187,13 @@ def load_bodies(
         Tessellation tolerance for STEP files, in ``units`` (default millimetres); default
         ``step.DEFAULT_DEFLECTION_MM``.
     progress : callable, optional
-        Called as ``progress(done, total)`` after each file, counting files.
+        Called as ``progress(done, total)`` as files are read, counting files.
+    executor : execute.Executor, optional
+        The run's executor: with local worker processes, many mesh files are read there
+        (``files.read_files``); the bodies, names, warnings and errors are the same either way.
+    parallel : bool, optional
+        Read in the executor's processes: True always, False never, None (default) when it pays
+        (``files.parallel_pays``).
 
     Returns
     -------
@@ -209,21 +215,23 @@ def load_bodies(
             raise ConfigError(None, str(exc)) from None
     budget = Budget(limits or Limits())
     files = _expand(paths)
-    read = []
-    step = _StepOptions(cache_dir, step_deflection, units)
-    for done, (path, rel) in enumerate(files, start=1):
-        items, declared, deflection = _read(path, budget, step)
-        read.append((path, rel, items, declared, deflection))
-        if progress is not None:
-            progress(done, len(files))
-    report = units_.report_unit([declared for _, _, _, declared, _ in read], units)
+    reads = read_files(
+        [path for path, _ in files],
+        budget,
+        StepOptions(cache_dir, step_deflection, units),
+        overlaps=not split,
+        executor=executor,
+        progress=progress,
+        parallel=parallel,
+    )
+    report = units_.report_unit([r.declared for r in reads], units)
 
     bodies: list[Body] = []
     seen: set[str] = set()
     sizes = []
-    for path, rel, items, declared, deflection in read:
-        file_bodies = _place(path, rel, items, declared, report, units, budget.limits, deflection)
-        sizes.append((_diagonal(file_bodies), path))
+    for (path, rel), file_read in zip(files, reads, strict=True):
+        file_bodies, diagonal = _place(path, rel, file_read, report, units, budget.limits)
+        sizes.append((diagonal, path))
         for body in file_bodies:
             for part in split_body(body) if split else [body]:
                 if part.name in seen:
@@ -231,7 +239,7 @@ def load_bodies(
                 seen.add(part.name)
                 bodies.append(part)
         if not split:
-            _warn_overlapping_shells(file_bodies)
+            _warn_overlapping_shells(file_bodies, file_read)
     _warn_mixed_units(sizes, report)
     return bodies
 
@@ -254,136 +262,48 @@ def load_file(path: str, *, units: str | None = None, limits: Limits | None = No
     """
     units = None if units is None else units_.unit_name(units)
     budget = Budget(limits or Limits())
-    items, declared, deflection = _read(path, budget, _StepOptions(None, None, units))
-    report = units_.report_unit([declared], units)
-    return _place(
-        path, os.path.basename(path), items, declared, report, units, budget.limits, deflection
-    )
-
-
-@dataclass(frozen=True)
-class _StepOptions:
-    cache_dir: str | None
-    deflection: float | None
-    units: str | None
-
-
-def _read_step(path: str, options: _StepOptions):
-    """(items, declared unit, deflection in that unit) of a STEP file."""
-    from .step import TessellationCache, read_step
-
-    cache = None
-    if options.cache_dir is not None:
-        from ..cache import pair_secret
-
-        secret = pair_secret()  # entries are signed, as pair verdicts are (see meshcheck.cache)
-        cache = None if secret is None else TessellationCache(options.cache_dir, secret=secret)
-    try:
-        assembly = read_step(
-            path,
-            deflection=options.deflection,
-            deflection_unit=(options.units or units_.DEFAULT_UNIT)
-            if options.deflection is not None
-            else None,
-            cache=cache,
-        )
-    except ValueError as exc:
-        raise InputError(path, str(exc)) from None
-    return list(assembly.items), assembly.unit, float(assembly.deflection)
-
-
-def _read(path: str, budget: Budget, step: _StepOptions) -> tuple[list[Item], str | None, float]:
-    """Cleaned (node, mesh, placement) items of one file, sorted by node, its declared unit, and
-    how far its triangles may lie from the true surface (in that unit; 0 for mesh files)."""
-    if not os.path.exists(path):
-        raise InputError(path, "no such file or directory")
-    if os.path.isdir(path):
-        raise InputError(path, "is a directory")
-    ext = os.path.splitext(path)[1].lower()
-    if ext not in SUPPORTED_EXTENSIONS:
-        raise InputError(
-            path,
-            f"unsupported file type {ext or '(no extension)'}; "
-            f"supported: {', '.join(SUPPORTED_EXTENSIONS)}",
-        )
-    data = read_file(path, budget.limits)
-    declared, deflection = None, 0.0
-    with np.errstate(all="ignore"), warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # refused below with the real reason
-        # A reader takes (path, bytes, budget) and returns (node, mesh, placement) items and the
-        # unit the file declares (None: undeclared). A STEP reader plugs in here the same way.
-        if ext in STEP_EXTENSIONS:
-            items, declared, deflection = _read_step(path, step)
-        elif ext == ".3mf":
-            items, declared = read_3mf(path, data, budget)
-        elif ext in (".glb", ".gltf"):
-            items, declared = read_gltf(path, data, ext, budget), "m"
-        else:
-            items = read_scene(path, data, ext, budget)
-    del data
-
-    multi = len(items) > 1 or ext in STEP_EXTENSIONS  # a STEP solid is named by its product
-    cleaned: dict[int, trimesh.Trimesh] = {}  # once per geometry, shared by its instances
-    out = []
-    triangles = 0
-    for node, geom, transform in sorted(items, key=lambda item: item[0]):
-        name = f"{path}#{node}" if multi else path
-        if id(geom) not in cleaned:
-            mesh = clean_mesh(
-                geom.vertices, geom.faces, name, max_coordinate=budget.limits.max_coordinate
-            )
-            cleaned[id(geom)] = mesh
-        mesh = cleaned[id(geom)]
-        if not is_closed(mesh):
-            warn(name, "mesh is not closed (not watertight); its findings rest on surfaces only")
-        triangles += len(mesh.faces)
-        out.append((node, mesh, np.asarray(transform, dtype=np.float64)))
-    budget.take(path, triangles, len(out))
-    return out, declared, deflection
+    file_read = read(path, budget, StepOptions(None, None, units))
+    report = units_.report_unit([file_read.declared], units)
+    return _place(path, os.path.basename(path), file_read, report, units, budget.limits)[0]
 
 
 def _place(
     path: str,
     rel: str,
-    items: list[Item],
-    declared: str | None,
+    file_read: FileRead,
     report: str,
     units: str | None,
     limits: Limits,
-    deflection: float = 0.0,
-) -> list[Body]:
-    """Bodies of one file's items, placed in world coordinates in the report unit."""
-    file_unit = declared or units or units_.DEFAULT_UNIT
+) -> tuple[list[Body], float]:
+    """Bodies of one file, placed in world coordinates in the report unit, and the diagonal of
+    their bounding box."""
+    file_unit = file_read.declared or units or units_.DEFAULT_UNIT
     factor = units_.scale(file_unit, report)
     to_report = np.diag([factor, factor, factor, 1.0])
-    multi = len(items) > 1 or os.path.splitext(path)[1].lower() in STEP_EXTENSIONS
-    bodies = []
-    for node, mesh, placement in items:
+    multi = is_multi(path, file_read.items)
+    meshes = file_read.meshes()
+    bounds = [(v.min(axis=0), v.max(axis=0)) for v, _, _ in file_read.geometries]
+    bodies, corners = [], []
+    for node, g, placement in file_read.items:
         name = f"{path}#{node}" if multi else path
         transform = placement if factor == 1.0 else to_report @ placement
-        check_placement(name, mesh.vertices, transform, limits)
+        check_placement(name, file_read.geometries[g][0], transform, limits, bounds=bounds[g])
+        if np.array_equal(transform, _IDENTITY):
+            corners.extend(bounds[g])
+        else:
+            corners.append(box_corners(*bounds[g]) @ transform[:3, :3].T + transform[:3, 3])
         body = Body(
             name,
             path,
-            mesh,
+            meshes[g],
             transform,
             relative_name=f"{rel}#{node}" if multi else rel,
             units=report,
-            deflection=deflection * factor,
+            deflection=file_read.deflection * factor,
         )
         bodies.append(body)
-    return bodies
-
-
-def _diagonal(bodies: list[Body]) -> float:
-    """Bounding-box diagonal of a file's bodies, world coordinates."""
-    lower, upper = np.full(3, np.inf), np.full(3, -np.inf)
-    for body in bodies:
-        lo, hi = body.mesh.bounds
-        corners = np.array([[(lo, hi)[k >> d & 1][d] for d in range(3)] for k in range(8)])
-        world = corners @ body.transform[:3, :3].T + body.transform[:3, 3]
-        lower, upper = np.minimum(lower, world.min(axis=0)), np.maximum(upper, world.max(axis=0))
-    return float(np.linalg.norm(upper - lower))
+    corners = np.vstack(corners)
+    return bodies, float(np.linalg.norm(corners.max(axis=0) - corners.min(axis=0)))
 
 
 def _warn_mixed_units(sizes: list[tuple[float, str]], report: str) -> None:
@@ -401,14 +321,17 @@ def _warn_mixed_units(sizes: list[tuple[float, str]], report: str) -> None:
         )
 
 
-def _warn_overlapping_shells(bodies: list[Body]) -> None:
-    """Warn once per mesh whose closed shells overlap each other (they are checked as one part)."""
+def _warn_overlapping_shells(bodies: list[Body], file_read: FileRead) -> None:
+    """Warn once per mesh whose closed shells overlap each other (they are checked as one part).
+
+    ``bodies`` are the file's, one per ``file_read.items``; the overlaps were found as it was read.
+    """
     seen = set()
-    for body in bodies:
-        if id(body.mesh) in seen:
+    for body, (_, g, _) in zip(bodies, file_read.items, strict=True):
+        if g in seen:
             continue
-        seen.add(id(body.mesh))
-        overlap = overlapping_shells(body.mesh)
+        seen.add(g)
+        overlap = file_read.overlaps[g]
         if overlap is not None:
             i, j = overlap
             warn(

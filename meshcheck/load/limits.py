@@ -119,7 +119,14 @@ def read_file(path: str, limits: Limits) -> bytes:
         os.close(fd)
 
 
-def check_placement(name: str, vertices: np.ndarray, transform: np.ndarray, limits: Limits) -> None:
+def check_placement(
+    name: str,
+    vertices: np.ndarray,
+    transform: np.ndarray,
+    limits: Limits,
+    *,
+    bounds: tuple[np.ndarray, np.ndarray] | None = None,
+) -> None:
     """Refuse a placement that is not finite, flattens the part, or overflows its coordinates.
 
     Parameters
@@ -128,14 +135,19 @@ def check_placement(name: str, vertices: np.ndarray, transform: np.ndarray, limi
         The mesh in its own frame.
     transform : (4, 4) float64
         Frame -> world, report units.
+    bounds : ((3,), (3,)) float64, optional
+        The per-axis minimum and maximum of ``vertices``, when the caller has them.
     """
     transform = np.asarray(transform, dtype=np.float64)
     if not np.all(np.isfinite(transform)):
         raise InputError(name, "placement transform holds NaN or infinite values")
+    is_identity = np.array_equal(transform, _IDENTITY)  # a part stored where it sits
     with np.errstate(all="ignore"):
-        lo, hi = vertices.min(axis=0), vertices.max(axis=0)
-        corners = np.array([[(lo, hi)[k >> d & 1][d] for d in range(3)] for k in range(8)])
-        largest = _largest(corners @ transform[:3, :3].T + transform[:3, 3])
+        lo, hi = bounds if bounds is not None else (vertices.min(axis=0), vertices.max(axis=0))
+        if is_identity:  # the box's own corners, unmoved
+            largest = max(_largest(lo), _largest(hi))
+        else:
+            largest = _largest(box_corners(lo, hi) @ transform[:3, :3].T + transform[:3, 3])
         if not largest <= limits.max_coordinate:  # the box's corners bound; the vertices decide
             largest = _largest(vertices @ transform[:3, :3].T + transform[:3, 3])
         if not largest <= limits.max_coordinate:
@@ -146,8 +158,19 @@ def check_placement(name: str, vertices: np.ndarray, transform: np.ndarray, limi
                 "meshcheck can check exactly",
             )
         linear = transform[:3, :3]
-        if np.linalg.det(linear / np.max(np.abs(linear), initial=0.0)) == 0.0:
+        if not is_identity and np.linalg.det(linear / np.max(np.abs(linear), initial=0.0)) == 0.0:
             raise InputError(name, "placement transform is singular (it flattens the part)")
+
+
+_IDENTITY = np.eye(4)
+#: Which corner of a box takes the upper bound on each axis: corner k, axis d <=> bit d of k.
+_UPPER = (np.arange(8)[:, None] >> np.arange(3) & 1).astype(bool)
+
+
+def box_corners(lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """The 8 corners ``(8, 3)`` of the box ``lower..upper``; corner k takes ``upper`` on axis d
+    when bit d of k is set."""
+    return np.where(_UPPER, upper, lower)
 
 
 def _largest(points: np.ndarray) -> float:

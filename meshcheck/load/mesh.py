@@ -12,6 +12,7 @@ import numpy as np
 import trimesh
 
 from ..errors import InputError, MeshcheckWarning
+from ..geometry import topology
 
 _CLOSED_KEY = "meshcheck_is_closed"  # trimesh's per-mesh cache, invalidated when the mesh changes
 
@@ -33,26 +34,27 @@ def is_closed(mesh: trimesh.Trimesh) -> bool:
     cache = getattr(mesh, "_cache", None)
     if cache is not None and cache[_CLOSED_KEY] is not None:
         return bool(cache[_CLOSED_KEY])
-    result = _is_closed(np.asarray(mesh.faces, dtype=np.int64))
+    result = topology.is_closed(mesh.faces)
     if cache is not None:
         cache[_CLOSED_KEY] = result
     return result
 
 
-def _is_closed(faces: np.ndarray) -> bool:
-    if len(faces) == 0:
-        return False
-    tail = faces.ravel()
-    head = faces[:, [1, 2, 0]].ravel()
-    if np.any(tail == head):
-        return False
-    n = int(faces.max()) + 1
-    keys = np.sort(tail * n + head)
-    if np.any(keys[1:] == keys[:-1]):  # an edge used twice the same way: not one orientation
-        return False
-    reverse = head * n + tail
-    at = np.searchsorted(keys, reverse)
-    return bool(np.all(at < len(keys)) and np.all(keys[np.minimum(at, len(keys) - 1)] == reverse))
+def as_mesh(vertices: np.ndarray, faces: np.ndarray, *, closed: bool | None = None):
+    """A ``trimesh.Trimesh`` of arrays ``clean_arrays`` returned, taken as they are.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float64
+    faces : (m, 3) int64
+    closed : bool, optional
+        ``topology.is_closed(faces)`` when the caller knows it; kept with the mesh so
+        ``is_closed`` does not decide it again.
+    """
+    mesh = trimesh.Trimesh(vertices, faces, process=False, validate=False)
+    if closed is not None:
+        mesh._cache.update({_CLOSED_KEY: bool(closed)})
+    return mesh
 
 
 def warn(name: str, reason: str) -> None:
@@ -60,11 +62,14 @@ def warn(name: str, reason: str) -> None:
     warnings.warn(MeshcheckWarning(f"{name}: {reason}"), stacklevel=3)
 
 
-def clean_mesh(vertices, faces, name: str, *, max_coordinate: float = np.inf) -> trimesh.Trimesh:
-    """Validated mesh: finite, vertices merged, triangles with a repeated vertex dropped.
+def clean_arrays(
+    vertices, faces, name: str, *, max_coordinate: float = np.inf
+) -> tuple[np.ndarray, np.ndarray]:
+    """Validated mesh arrays: finite, vertices merged, triangles with a repeated vertex dropped.
 
-    Triangles of zero area with three distinct vertices are kept: on a closed surface they
-    stitch a T-vertex to the edge it splits, and dropping them would open a crack.
+    Vertices are merged by ``merge_vertices``; triangles of zero area with three distinct
+    vertices are kept: on a closed surface they stitch a T-vertex to the edge it splits, and
+    dropping them would open a crack. Vertices no triangle uses are dropped.
 
     Parameters
     ----------
@@ -74,13 +79,21 @@ def clean_mesh(vertices, faces, name: str, *, max_coordinate: float = np.inf) ->
         The part name errors and warnings start with.
     max_coordinate : float
         Largest absolute coordinate accepted.
+
+    Returns
+    -------
+    vertices : (k, 3) float64
+        Each kept vertex once, in the order of first use in ``vertices``.
+    faces : (j, 3) int64
+        The triangles kept, in file order.
     """
     vertices = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
     faces = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
-    if not np.all(np.isfinite(vertices)):
+    with np.errstate(all="ignore"):
+        largest = float(np.max(np.abs(vertices))) if len(vertices) else 0.0
+    if not np.isfinite(largest):
         bad = int(np.count_nonzero(~np.all(np.isfinite(vertices), axis=1)))
         raise InputError(name, f"{bad} vertices have NaN or infinite coordinates")
-    largest = float(np.max(np.abs(vertices))) if len(vertices) else 0.0
     if largest > max_coordinate:
         raise InputError(
             name,
@@ -89,21 +102,83 @@ def clean_mesh(vertices, faces, name: str, *, max_coordinate: float = np.inf) ->
         )
     if faces.size and (faces.min() < 0 or faces.max() >= len(vertices)):
         raise InputError(name, "triangles refer to vertices that do not exist")
-    mesh = trimesh.Trimesh(vertices, faces, process=False)
-    mesh.merge_vertices(merge_tex=True, merge_norm=True)
-    f, v = mesh.faces, mesh.vertices
-    repeated = (f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2])
-    with np.errstate(all="ignore"):
-        cross = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
-    flat = repeated | ~np.any(cross != 0.0, axis=1)
+    v, f = merge_vertices(vertices, faces)
+    repeated, flat = topology.degenerate_triangles(v, f)
     if flat.all():
         raise InputError(name, "every triangle is degenerate (zero area)")
     if repeated.any():
         count = int(repeated.sum())
         warn(name, f"dropped {count} degenerate triangles (repeated vertices)")
-        mesh.update_faces(~repeated)
-        mesh.remove_unreferenced_vertices()
-    return mesh
+        v, f = _drop_unreferenced(v, f[~repeated])
+    return v, f
+
+
+#: Decimal digits vertex coordinates are compared to when merging: trimesh's ``tol.merge`` (1e-8).
+MERGE_DIGITS = 8
+_MERGE_SCALE = 10.0**MERGE_DIGITS
+#: Scaled coordinates below this fit an int64 key with room to spare (2**62).
+_MERGE_KEY_LIMIT = float(1 << 62)
+
+
+def merge_vertices(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Merge the vertices that are equal to ``MERGE_DIGITS`` decimals; drop unused ones.
+
+    trimesh's rule (``Trimesh.merge_vertices``): two vertices the faces use are one when each
+    coordinate ``x`` rounds to the same integer ``round(x * 1e8)`` (half to even). A coordinate
+    whose ``x * 1e8`` leaves the int64 range (``abs(x) > 4.6e10``, where neighbouring doubles
+    are already 1e-5 apart) is compared exactly; trimesh would wrap it.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float64
+        Finite.
+    faces : (m, 3) int64
+        Indices into ``vertices``.
+
+    Returns
+    -------
+    vertices : (k, 3) float64
+        The first vertex of each group, groups in the order of their first vertex (as trimesh
+        orders them).
+    faces : (m, 3) int64
+        ``faces`` renumbered.
+
+    Examples
+    --------
+    >>> v = np.array([[0.0, 0, 0], [1, 0, 0], [1e-9, 0, 0], [0, 1, 0], [5, 5, 5]])
+    >>> merged, f = merge_vertices(v, np.array([[0, 1, 3], [2, 3, 1]]))
+    >>> merged.tolist(), f.tolist()
+    ([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], [[0, 1, 2], [0, 2, 1]])
+    """
+    if len(vertices) == 0 or len(faces) == 0:
+        return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
+    used = np.zeros(len(vertices), dtype=bool)
+    used[faces] = True
+    every = bool(used.all())
+    points = vertices if every else vertices[used]
+    scaled = np.rint(points * _MERGE_SCALE)
+    if float(np.max(np.abs(scaled))) < _MERGE_KEY_LIMIT:
+        keys = scaled.astype(np.int64)
+    else:  # rounded keys where they fit, the exact coordinate where they do not
+        big = ~(np.abs(scaled) < _MERGE_KEY_LIMIT)
+        small = np.where(big, np.iinfo(np.int64).min, scaled).astype(np.int64)
+        exact = np.where(big, points + 0.0, 0.0).view(np.int64)  # + 0.0: no -0.0 bits
+        keys = np.concatenate([small, exact], axis=1)
+    first, inverse = topology.group_rows(keys)
+    if every:
+        return vertices[first], inverse[faces]
+    index = np.flatnonzero(used)
+    renumber = np.zeros(len(vertices), dtype=np.int64)
+    renumber[index] = inverse
+    return vertices[index[first]], renumber[faces]
+
+
+def _drop_unreferenced(v: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices the faces use, in their order, and the faces renumbered."""
+    used = np.zeros(len(v), dtype=bool)
+    used[f] = True
+    renumber = np.cumsum(used) - 1
+    return v[used], renumber[f]
 
 
 # --------------------------------------------------------------------------------------------
@@ -155,19 +230,7 @@ def split_shells(mesh: trimesh.Trimesh) -> list[trimesh.Trimesh]:
 
 def _shell_labels(mesh: trimesh.Trimesh) -> tuple[np.ndarray, int]:
     """Connected-component label of each face, numbered by first appearance; and their count."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    faces = np.asarray(mesh.faces, dtype=np.int64)
-    n_v = len(mesh.vertices)
-    edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]]])
-    graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n_v, n_v))
-    n_comp, vertex_label = connected_components(graph, directed=False)
-    face_label = vertex_label[faces[:, 0]]
-    labels, first = np.unique(face_label, return_index=True)
-    rank = np.empty(n_comp, dtype=np.int64)
-    rank[labels[np.argsort(first)]] = np.arange(len(labels))
-    return rank[face_label], len(labels)
+    return topology.shell_labels(mesh.faces, len(mesh.vertices))
 
 
 def overlapping_shells(mesh: trimesh.Trimesh) -> tuple[int, int] | None:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import re
+from typing import NamedTuple
 
 import numpy as np
 import trimesh
@@ -25,8 +26,9 @@ def read_scene(path: str, data: bytes, ext: str, budget: Budget) -> list[Item]:
     """
     kwargs = {}
     if ext == ".stl":
-        if _check_stl(path, data, budget):
-            data = _as_utf8(data)
+        if not _check_stl(path, data, budget):
+            return [("geometry_0", _binary_stl(data), np.eye(4))]
+        data = _as_utf8(data)
     elif ext == ".ply":
         _check_ply(path, data, budget)
     elif ext == ".off":
@@ -56,6 +58,22 @@ def read_scene(path: str, data: bytes, ext: str, budget: Budget) -> list[Item]:
             reason += " (only points: a point cloud is not a surface)"
         raise InputError(path, reason)
     return items
+
+
+class Soup(NamedTuple):
+    """A mesh as arrays, before cleaning (what ``clean_arrays`` reads of a ``trimesh.Trimesh``)."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+
+
+def _binary_stl(data: bytes) -> Soup:
+    """The triangles of a binary STL ``_check_stl`` accepted, parsed by trimesh's reader alone
+    (the scene trimesh would build around them costs more than the parse)."""
+    from trimesh.exchange.stl import load_stl_binary
+
+    loaded = load_stl_binary(io.BytesIO(data))
+    return Soup(loaded["vertices"], loaded["faces"])
 
 
 def _check_stl(path: str, data: bytes, budget: Budget) -> bool:

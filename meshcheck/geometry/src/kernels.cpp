@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "epa.hpp"
+#include "topology.hpp"
 #include "triangles.hpp"
 
 using namespace meshcheck;
@@ -455,6 +456,76 @@ double point_distance_fn(V3 p, const double* v, const int64_t* f, int64_t m) {
     return point_mesh_distance(p, v, f, m);
 }
 
+// group_rows(keys (n, c) int64, by_sorting) -> (first (g,) int64, inverse (n,) int64)
+PyObject* group_rows_py(PyObject*, PyObject* args) {
+    PyObject* ko;
+    int by_sorting = 0;
+    if (!PyArg_ParseTuple(args, "O|p", &ko, &by_sorting)) return nullptr;
+    Array k, inverse, first;
+    k.a = reinterpret_cast<PyArrayObject*>(
+        PyArray_FROMANY(ko, NPY_INT64, 2, 2, NPY_ARRAY_C_CONTIGUOUS | NPY_ARRAY_ALIGNED));
+    if (k.a == nullptr || !new_array(1, k.len(), NPY_INT64, inverse)) return nullptr;
+    const int64_t cols = k.len(1);
+    std::vector<int64_t> heads;
+    Py_BEGIN_ALLOW_THREADS;
+    if (by_sorting)
+        group_rows_sorted(k.i8(), k.len(), cols, inverse.i8(), heads);
+    else
+        group_rows(k.i8(), k.len(), cols, inverse.i8(), heads);
+    Py_END_ALLOW_THREADS;
+    if (!new_array(1, static_cast<npy_intp>(heads.size()), NPY_INT64, first)) return nullptr;
+    std::copy(heads.begin(), heads.end(), first.i8());
+    return Py_BuildValue("NN", first.release(), inverse.release());
+}
+
+// degenerate_triangles(v, f) -> (repeated (m,) bool, flat (m,) bool)
+PyObject* degenerate_triangles_py(PyObject*, PyObject* args) {
+    PyObject *vo, *fo;
+    if (!PyArg_ParseTuple(args, "OO", &vo, &fo)) return nullptr;
+    Array v, f, repeated, flat;
+    if (!as_array(vo, NPY_DOUBLE, 2, 3, "v", v) || !faces_of(fo, v.len(), "f", f) ||
+        !new_array(1, f.len(), NPY_BOOL, repeated) || !new_array(1, f.len(), NPY_BOOL, flat))
+        return nullptr;
+    Py_BEGIN_ALLOW_THREADS;
+    degenerate_triangles(v.f8(), f.i8(), f.len(), static_cast<bool*>(PyArray_DATA(repeated.a)),
+                         static_cast<bool*>(PyArray_DATA(flat.a)));
+    Py_END_ALLOW_THREADS;
+    return Py_BuildValue("NN", repeated.release(), flat.release());
+}
+
+// is_closed(faces (m, 3) int64) -> bool
+PyObject* is_closed_py(PyObject*, PyObject* args) {
+    PyObject* fo;
+    if (!PyArg_ParseTuple(args, "O", &fo)) return nullptr;
+    Array f;
+    if (!as_array(fo, NPY_INT64, 2, 3, "faces", f)) return nullptr;
+    bool closed;
+    Py_BEGIN_ALLOW_THREADS;
+    closed = is_closed(f.i8(), f.len());
+    Py_END_ALLOW_THREADS;
+    return PyBool_FromLong(closed);
+}
+
+// shell_labels(faces (m, 3) int64, n_vertices) -> (labels (m,) int64, count)
+PyObject* shell_labels_py(PyObject*, PyObject* args) {
+    PyObject* fo;
+    long long n_vertices;
+    if (!PyArg_ParseTuple(args, "OL", &fo, &n_vertices)) return nullptr;
+    Array f, labels;
+    if (n_vertices < 0) {
+        PyErr_SetString(PyExc_ValueError, "n_vertices must be >= 0");
+        return nullptr;
+    }
+    if (!faces_of(fo, static_cast<npy_intp>(n_vertices), "faces", f) ||
+        !new_array(1, f.len(), NPY_INT64, labels))
+        return nullptr;
+    int64_t count;
+    Py_BEGIN_ALLOW_THREADS;
+    count = shell_labels(f.i8(), f.len(), n_vertices, labels.i8());
+    Py_END_ALLOW_THREADS;
+    return Py_BuildValue("NL", labels.release(), static_cast<long long>(count));
+}
+
 PyMethodDef METHODS[] = {
     {"query_points", query_points, METH_VARARGS, nullptr},
     {"query_pairs", query_pairs, METH_VARARGS, nullptr},
@@ -466,6 +537,10 @@ PyMethodDef METHODS[] = {
     {"point_distances", per_point<point_distance_fn>, METH_VARARGS, nullptr},
     {"inscribed_ball", inscribed_ball_py, METH_VARARGS, nullptr},
     {"closest_points_on_triangles", closest_points_on_triangles_py, METH_VARARGS, nullptr},
+    {"group_rows", group_rows_py, METH_VARARGS, nullptr},
+    {"degenerate_triangles", degenerate_triangles_py, METH_VARARGS, nullptr},
+    {"is_closed", is_closed_py, METH_VARARGS, nullptr},
+    {"shell_labels", shell_labels_py, METH_VARARGS, nullptr},
     {nullptr, nullptr, 0, nullptr},
 };
 
