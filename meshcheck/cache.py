@@ -64,7 +64,7 @@ import numpy as np
 # cover fix-up): old entries are then simply never looked up again.
 FORMAT_VERSION = 3
 # The same for pair verdict entries.
-PAIR_FORMAT_VERSION = 1
+PAIR_FORMAT_VERSION = 2
 # A pair entry is a few hundred bytes; a file larger than this is not read.
 MAX_PAIR_ENTRY_BYTES = 4096
 # The environment variable that carries the key pair verdicts are signed with.
@@ -447,8 +447,11 @@ class PairCache:
         self._secret = bytes(secret)
 
     def path(self, key: str) -> str:
-        """File of the entry for ``key``."""
-        return os.path.join(self.root, key[:2], f"{key}.json")
+        """File of the entry for ``key``: named by the key signed with the secret, so runs with
+        different keys (a developer's own, CI's) keep their entries side by side instead of
+        replacing each other's, and nobody without the key can tell which file is which pair's."""
+        name = hmac.new(self._secret, key.encode("ascii"), hashlib.sha256).hexdigest()
+        return os.path.join(self.root, name[:2], f"{name}.json")
 
     def get(self, key: str) -> dict | None:
         """The verdict fields stored for ``key``, or None when missing, unsigned or unusable.

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import stat
 
 import numpy as np
@@ -140,13 +141,17 @@ CLEAR = {
 def test_a_forged_clear_entry_cannot_turn_fail_into_pass(tmp_path):
     paths = write_row(tmp_path / "row")
     key = _interfering_pair_key(paths, tmp_path / "c")
-    # An attacker who can write the cache but does not hold the key signs with another one.
-    PairCache(tmp_path / "c", secret=b"guessed" * 5).put(key, CLEAR)
+    # An attacker who can write the cache but does not hold the key signs with another one
+    # and puts the entry where the run's own entry is (the only file in the cache).
+    entry_path = PairCache(tmp_path / "c", secret=pair_secret()).path(key)
+    assert os.path.exists(entry_path)
+    forger = PairCache(tmp_path / "forger", secret=b"guessed" * 5)
+    forger.put(key, CLEAR)
+    shutil.copyfile(forger.path(key), entry_path)
     result, _ = run(paths, tmp_path / "c", jobs=1)
     assert not result.passed
     assert "interference" in [str(f.status) for f in result.findings]
     # ... and an entry with the signature stripped, or garbage, is a miss too.
-    entry_path = PairCache(tmp_path / "c", secret=b"x").path(key)
     with open(entry_path) as f:
         entry = json.load(f)
     for forged in ({**entry, "mac": ""}, {"key": key}, "garbage", {**entry, "verdict": None}):
@@ -164,6 +169,18 @@ def test_the_key_holder_is_the_trust_boundary(tmp_path):
     PairCache(tmp_path / "c", secret=pair_secret()).put(key, CLEAR)
     result, _ = run(paths, tmp_path / "c", jobs=1)
     assert "interference" not in [str(f.status) for f in result.findings]
+
+
+def test_runs_with_different_keys_keep_each_others_verdicts(tmp_path, counted, monkeypatch):
+    paths = write_row(tmp_path / "row")
+    run(paths, tmp_path / "c", jobs=1)
+    verified = len(counted)
+    monkeypatch.setenv("MESHCHECK_CACHE_SECRET", "another key")
+    run(paths, tmp_path / "c", jobs=1)  # verifies everything, signs with its key
+    assert len(counted) == 2 * verified
+    monkeypatch.delenv("MESHCHECK_CACHE_SECRET")
+    run(paths, tmp_path / "c", jobs=1)  # the first key's entries are still there
+    assert len(counted) == 2 * verified
 
 
 def test_the_key_file_is_private_and_outside_the_cache(tmp_path):
