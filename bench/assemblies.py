@@ -18,7 +18,10 @@ For each size the script times, in the same run, whole processes (start-up, load
 
 - ``meshcheck`` cold: ``meshcheck --format json --cache-dir DIR FILES`` with DIR empty (the
   console script beside the running Python, else ``python -m meshcheck``);
-- ``meshcheck`` warm: the same command again (decompositions cached);
+- ``meshcheck`` warm: the same command again (decompositions and pair verdicts cached);
+- ``meshcheck`` new key: the same command with another ``MESHCHECK_CACHE_SECRET``, so no cached
+  verdict is usable and decompositions are checked, not trusted (a CI job without the secret,
+  its cache restored: what every warm run cost before verdicts were cached);
 - FCL: a process that loads the same STL files with trimesh and runs
   ``CollisionManager.in_collision_internal(return_names=True)``.
 
@@ -148,10 +151,10 @@ sys.stdout.buffer.write(r.stdout)
 """
 
 
-def timed(cmd: list[str]) -> tuple[float, float, int, str]:
+def timed(cmd: list[str], env: dict | None = None) -> tuple[float, float, int, str]:
     """Wall seconds, peak RSS (MB, largest descendant), exit status and stdout of ``cmd``."""
     r = subprocess.run(
-        [sys.executable, "-c", TIMED, *cmd], capture_output=True, text=True, cwd=ROOT
+        [sys.executable, "-c", TIMED, *cmd], capture_output=True, text=True, cwd=ROOT, env=env
     )
     line = [s for s in r.stderr.splitlines() if s.startswith("TIMED ")][-1].split()
     if "Traceback" in r.stderr:
@@ -172,12 +175,15 @@ def run_size(size: int, jobs: int | None) -> dict:
         cmd = [*MESHCHECK, "--format", "json", "--cache-dir", cache_dir]
         if jobs:
             cmd += ["--jobs", str(jobs)]
-        cold = timed([*cmd, *paths])
-        warm = timed([*cmd, *paths])
+        env = dict(os.environ, MESHCHECK_CACHE_SECRET="bench-assemblies")
+        cold = timed([*cmd, *paths], env)
+        warm = timed([*cmd, *paths], env)
+        new_key = timed([*cmd, *paths], dict(env, MESHCHECK_CACHE_SECRET="bench-other-key"))
         fcl = timed([sys.executable, "-c", FCL_SCRIPT, list_file])
 
         report = json.loads(warm[3])
         assert json.loads(cold[3]) == report, "cold and warm reports differ"
+        assert json.loads(new_key[3]) == report, "a run with another key reports otherwise"
         found = {tuple(sorted((r["a"], r["b"]))): r["status"] for r in report["results"]}
         interference = {p for p, s in found.items() if s == "interference"}
         fcl_pairs = {tuple(p) for p in json.loads(fcl[3])}
@@ -186,6 +192,7 @@ def run_size(size: int, jobs: int | None) -> dict:
             "size": len(paths),
             "cold": cold,
             "warm": warm,
+            "new_key": new_key,
             "fcl": fcl,
             "planted": len(clashes),
             "meshcheck_found": len(interference & clashes),
@@ -208,16 +215,18 @@ def main(argv=None) -> None:
     sizes = args.sizes or ([10, 100, 1000] if args.big else [10, 100])
 
     print(
-        f"{'parts':>5s} {'cold s':>7s} {'warm s':>7s} {'fcl s':>6s} {'warm/fcl':>8s} "
-        f"{'cold MB':>7s} {'warm MB':>7s} {'fcl MB':>6s}  clashes: planted / meshcheck / fcl"
+        f"{'parts':>5s} {'cold s':>7s} {'warm s':>7s} {'newkey s':>8s} {'fcl s':>6s} "
+        f"{'warm/fcl':>8s} {'newkey/fcl':>10s} {'cold MB':>7s} {'warm MB':>7s} {'newkey MB':>9s} "
+        f"{'fcl MB':>6s}  clashes: planted / meshcheck / fcl"
     )
     for size in sizes:
         r = run_size(size, args.jobs)
-        (cs, cm, _, _), (ws, wm, _, _), (fs, fm, _, _) = r["cold"], r["warm"], r["fcl"]
+        (cs, cm, _, _), (ws, wm, _, _) = r["cold"], r["warm"]
+        (ns, nm, _, _), (fs, fm, _, _) = r["new_key"], r["fcl"]
         print(
-            f"{r['size']:5d} {cs:7.2f} {ws:7.2f} {fs:6.2f} {ws / fs:8.2f} "
-            f"{cm:7.0f} {wm:7.0f} {fm:6.0f}  {r['planted']} / {r['meshcheck_found']} / "
-            f"{r['fcl_found']}",
+            f"{r['size']:5d} {cs:7.2f} {ws:7.2f} {ns:8.2f} {fs:6.2f} {ws / fs:8.2f} "
+            f"{ns / fs:10.2f} {cm:7.0f} {wm:7.0f} {nm:9.0f} {fm:6.0f}  {r['planted']} / "
+            f"{r['meshcheck_found']} / {r['fcl_found']}",
             flush=True,
         )
         print(

@@ -36,16 +36,16 @@ def verify_stage_input(paths: list[str], cache_dir: str):
     """Bodies, and the pairs, tolerances and near flags the verify stage would get."""
     from meshcheck import pipeline
     from meshcheck.geometry import pack_convex, query_pairs
-    from meshcheck.load import load_bodies
+    from meshcheck.load import load_bodies, local_geometries
     from meshcheck.settings import Settings, part_sizes
 
     settings = Settings(cache_dir=cache_dir)
     bodies = load_bodies(paths)
     names = [pipeline._names(b) for b in bodies]
-    hulls = pack_convex(pipeline._world_hulls(bodies), is_hull=True)
+    hulls = pack_convex(pipeline._world_hulls(bodies, local_geometries(bodies)), is_hull=True)
     diagonal, magnitude = part_sizes(hulls.lower, hulls.upper)
     pairs = pipeline.select_pairs(hulls, settings, names, diagonal, magnitude)
-    tolerance = pipeline._tolerances(settings, diagonal, magnitude, pairs)
+    tolerance = pipeline._tolerances(settings, bodies, diagonal, magnitude, pairs)
     query = query_pairs(hulls, pairs, tolerance=tolerance, depth=False, max_distance=tolerance)
     near = pipeline.within(query, tolerance)
     pairs, tolerance = pairs[near], tolerance[near]

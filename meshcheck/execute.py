@@ -97,6 +97,11 @@ class Executor:
     jobs = 1
     is_distributed = False
 
+    @property
+    def is_started(self) -> bool:
+        """True when worker processes are already running (a map then costs no start-up)."""
+        return False
+
     def map(
         self,
         function: str,
@@ -238,6 +243,10 @@ class LocalPool(Executor):
         self.jobs = int(jobs or default_jobs())
         self.workers: list[_Worker] = []
         self.failed_starts = 0
+
+    @property
+    def is_started(self) -> bool:
+        return bool(self.workers)
 
     def map(self, function, tasks, *, shared=None, progress=None, time_limit=None) -> list:
         from multiprocessing.connection import wait

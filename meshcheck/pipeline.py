@@ -302,11 +302,11 @@ def surfaces_near(
 
 
 #: Fewer pairs than this to verify are verified in this process: starting worker processes
-#: (imports, loading the compiled kernels: ~1.8 s of CPU each) costs more than the pairs take.
-#: bench/verify_parallel.py on the shared 2-core machine (800-part assembly): a fresh 2-process
-#: pool took 3.5x the serial time at 200 pairs, 1.8x at 400, 1.3x at 720; the crossover is
-#: near 1,000 pairs.
-PARALLEL_MIN_PAIRS = 1000
+#: (imports, loading the compiled kernels) costs more than the pairs take.
+#: ``python bench/verify_parallel.py --size 800`` on a quiet 2-core machine: a fresh 2-process
+#: pool took 1.63x the serial time at 100 pairs, 1.12x at 200, 0.87x at 400, 0.74x at 720 (on
+#: the same machine shared with other jobs the crossover moved to ~1,000 pairs).
+PARALLEL_MIN_PAIRS = 300
 #: Pairs per task sent to a worker: enough to amortise a message, few enough to balance.
 PAIRS_PER_TASK = 16
 
@@ -439,8 +439,11 @@ def verify_task(store: dict, items: list, clearance: float | None) -> list[verif
 
 def _verify(bodies, pairs, tolerance, near_surfaces, clearance, executor, progress) -> list:
     """Verdicts of ``pairs`` in order: here, or as tasks of ``PAIRS_PER_TASK`` pairs."""
+    # Workers already started (by loading or decomposition) cost nothing more to use.
+    started = executor is not None and executor.is_started
+    least = 2 * PAIRS_PER_TASK if started else PARALLEL_MIN_PAIRS
     parallel = executor is not None and (
-        executor.is_distributed or (executor.jobs > 1 and len(pairs) >= PARALLEL_MIN_PAIRS)
+        executor.is_distributed or (executor.jobs > 1 and len(pairs) >= least)
     )
     if not parallel:
         memo: dict = {}  # per-mesh data verify reuses across pairs; the bodies outlive the loop
