@@ -179,11 +179,13 @@ class _Worker:
 
         env = dict(os.environ)
         env.update(dict.fromkeys(_ONE_THREAD, "1"))
-        # The worker imports this very meshcheck, wherever it was imported from.
+        # The worker imports this very meshcheck, wherever it was imported from; -P keeps
+        # ``-m`` from putting the working directory first, where a source checkout (without its
+        # compiled kernels) or any folder named meshcheck would be imported instead.
         package_root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
         env["PYTHONPATH"] = os.pathsep.join(p for p in (package_root, env.get("PYTHONPATH")) if p)
         self.process = subprocess.Popen(
-            [sys.executable, "-m", "meshcheck._worker"],
+            [sys.executable, "-P", "-m", "meshcheck._worker"],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             env=env,

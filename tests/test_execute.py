@@ -123,3 +123,14 @@ def test_workers_that_cannot_start_are_one_error_not_a_loop(monkeypatch):
     monkeypatch.setattr(sys, "executable", "/bin/false")
     with LocalPool(1) as pool, pytest.raises(ExecutionError, match="exit before they start"):
         pool.map("meshcheck.execute:echo", [Task((1,))])
+
+
+def test_workers_import_this_meshcheck_not_one_in_the_working_directory(tmp_path, monkeypatch):
+    """Run from a directory holding another ``meshcheck`` (a source checkout whose kernels were
+    never built, as CI's first command is run): the workers still import the caller's."""
+    impostor = tmp_path / "meshcheck"
+    impostor.mkdir()
+    (impostor / "__init__.py").write_text("raise ImportError('the wrong meshcheck')\n")
+    monkeypatch.chdir(tmp_path)
+    with LocalPool(1) as pool:
+        assert pool.map("meshcheck.execute:echo", [Task((7,))]) == [7]
