@@ -396,8 +396,6 @@ class DaskExecutor(Executor):
             return results
         attempts = [0] * len(tasks)
         running: dict = {}  # future -> task index
-        for index in sorted(range(len(tasks)), key=lambda i: -tasks[i].size):
-            running[self._submit(function, tasks[index], shared)] = index
         finished = 0
         healthy_at = time.monotonic()
 
@@ -417,6 +415,8 @@ class DaskExecutor(Executor):
             running[self._submit(function, tasks[index], shared)] = index
 
         try:
+            for index in sorted(range(len(tasks)), key=lambda i: -tasks[i].size):
+                running[self._submit(function, tasks[index], shared)] = index
             while running:
                 try:
                     with self.client.as_current():
@@ -481,11 +481,22 @@ class DaskExecutor(Executor):
             if key not in self._scattered:
                 value = shared[key]
                 self.sent_bytes += len(pickle.dumps(value, protocol=5))
-                # in a list, so a tuple value travels as one piece, not one per element
-                self._scattered[key] = self.client.scatter([value], hash=False)[0]
+                self._scattered[key] = self._scatter(value)
             needed[key] = self._scattered[key]
         self.task_count += 1
         return self.client.submit(_dask_call, function, needed, task.args, pure=False)
+
+    def _scatter(self, value):
+        """A future of ``value`` on the cluster. A worker that died a moment ago can still be
+        chosen to hold it (the scheduler has not noticed yet): then wait and try again."""
+        for attempt in range(self.ATTEMPTS):
+            try:
+                # in a list, so a tuple value travels as one piece, not one per element
+                return self.client.scatter([value], hash=False)[0]
+            except OSError:  # distributed's CommClosedError is one
+                if attempt == self.ATTEMPTS - 1:
+                    raise
+                time.sleep(1.0)
 
     def close(self) -> None:
         client, self.client = getattr(self, "client", None), None
