@@ -150,6 +150,8 @@ def check_bodies(
         settings = Settings(**fields)
     names = [_names(b) for b in bodies]
     _check_patterns(settings, names)
+    # The key cache entries are signed with, read once for the run (None: no cache).
+    secret = None if settings.cache_dir is None else pair_secret()
 
     geometry = local_geometries(bodies)
     with Progress("comparing hulls", 0):
@@ -168,11 +170,16 @@ def check_bodies(
         else executor_for(jobs=settings.jobs, scheduler=settings.scheduler)
     ) as executor:
         pieces, owner, piece_count = decompose_parts(
-            bodies, np.unique(pairs_near), settings, executor=executor, geometry=geometry
+            bodies,
+            np.unique(pairs_near),
+            settings,
+            executor=executor,
+            geometry=geometry,
+            secret=secret,
         )
         near_surfaces = surfaces_near(pieces, owner, pairs_near, tol_near, reach_near)
         findings = verify_pairs(
-            bodies, pairs_near, tol_near, near_surfaces, settings, executor=executor
+            bodies, pairs_near, tol_near, near_surfaces, settings, executor=executor, secret=secret
         )
     findings = approve(
         findings, settings.approvals, dict(zip([b.name for b in bodies], names, strict=True))
@@ -236,9 +243,11 @@ def decompose_parts(
     *,
     executor: Executor | None = None,
     geometry: dict | None = None,
+    secret: bytes | None = None,
 ) -> tuple[ConvexPack, np.ndarray, np.ndarray]:
     """Convex pieces of the parts in ``needed`` (indices into ``bodies``), CoACD running on
-    ``executor`` (default: ``settings.jobs`` local processes).
+    ``executor`` (default: ``settings.jobs`` local processes); cached entries are signed with
+    ``secret`` (``decompose.decompose_bodies``).
 
     Returns
     -------
@@ -258,7 +267,7 @@ def decompose_parts(
             progress=bar.update,
             executor=executor,
             geometry=geometry,
-            secret=_cache_secret(settings),
+            secret=secret,
         )
     count = np.zeros(len(bodies), dtype=np.int64)
     count[needed] = [len(p) for p in piece_lists]
@@ -319,17 +328,21 @@ def verify_pairs(
     settings: Settings,
     *,
     executor: Executor | None = None,
+    secret: bytes | None = None,
 ) -> list[Finding]:
     """Decide each pair on the real meshes; a finding for each pair that is not clear, sorted.
 
-    Verdicts cached from an earlier run (``cache.PairCache``: same meshes, placement, tolerance
-    and clearance) are reused; the rest are verified, on ``executor``'s processes when there are
-    at least ``PARALLEL_MIN_PAIRS`` of them, and then cached. The findings do not depend on where
-    a verdict came from.
+    With ``secret`` (the run's cache key) and a cache directory, verdicts cached from an earlier
+    run (``cache.PairCache``: same meshes, placement, tolerance and clearance) are reused; the
+    rest are verified, on ``executor``'s processes when there are at least
+    ``PARALLEL_MIN_PAIRS`` of them, and then cached. The findings do not depend on where a
+    verdict came from.
     """
     pairs = _oriented(bodies, np.asarray(pairs, dtype=np.int64).reshape(-1, 2))
     verdicts: list[verify.PairVerdict | None] = [None] * len(pairs)
-    cache = _pair_cache(settings)
+    cache = None
+    if settings.cache_dir is not None and secret is not None:
+        cache = PairCache(settings.cache_dir, secret=secret)
     keys: list[str] = []
     if cache is not None:
         for k, ((i, j), tol, is_near) in enumerate(
@@ -499,17 +512,6 @@ def _verify(bodies, pairs, tolerance, near_surfaces, clearance, executor, progre
         out.extend(result)
     progress(len(items))
     return out
-
-
-def _pair_cache(settings: Settings) -> PairCache | None:
-    """The run's pair verdict cache, or None without a cache directory or a signing key."""
-    secret = _cache_secret(settings)
-    return None if secret is None else PairCache(settings.cache_dir, secret=secret)
-
-
-def _cache_secret(settings: Settings) -> bytes | None:
-    """The key the run's cache entries are signed with; None without a cache directory."""
-    return None if settings.cache_dir is None else pair_secret()
 
 
 def _verdict(fields: dict) -> verify.PairVerdict:
