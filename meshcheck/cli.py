@@ -363,7 +363,7 @@ def _refuse_inputs_as_outputs(files, outputs) -> None:
         return
     inputs = {os.path.realpath(f) for f in files if os.path.isfile(f)}
     for path in outputs:
-        if path is not None and path != STDOUT and os.path.realpath(path) in inputs:
+        if os.path.realpath(path) in inputs:
             raise ConfigError(path, "is an input file: meshcheck does not write over its inputs")
 
 

@@ -73,7 +73,7 @@ from .files import (
     read,
     read_files,
 )
-from .limits import Budget, Limits, box_corners, check_placement
+from .limits import IDENTITY, Budget, Limits, box_corners, check_placement
 from .mesh import is_closed, split_shells, warn
 
 __all__ = [
@@ -90,8 +90,6 @@ __all__ = [
     "split_body",
     "split_shells",
 ]
-
-_IDENTITY = np.eye(4)
 
 #: Files whose bounding-box diagonals differ by this factor or more get a "mixed units?" warning.
 MIXED_UNITS_RATIO = 500.0
@@ -288,7 +286,7 @@ def _place(
         name = f"{path}#{node}" if multi else path
         transform = placement if factor == 1.0 else to_report @ placement
         check_placement(name, file_read.geometries[g][0], transform, limits, bounds=bounds[g])
-        if np.array_equal(transform, _IDENTITY):
+        if np.array_equal(transform, IDENTITY):
             corners.extend(bounds[g])
         else:
             corners.append(box_corners(*bounds[g]) @ transform[:3, :3].T + transform[:3, 3])

@@ -141,7 +141,7 @@ def check_placement(
     transform = np.asarray(transform, dtype=np.float64)
     if not np.all(np.isfinite(transform)):
         raise InputError(name, "placement transform holds NaN or infinite values")
-    is_identity = np.array_equal(transform, _IDENTITY)  # a part stored where it sits
+    is_identity = np.array_equal(transform, IDENTITY)  # a part stored where it sits
     with np.errstate(all="ignore"):
         lo, hi = bounds if bounds is not None else (vertices.min(axis=0), vertices.max(axis=0))
         if is_identity:  # the box's own corners, unmoved
@@ -162,7 +162,7 @@ def check_placement(
             raise InputError(name, "placement transform is singular (it flattens the part)")
 
 
-_IDENTITY = np.eye(4)
+IDENTITY = np.eye(4)
 #: Which corner of a box takes the upper bound on each axis: corner k, axis d <=> bit d of k.
 _UPPER = (np.arange(8)[:, None] >> np.arange(3) & 1).astype(bool)
 
