@@ -129,16 +129,21 @@ def test_glb_bodies_are_named_by_node(tmp_path):
     assert [b.name for b in load_bodies([path])] == [f"{path}#frame", f"{path}#pin"]
 
 
-@pytest.mark.parametrize("keyword", ["o", "g"])
-def test_obj_objects_and_groups_are_bodies(tmp_path, keyword):
+def write_two_cube_obj(path, keyword: str):
+    """An OBJ file of two cubes, 3 apart, as objects (``o``) or groups (``g``) housing and lid."""
     lines = []
     for k, name in enumerate(["housing", "lid"]):
         lines.append(f"{keyword} {name}")
         cube = box(at=(3 * k, 0, 0))
         lines += [f"v {x} {y} {z}" for x, y, z in cube.vertices]
         lines += [f"f {a + 1 + 8 * k} {b + 1 + 8 * k} {c + 1 + 8 * k}" for a, b, c in cube.faces]
-    path = tmp_path / "assy.obj"
     path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+@pytest.mark.parametrize("keyword", ["o", "g"])
+def test_obj_objects_and_groups_are_bodies(tmp_path, keyword):
+    path = write_two_cube_obj(tmp_path / "assy.obj", keyword)
     bodies = load_bodies([str(path)])
     assert [b.name for b in bodies] == [f"{path}#housing", f"{path}#lid"]
     assert all(b.is_closed and len(b.mesh.faces) == 12 for b in bodies)
@@ -393,14 +398,7 @@ def test_names_are_the_same_in_every_process(tmp_path):
 
     gltf = _two_primitive_gltf(tmp_path / "truck.gltf")
     threemf = write_3mf(tmp_path / "assy.3mf", [("base", (0, 0, 0)), ("base", (0, 0, 2))])
-    obj = tmp_path / "groups.obj"
-    lines = []
-    for k, name in enumerate(["housing", "lid"]):
-        lines.append(f"g {name}")
-        cube = box(at=(3 * k, 0, 0))
-        lines += [f"v {x} {y} {z}" for x, y, z in cube.vertices]
-        lines += [f"f {a + 1 + 8 * k} {b + 1 + 8 * k} {c + 1 + 8 * k}" for a, b, c in cube.faces]
-    obj.write_text("\n".join(lines) + "\n")
+    obj = write_two_cube_obj(tmp_path / "groups.obj", "g")
     solid = box().export(file_type="stl_ascii")
     stl = tmp_path / "solids.stl"
     stl.write_text(solid.replace("solid", "solid top", 1) + solid + solid)
