@@ -20,14 +20,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from depth_shapes import annulus, crescent, pin, prism_tube, tilted_slab_pair, wedge
 
-from meshcheck.depth import depth_bounds
 from meshcheck.geometry.triangles import closest_points_on_triangles, inscribed_ball
 from meshcheck.load import load_bodies
-from meshcheck.verify import outward_faces, shared_solid, verify_pair
+from meshcheck.verify.depth import depth_bounds
+from meshcheck.verify.pair import outward_faces, shared_solid, verify_pair
 
 
 def before_depth(v, f):
-    """The depth meshcheck reported before (meshcheck/verify.py solid_depth at 8238314)."""
+    """The depth meshcheck reported before (solid_depth at 8238314, now in verify/pair.py)."""
     extent = float((v.max(axis=0) - v.min(axis=0)).min())
     a, b, c = v[f[:, 0]] - v[0], v[f[:, 1]] - v[0], v[f[:, 2]] - v[0]
     volume = float(np.einsum("ij,ij->", a, np.cross(b, c))) / 6.0

@@ -99,9 +99,9 @@ def main(argv=None) -> None:
     parser.add_argument("--browser", action="store_true", help="time loading in chromium")
     args = parser.parse_args(argv)
 
-    from meshcheck.export import export_clashes
     from meshcheck.load import load_bodies
     from meshcheck.pipeline import check
+    from meshcheck.reports.gltf import export_clashes
     from meshcheck.reports.html import render_html
 
     with tempfile.TemporaryDirectory() as tmp:

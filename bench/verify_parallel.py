@@ -7,12 +7,12 @@ Run from the repository root::
 The assembly is bench/assemblies.py's grid. The script runs the pipeline's stages up to the verify
 stage once, then, for the first N pairs of the verify stage, times
 
-- ``serial``: ``pipeline._verify`` in this process (kernels already loaded here);
+- ``serial``: ``verify.batch._verify`` in this process (kernels already loaded here);
 - ``pool``: the same through a ``LocalPool(2)`` started for the call, so the time includes
   starting the workers (their imports and compiled-kernel loads) and sending the meshes: what a
   warm run pays when decomposition did not start the workers.
 
-and prints the ratio pool / serial. ``pipeline.PARALLEL_MIN_PAIRS`` should sit where it drops
+and prints the ratio pool / serial. ``batch.PARALLEL_MIN_PAIRS`` should sit where it drops
 below 1. Both give identical verdicts (checked).
 """
 
@@ -55,8 +55,8 @@ def verify_stage_input(paths: list[str], cache_dir: str):
 
 
 def main(argv=None) -> None:
-    from meshcheck import pipeline
     from meshcheck.execute import LocalPool
+    from meshcheck.verify import batch
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--size", type=int, default=400)
@@ -65,20 +65,20 @@ def main(argv=None) -> None:
         paths, _ = write_assembly(args.size, tmp)
         bodies, pairs, tolerance, surfaces = verify_stage_input(paths, os.path.join(tmp, "c"))
         # warm this process's kernels and memo-free caches once
-        pipeline._verify(bodies, pairs[:5], tolerance[:5], surfaces[:5], None, None, _ignore)
+        batch._verify(bodies, pairs[:5], tolerance[:5], surfaces[:5], None, None, _ignore)
         print(f"{len(pairs)} pairs in the verify stage of a {args.size}-part assembly")
         print(f"{'pairs':>6} {'serial s':>9} {'pool(2) s':>10} {'pool/serial':>12}")
         sizes = [n for n in (25, 50, 100, 200, 400, 800, 1600) if n < len(pairs)] + [len(pairs)]
         for n in sizes:
             sl = slice(0, n)
             start = time.perf_counter()
-            serial = pipeline._verify(
+            serial = batch._verify(
                 bodies, pairs[sl], tolerance[sl], surfaces[sl], None, None, _ignore
             )
             t_serial = time.perf_counter() - start
             start = time.perf_counter()
             with LocalPool(2) as pool:
-                parallel = pipeline._verify(
+                parallel = batch._verify(
                     bodies, pairs[sl], tolerance[sl], surfaces[sl], None, _Forced(pool), _ignore
                 )
             t_pool = time.perf_counter() - start

@@ -349,7 +349,13 @@ def verify_code_version() -> str:
         except importlib.metadata.PackageNotFoundError:
             h.update(f"{package}=?;".encode())
     here = os.path.dirname(os.path.abspath(__file__))
-    names = ("verify.py", "depth.py", "results.py", os.path.join("geometry", "triangles.py"))
+    names = (
+        os.path.join("verify", "pair.py"),
+        os.path.join("verify", "depth.py"),
+        "mesh.py",
+        "results.py",
+        os.path.join("geometry", "triangles.py"),
+    )
     for path in [*(os.path.join(here, n) for n in names), _kernels.__file__]:
         try:
             with open(path, "rb") as f:

@@ -253,7 +253,7 @@ def _run(
         for _, path in targets:
             check_output(path)
         if export_path is not None:
-            from .export import export_type
+            from .reports.gltf import export_type
 
             export_type(export_path)
         _refuse_inputs_as_outputs(files, [p for _, p in targets] + [export_path])
@@ -299,7 +299,7 @@ def _run(
 
                 result = compare(result, baseline)
             if export_path is not None:
-                from .export import export_clashes
+                from .reports.gltf import export_clashes
 
                 export_clashes(export_path, result.bodies, result.findings)
         except MeshcheckError as exc:

@@ -27,17 +27,16 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from . import verify
-from .broadphase import candidate_pairs, group_pairs
-from .cache import PairCache, pair_key, pair_secret
+from .cache import pair_secret
 from .config import Approval, approval_reason
 from .decompose import decompose_bodies
 from .errors import MeshcheckWarning
-from .execute import Executor, Task, executor_for
+from .execute import Executor, executor_for
 from .geometry import ConvexPack, Status, pack_convex, query_pairs
+from .geometry.broadphase import candidate_pairs, group_pairs
 from .load import Body, Limits, load_bodies, local_geometries
 from .progress import Progress
-from .results import CheckResult, Finding, Location, Part, Verdict, finding_id
+from .results import CheckResult, Finding, Part
 from .settings import (
     FLOAT32_ULPS,
     TOLERANCE_FRACTION,
@@ -46,6 +45,7 @@ from .settings import (
     part_sizes,
 )
 from .units import DEFAULT_UNIT
+from .verify import verify_pairs
 
 _EPS32 = float(np.finfo(np.float32).eps)
 
@@ -308,225 +308,6 @@ def surfaces_near(
     out = np.zeros(len(pairs), dtype=bool)
     out[row[hit]] = True
     return out
-
-
-#: Fewer pairs than this to verify are verified in this process: starting worker processes
-#: (imports, loading the compiled kernels) costs more than the pairs take.
-#: ``python bench/verify_parallel.py --size 800`` on a quiet 2-core machine: a fresh 2-process
-#: pool took 1.63x the serial time at 100 pairs, 1.12x at 200, 0.87x at 400, 0.74x at 720 (on
-#: the same machine shared with other jobs the crossover moved to ~1,000 pairs).
-PARALLEL_MIN_PAIRS = 300
-#: Pairs per task sent to a worker: enough to amortise a message, few enough to balance.
-PAIRS_PER_TASK = 16
-
-
-def verify_pairs(
-    bodies: Sequence[Body],
-    pairs: np.ndarray,
-    tolerance: np.ndarray,
-    near_surfaces: np.ndarray,
-    settings: Settings,
-    *,
-    executor: Executor | None = None,
-    secret: bytes | None = None,
-) -> list[Finding]:
-    """Decide each pair on the real meshes; a finding for each pair that is not clear, sorted.
-
-    With ``secret`` (the run's cache key) and a cache directory, verdicts cached from an earlier
-    run (``cache.PairCache``: same meshes, placement, tolerance and clearance) are reused; the
-    rest are verified, on ``executor``'s processes when there are at least
-    ``PARALLEL_MIN_PAIRS`` of them, and then cached. The findings do not depend on where a
-    verdict came from.
-    """
-    pairs = _oriented(bodies, np.asarray(pairs, dtype=np.int64).reshape(-1, 2))
-    verdicts: list[verify.PairVerdict | None] = [None] * len(pairs)
-    cache = None
-    if settings.cache_dir is not None and secret is not None:
-        cache = PairCache(settings.cache_dir, secret=secret)
-    keys: list[str] = []
-    if cache is not None:
-        for k, ((i, j), tol, is_near) in enumerate(
-            zip(pairs, tolerance, near_surfaces, strict=True)
-        ):
-            keys.append(
-                pair_key(
-                    (bodies[i].digest, bodies[i].transform),
-                    (bodies[j].digest, bodies[j].transform),
-                    tolerance=float(tol),
-                    clearance=settings.clearance,
-                    surfaces_apart=not is_near,
-                )
-            )
-            hit = cache.get(keys[k])
-            if hit is not None:
-                verdicts[k] = _verdict(hit)
-    todo = np.array([k for k, v in enumerate(verdicts) if v is None], dtype=np.int64)
-    hits = len(pairs) - len(todo)
-    with Progress("checking", len(pairs)) as bar:
-        bar.update(hits)
-        computed = _verify(
-            bodies,
-            pairs[todo],
-            np.asarray(tolerance)[todo],
-            np.asarray(near_surfaces)[todo],
-            settings.clearance,
-            executor,
-            lambda done: bar.update(hits + done),
-        )
-    for k, verdict in zip(todo, computed, strict=True):
-        verdicts[k] = verdict
-        if cache is not None:
-            cache.put(keys[k], _fields(verdict))
-    if cache is not None and len(todo):
-        cache.remove_stale_temporaries()
-
-    findings = []
-    for (i, j), tol, verdict in zip(pairs, tolerance, verdicts, strict=True):
-        if verdict.status == Verdict.CLEAR:
-            continue
-        a, b = bodies[i], bodies[j]
-        (name_a, digest_a), (name_b, digest_b) = sorted([(a.name, a.digest), (b.name, b.digest)])
-        findings.append(
-            Finding(
-                a=name_a,
-                b=name_b,
-                status=verdict.status,
-                distance=verdict.distance,
-                depth=verdict.depth,
-                volume=verdict.volume,
-                location=verdict.location,
-                id=finding_id(name_a, digest_a, name_b, digest_b),
-                is_surface_only=verdict.is_surface_only,
-                tolerance=float(tol),
-            )
-        )
-    findings.sort(key=lambda f: (f.a, f.b))
-    return findings
-
-
-def _oriented(bodies: Sequence[Body], pairs: np.ndarray) -> np.ndarray:
-    """``pairs`` with each pair's parts ordered by geometry and placement, not by where their
-    files came in the arguments: a verdict, bit for bit, and its cache key do not depend on the
-    order the files were given in."""
-    if not len(pairs):
-        return pairs
-    used = np.unique(pairs)
-    placed = sorted(used, key=lambda i: (bodies[i].digest, _placement_bytes(bodies[i])))
-    rank = np.empty(int(used.max()) + 1, dtype=np.int64)
-    rank[placed] = np.arange(len(placed))
-    swap = rank[pairs[:, 0]] > rank[pairs[:, 1]]
-    return np.where(swap[:, None], pairs[:, ::-1], pairs)
-
-
-def _placement_bytes(body: Body) -> bytes:
-    return np.ascontiguousarray(body.transform, dtype=np.float64).tobytes()
-
-
-def verify_task(store: dict, items: list, clearance: float | None) -> list[verify.PairVerdict]:
-    """Verify a chunk of pairs in a worker: ``items`` are ``(key_a, key_b, tolerance,
-    surfaces_apart)``, the keys naming ``(vertices, faces)`` of world meshes in ``store``.
-
-    The meshes are rebuilt once per process (kept in ``store``), bit for bit the arrays the main
-    process holds, so each verdict is the one ``verify_pair`` gives there.
-    """
-    import trimesh
-
-    memo = store.setdefault(("verify", "memo"), {})
-    out = []
-    for key_a, key_b, tol, apart in items:
-        meshes = []
-        for key in (key_a, key_b):
-            mesh = store.get(("verify", "mesh", key))
-            if mesh is None:
-                vertices, faces = store[key]
-                mesh = trimesh.Trimesh(vertices, faces, process=False, validate=False)
-                store[("verify", "mesh", key)] = mesh
-            meshes.append(mesh)
-        out.append(
-            verify.verify_pair(
-                *meshes, tolerance=tol, clearance=clearance, surfaces_apart=apart, memo=memo
-            )
-        )
-    return out
-
-
-def _verify(bodies, pairs, tolerance, near_surfaces, clearance, executor, progress) -> list:
-    """Verdicts of ``pairs`` in order: here, or as tasks of ``PAIRS_PER_TASK`` pairs."""
-    # Workers already started (by loading or decomposition) cost nothing more to use.
-    started = executor is not None and executor.is_started
-    least = 2 * PAIRS_PER_TASK if started else PARALLEL_MIN_PAIRS
-    parallel = executor is not None and (
-        executor.is_distributed or (executor.jobs > 1 and len(pairs) >= least)
-    )
-    if not parallel:
-        memo: dict = {}  # per-mesh data verify reuses across pairs; the bodies outlive the loop
-        out = []
-        for count, ((i, j), tol, is_near) in enumerate(
-            zip(pairs, tolerance, near_surfaces, strict=True), start=1
-        ):
-            out.append(
-                verify.verify_pair(
-                    bodies[i].world,
-                    bodies[j].world,
-                    tolerance=float(tol),
-                    clearance=clearance,
-                    surfaces_apart=not is_near,
-                    memo=memo,
-                )
-            )
-            progress(count)
-        return out
-
-    # One shared value per distinct world mesh, named by the first body that has it.
-    key_of: dict[int, int] = {}
-    shared: dict = {}
-    for i in np.unique(pairs):
-        world = bodies[i].world
-        if id(world) not in key_of:
-            key_of[id(world)] = int(i)
-            shared[int(i)] = (
-                np.asarray(world.vertices, dtype=np.float64),
-                np.asarray(world.faces, dtype=np.int64),
-            )
-    items = [
-        (key_of[id(bodies[i].world)], key_of[id(bodies[j].world)], float(tol), not bool(near))
-        for (i, j), tol, near in zip(pairs, tolerance, near_surfaces, strict=True)
-    ]
-    tasks = [
-        Task(
-            (items[a : a + PAIRS_PER_TASK], clearance),
-            needs=tuple(sorted({k for it in items[a : a + PAIRS_PER_TASK] for k in it[:2]})),
-        )
-        for a in range(0, len(items), PAIRS_PER_TASK)
-    ]
-    results = executor.map(
-        "meshcheck.pipeline:verify_task",
-        tasks,
-        shared=shared,
-        progress=lambda done: progress(min(len(items), done * PAIRS_PER_TASK)),
-    )
-    out = []
-    for task, result in zip(tasks, results, strict=True):
-        if result is None:  # its worker died: verify here (a bug then shows its traceback)
-            result = Executor().map("meshcheck.pipeline:verify_task", [task], shared=shared)[0]
-        out.extend(result)
-    progress(len(items))
-    return out
-
-
-def _verdict(fields: dict) -> verify.PairVerdict:
-    location = fields["location"]
-    if location is not None:
-        location = Location(*location)
-    return verify.PairVerdict(**(fields | {"location": location}))
-
-
-def _fields(verdict: verify.PairVerdict) -> dict:
-    where = verdict.location
-    points = None if where is None else (where.centroid, where.lower, where.upper)
-    return {f.name: getattr(verdict, f.name) for f in dataclasses.fields(verdict)} | {
-        "location": points
-    }
 
 
 def approve(

@@ -6,7 +6,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from meshcheck.broadphase import candidate_pairs, group_pairs
+from meshcheck.geometry.broadphase import candidate_pairs, group_pairs
 
 
 def brute_force(lower, upper, margin=0.0, owner=None):

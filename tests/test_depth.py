@@ -10,9 +10,9 @@ from depth_shapes import annulus, crescent, lens, pin, prism_tube, tilted_slab_p
 from scipy.optimize import linprog
 
 from meshcheck import results
-from meshcheck.depth import depth_bounds
 from meshcheck.geometry.triangles import point_distances, winding_numbers
-from meshcheck.verify import outward_faces, shared_solid, verify_pair
+from meshcheck.verify.depth import depth_bounds
+from meshcheck.verify.pair import outward_faces, shared_solid, verify_pair
 
 SCALES = [1e-3, 1.0, 1e3]
 

@@ -13,10 +13,11 @@ import numpy as np
 import pytest
 import trimesh
 
-from meshcheck import pipeline, verify
+from meshcheck import pipeline
 from meshcheck.cache import PairCache, pair_key, pair_secret
 from meshcheck.errors import MeshcheckWarning
 from meshcheck.reports import render
+from meshcheck.verify import batch
 
 
 def write_row(directory, moved: float = 0.0) -> list[str]:
@@ -42,13 +43,13 @@ def write_row(directory, moved: float = 0.0) -> list[str]:
 def counted(monkeypatch):
     """Count the pairs verified in this process (the real verify_pair runs)."""
     calls = []
-    real = verify.verify_pair
+    real = batch.verify_pair
 
     def spy(a, b, **kw):
         calls.append(1)
         return real(a, b, **kw)
 
-    monkeypatch.setattr(verify, "verify_pair", spy)
+    monkeypatch.setattr(batch, "verify_pair", spy)
     return calls
 
 
@@ -97,8 +98,8 @@ def test_argument_order_changes_neither_verdicts_nor_cache_hits(tmp_path, counte
 
 
 def test_parallel_verify_is_byte_identical_to_serial(tmp_path, monkeypatch, counted):
-    monkeypatch.setattr(pipeline, "PARALLEL_MIN_PAIRS", 0)
-    monkeypatch.setattr(pipeline, "PAIRS_PER_TASK", 2)
+    monkeypatch.setattr(batch, "PARALLEL_MIN_PAIRS", 0)
+    monkeypatch.setattr(batch, "PAIRS_PER_TASK", 2)
     paths = write_row(tmp_path / "row")
     _, serial = run(paths, None, use_cache=False, jobs=1)
     serial_count = len(counted)
@@ -117,7 +118,7 @@ def _interfering_pair_key(paths, cache_dir):
     bodies = {b.name: b for b in result.bodies}
     a, b = bodies[finding.a], bodies[finding.b]
     index = {b_.name: k for k, b_ in enumerate(result.bodies)}
-    ((i, j),) = pipeline._oriented(result.bodies, np.array([[index[a.name], index[b.name]]]))
+    ((i, j),) = batch._oriented(result.bodies, np.array([[index[a.name], index[b.name]]]))
     a, b = result.bodies[i], result.bodies[j]
     return pair_key(
         (a.digest, a.transform),

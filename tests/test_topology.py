@@ -23,7 +23,7 @@ from meshcheck.geometry.topology import (
     is_closed,
     shell_labels,
 )
-from meshcheck.load.mesh import clean_arrays, merge_vertices
+from meshcheck.mesh import clean_arrays, merge_vertices
 
 PROPERTY = settings(derandomize=True, deadline=None, max_examples=60)
 

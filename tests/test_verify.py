@@ -15,7 +15,7 @@ from scipy.optimize import linprog, minimize
 from meshcheck import results
 from meshcheck.geometry.triangles import box_pairs, pair_distances, triangle_distance
 from meshcheck.results import Verdict
-from meshcheck.verify import solid_depth, verify_pair
+from meshcheck.verify.pair import solid_depth, verify_pair
 
 CLEAR = Verdict.CLEAR
 
@@ -431,8 +431,8 @@ def test_box_pairs_matches_all_pairs():
 
 
 def test_export_writes_parts_and_a_red_node_per_interference(tmp_path):
-    from meshcheck.export import CLASH_COLOR, CLASHING_PART_COLOR, PART_COLOR, export_clashes
     from meshcheck.load import Body
+    from meshcheck.reports.gltf import CLASH_COLOR, CLASHING_PART_COLOR, PART_COLOR, export_clashes
 
     a, b, c = unit(), unit((0.7, 0, 0)), unit((3, 0, 0))
     bodies = [Body(n, n, m) for n, m in (("a.stl", a), ("b.stl", b), ("c.stl", c))]
@@ -463,8 +463,8 @@ def test_export_writes_parts_and_a_red_node_per_interference(tmp_path):
 
 
 def test_export_marks_a_surface_only_clash_with_its_location_box(tmp_path):
-    from meshcheck.export import export_clashes
     from meshcheck.load import Body
+    from meshcheck.reports.gltf import export_clashes
 
     a, b = open_box(), unit((0.5, 0.3, 0.2))
     v = verify_pair(a, b, tolerance=TOL, clearance=None)

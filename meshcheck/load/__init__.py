@@ -64,6 +64,7 @@ import numpy as np
 
 from .. import units as units_
 from ..errors import ConfigError, InputError
+from ..mesh import is_closed, split_shells, warn
 from .body import Body, local_geometries, local_geometry, mesh_digest
 from .files import (
     SUPPORTED_EXTENSIONS,
@@ -74,7 +75,6 @@ from .files import (
     read_files,
 )
 from .limits import IDENTITY, Budget, Limits, box_corners, check_placement
-from .mesh import is_closed, split_shells, warn
 
 __all__ = [
     "SUPPORTED_EXTENSIONS",

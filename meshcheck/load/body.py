@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import trimesh
 
-from .mesh import is_closed
+from ..mesh import is_closed
 
 
 @dataclass(frozen=True, eq=False)
@@ -64,7 +64,7 @@ class Body:
 
     @property
     def is_closed(self) -> bool:
-        """True when the mesh bounds a volume (see ``meshcheck.load.mesh.is_closed``)."""
+        """True when the mesh bounds a volume (see ``meshcheck.mesh.is_closed``)."""
         return is_closed(self.mesh)
 
 

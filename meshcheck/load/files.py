@@ -30,9 +30,10 @@ import trimesh
 from .. import units as units_
 from ..errors import InputError, MeshcheckError, MeshcheckWarning
 from ..geometry import topology
+from ..mesh import as_mesh, clean_arrays, warn
+from ..verify.shells import overlapping_shells
 from .gltf import read_gltf
 from .limits import Budget, Limits, read_file
-from .mesh import as_mesh, clean_arrays, overlapping_shells, warn
 from .scene import read_scene
 from .threemf import read_3mf
 

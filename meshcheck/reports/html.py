@@ -29,11 +29,11 @@ from importlib import resources
 import numpy as np
 import trimesh
 
-from ..export import clash_mesh
 from ..geometry.triangles import point_distances
 from ..load import Body
 from ..results import CheckResult, Finding, Verdict
 from .common import summary
+from .gltf import clash_mesh
 
 INTERFERENCE, TOUCHING, CLEARANCE = Verdict.INTERFERENCE, Verdict.TOUCHING, Verdict.CLEARANCE
 

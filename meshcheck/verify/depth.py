@@ -42,7 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .geometry.triangles import (
+from ..geometry.triangles import (
     closest_points_on_triangles,
     inscribed_ball,
     point_distances,

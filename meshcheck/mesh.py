@@ -11,8 +11,8 @@ import warnings
 import numpy as np
 import trimesh
 
-from ..errors import InputError, MeshcheckWarning
-from ..geometry import topology
+from .errors import InputError, MeshcheckWarning
+from .geometry import topology
 
 _CLOSED_KEY = "meshcheck_is_closed"  # trimesh's per-mesh cache, invalidated when the mesh changes
 
@@ -200,7 +200,7 @@ def split_shells(mesh: trimesh.Trimesh) -> list[trimesh.Trimesh]:
         signed volume (facing inward) that lies inside a closed outward shell is merged into the
         smallest such shell; every other shell is a part of its own.
     """
-    face_label, n = _shell_labels(mesh)
+    face_label, n = shell_labels(mesh)
     if n == 1:
         return [mesh]
     shells = [mesh.submesh([np.flatnonzero(face_label == k)], append=True) for k in range(n)]
@@ -228,45 +228,15 @@ def split_shells(mesh: trimesh.Trimesh) -> list[trimesh.Trimesh]:
     return out
 
 
-def _shell_labels(mesh: trimesh.Trimesh) -> tuple[np.ndarray, int]:
+def shell_labels(mesh: trimesh.Trimesh) -> tuple[np.ndarray, int]:
     """Connected-component label of each face, numbered by first appearance; and their count."""
     return topology.shell_labels(mesh.faces, len(mesh.vertices))
-
-
-def overlapping_shells(mesh: trimesh.Trimesh) -> tuple[int, int] | None:
-    """Two closed shells of ``mesh`` that share volume, as 1-based shell numbers, or None.
-
-    Shells are numbered as ``split_shells`` lists them. Shells that only touch (within 1e-6 of
-    their size) do not count; the exact test is ``verify.verify_pair``.
-    """
-    if _shell_labels(mesh)[1] == 1:
-        return None
-    from ..broadphase import candidate_pairs
-    from ..results import Verdict
-    from ..verify import verify_pair
-
-    shells = split_shells(mesh)
-    solid = [k for k, s in enumerate(shells) if is_closed(s) and float(s.volume) > 0.0]
-    if len(solid) < 2:
-        return None
-    lower = np.array([shells[k].bounds[0] for k in solid])
-    upper = np.array([shells[k].bounds[1] for k in solid])
-    for i, j in candidate_pairs(lower, upper, margin=0.0):
-        a, b = shells[solid[i]], shells[solid[j]]
-        tolerance = 1e-6 * float(np.linalg.norm(np.maximum(a.extents, b.extents)))
-        shared = np.minimum(upper[i], upper[j]) - np.maximum(lower[i], lower[j])
-        if shared.min() <= tolerance:  # boxes meeting face to face (an assembly export's
-            continue  # neighbours) cannot share a solid thicker than the tolerance
-        verdict = verify_pair(a, b, tolerance=tolerance, clearance=None)
-        if verdict.status == Verdict.INTERFERENCE:
-            return solid[i] + 1, solid[j] + 1
-    return None
 
 
 def _winding_number(mesh: trimesh.Trimesh, point: np.ndarray) -> float:
     """Generalised winding number of a closed mesh around ``point`` (1 inside, 0 outside): the
     compiled kernel the verify stage uses (``geometry.triangles.winding_numbers``)."""
-    from ..geometry.triangles import winding_numbers
+    from .geometry.triangles import winding_numbers
 
     points = np.asarray(point, dtype=np.float64).reshape(1, 3)
     v = np.asarray(mesh.vertices, dtype=np.float64)

@@ -15,11 +15,11 @@ from collections.abc import Sequence
 import numpy as np
 import trimesh
 
-from . import results
-from .errors import ConfigError
-from .load import Body
-from .output import check_output, write_output
-from .verify import outward_faces, shared_solid
+from .. import results
+from ..errors import ConfigError
+from ..load import Body
+from ..output import check_output, write_output
+from ..verify.pair import outward_faces, shared_solid
 
 # RGBA, 0-255.
 PART_COLOR = (160, 160, 160, 90)

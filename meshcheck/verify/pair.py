@@ -9,7 +9,7 @@ The convex filter before this stage only says which part pairs *may* come within
 2. surfaces within the tolerance meet: when both meshes are closed, the shared solid is computed
    with manifold3d and its thickness (``depth``, the largest ball inside) tells interference from
    touching: touching only when it is *proven* no thicker than the tolerance (faces resting on
-   faces leave a sliver at most), interference otherwise (see ``meshcheck.depth``);
+   faces leave a sliver at most), interference otherwise (see ``meshcheck.verify.depth``);
 3. surfaces farther apart may still belong to one part buried inside the other: one point of every
    connected shell is tested with the winding number of the other mesh;
 4. otherwise the pair is a clearance finding when the true distance is below the clearance, and
@@ -24,16 +24,16 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
-from . import results
-from .depth import depth_bounds
-from .geometry.triangles import (
+from .. import results
+from ..geometry.triangles import (
     box_pairs,
     pair_distances,
     triangle_boxes,
     winding_numbers,
 )
-from .load.mesh import is_closed
-from .results import Verdict
+from ..mesh import is_closed
+from ..results import Verdict
+from .depth import depth_bounds
 
 # Points tested with winding numbers (each costs one pass over the other mesh's triangles): one per
 # shell for burial (a triangle soup can have a shell per triangle), and the surface-only probes.
@@ -398,7 +398,7 @@ def _surface_verdict(m: _Pair, *, tolerance: float, distance: float, near) -> Pa
 def _deep_points(m: _Pair, near: _Near, tolerance: float) -> np.ndarray:
     """Vertices and centroids of the triangles near the other mesh that lie inside it (winding
     number above one half) by more than the tolerance, local frame, ``(p, 3)``."""
-    from .geometry.triangles import point_distances
+    from ..geometry.triangles import point_distances
 
     found = []
     for col, (v, f, ov, of) in enumerate(((m.va, m.fa, m.vb, m.fb), (m.vb, m.fb, m.va, m.fa))):
