@@ -19,7 +19,7 @@ import time
 import numpy as np
 
 from meshcheck.reports import FORMATS, render
-from meshcheck.results import CheckResult, Finding, Location, Part, finding_id
+from meshcheck.results import CheckResult, Finding, Location, PairVerdict, Part, Verdict, finding_id
 from meshcheck.settings import Settings
 
 
@@ -35,11 +35,13 @@ def make(n: int) -> CheckResult:
             Finding(
                 a,
                 b,
-                status,
-                0.0 if status != "clearance" else 0.3,
-                depth=0.2 if status == "interference" else None,
-                volume=1.5 if status == "interference" else None,
-                location=Location(np.array([k * 1e-3, 40.0, 5.0]), np.zeros(3), np.ones(3)),
+                PairVerdict(
+                    Verdict(status),
+                    0.0 if status != "clearance" else 0.3,
+                    depth=0.2 if status == "interference" else None,
+                    volume=1.5 if status == "interference" else None,
+                    location=Location(np.array([k * 1e-3, 40.0, 5.0]), np.zeros(3), np.ones(3)),
+                ),
                 id=finding_id(a, "x", b, "y"),
                 tolerance=1e-4,
             )

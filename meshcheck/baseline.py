@@ -9,11 +9,11 @@ artifact): it is read with a size limit and checked field by field, and every pr
 
 Examples
 --------
->>> from meshcheck.results import Finding, Verdict
+>>> from meshcheck.results import Finding, PairVerdict, Verdict
 >>> old = Baseline("old.json", {"0123456789ab": ("a.stl", "b.stl", Verdict.TOUCHING)})
->>> old.state(Finding("a.stl", "b.stl", Verdict.TOUCHING, 0.0, id="0123456789ab"))
+>>> old.state(Finding("a.stl", "b.stl", PairVerdict(Verdict.TOUCHING, 0.0), id="0123456789ab"))
 'active'
->>> old.state(Finding("a.stl", "b.stl", Verdict.INTERFERENCE, 0.0, id="0123456789ab"))
+>>> old.state(Finding("a.stl", "b.stl", PairVerdict(Verdict.INTERFERENCE, 0.0), id="0123456789ab"))
 'new'
 """
 

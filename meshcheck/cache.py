@@ -47,6 +47,7 @@ applied to another pair. What is left to trust is the key holder, as for any CI 
 
 from __future__ import annotations
 
+import base64
 import contextlib
 import functools
 import hashlib
@@ -57,16 +58,25 @@ import math
 import os
 import struct
 import tempfile
+import zlib
 
 import numpy as np
+
+from .results import Location, PairVerdict, Solid, Verdict
 
 # Bump when the layout of an entry or the meaning of a decomposition changes (e.g. the triangle
 # cover fix-up): old entries are then simply never looked up again.
 FORMAT_VERSION = 3
 # The same for pair verdict entries.
-PAIR_FORMAT_VERSION = 2
-# A pair entry is a few hundred bytes; a file larger than this is not read.
+PAIR_FORMAT_VERSION = 3
+# A pair entry's verdict is a few hundred bytes, not counting the shared solid it may carry.
 MAX_PAIR_ENTRY_BYTES = 4096
+# The shared solid of an interference (vertices as float64, faces as uint32, before compression)
+# an entry may carry; a verdict with a larger one is not cached (it is verified again next run).
+MAX_SOLID_BYTES = 8 * 2**20
+# An entry file larger than this is not read: the verdict, and a solid compressed (zlib adds at
+# most 0.1 % to incompressible data) then written in base64 (4/3).
+MAX_PAIR_FILE_BYTES = MAX_PAIR_ENTRY_BYTES + (MAX_SOLID_BYTES * 3) // 2
 # The environment variable that carries the key pair verdicts are signed with.
 SECRET_VARIABLE = "MESHCHECK_CACHE_SECRET"
 
@@ -438,8 +448,7 @@ class PairCache:
     --------
     >>> import tempfile
     >>> cache = PairCache(tempfile.mkdtemp(), secret=b"k" * 32)
-    >>> verdict = {"status": "touching", "distance": 0.0, "depth": None, "volume": None,
-    ...            "location": None, "is_surface_only": False}
+    >>> verdict = PairVerdict(Verdict.TOUCHING, 0.0)
     >>> cache.put("ab" * 32, verdict)
     >>> cache.get("ab" * 32) == verdict
     True
@@ -459,21 +468,19 @@ class PairCache:
         name = hmac.new(self._secret, key.encode("ascii"), hashlib.sha256).hexdigest()
         return os.path.join(self.root, name[:2], f"{name}.json")
 
-    def get(self, key: str) -> dict | None:
-        """The verdict fields stored for ``key``, or None when missing, unsigned or unusable.
+    def get(self, key: str) -> PairVerdict | None:
+        """The verdict stored for ``key``, or None when missing, unsigned or unusable.
 
         Returns
         -------
-        verdict : dict or None
-            ``status`` (str), ``distance`` (float, inf allowed), ``depth`` and ``volume``
-            (float or None), ``location`` (three (3,) float64 arrays: centroid, lower, upper; or
-            None), ``is_surface_only`` (bool): exactly what ``put`` stored.
+        verdict : PairVerdict or None
+            Exactly what ``put`` stored, bit for bit (its shared solid and closest points too).
         """
         try:
             with open(self.path(key), "rb") as f:
-                if os.fstat(f.fileno()).st_size > MAX_PAIR_ENTRY_BYTES:
+                if os.fstat(f.fileno()).st_size > MAX_PAIR_FILE_BYTES:
                     return None
-                raw = f.read(MAX_PAIR_ENTRY_BYTES + 1)
+                raw = f.read(MAX_PAIR_FILE_BYTES + 1)
             entry = json.loads(raw)
         except (OSError, ValueError, RecursionError):
             return None
@@ -485,9 +492,12 @@ class PairCache:
             return None
         return _decode_verdict(entry["verdict"])
 
-    def put(self, key: str, verdict: dict) -> None:
-        """Store a verdict's fields (as ``get`` returns them) atomically, signed."""
+    def put(self, key: str, verdict: PairVerdict) -> None:
+        """Store ``verdict`` atomically, signed; one whose solid is over ``MAX_SOLID_BYTES`` is
+        not stored."""
         fields = _encode_verdict(verdict)
+        if fields is None:
+            return
         entry = {"key": key, "verdict": fields, "mac": self._mac(key, fields)}
         text = json.dumps(entry, sort_keys=True, separators=(",", ":")).encode("ascii")
         write_atomically(self.path(key), ".json", lambda f: f.write(text))
@@ -504,67 +514,124 @@ class PairCache:
         return hmac.new(self._secret, text.encode(), hashlib.sha256).hexdigest()
 
 
-_STATUSES = ("interference", "touching", "clearance", "clear")
+# ---------------------------------------------------------------------------------------------
+# The one encoding of a verdict (``results.PairVerdict``) in an entry
 
 
-def _encode_verdict(v: dict) -> dict:
+def _encode_verdict(v: PairVerdict) -> dict | None:
+    """The JSON fields of a verdict: floats as exact hex, the solid as compressed base64; None
+    when its solid is over ``MAX_SOLID_BYTES``."""
+
     def number(x):
         return None if x is None else float(x).hex()
 
-    location = v["location"]
-    if location is not None:
-        location = [[float(c).hex() for c in np.asarray(p, dtype=np.float64)] for p in location]
+    def points(ps):
+        return [[float(c).hex() for c in np.asarray(p, dtype=np.float64)] for p in ps]
+
+    where = v.location
+    solid = None
+    if v.solid is not None:
+        solid = _encode_solid(v.solid)
+        if solid is None:
+            return None
     return {
-        "status": str(v["status"]),
-        "distance": number(v["distance"]),
-        "depth": number(v["depth"]),
-        "volume": number(v["volume"]),
-        "location": location,
-        "surface_only": bool(v["is_surface_only"]),
+        "status": str(v.status),
+        "distance": number(v.distance),
+        "depth": number(v.depth),
+        "volume": number(v.volume),
+        "location": None if where is None else points((where.centroid, where.lower, where.upper)),
+        "surface_only": bool(v.is_surface_only),
+        "closest": None if v.closest is None else points(v.closest),
+        "solid": solid,
     }
 
 
-def _decode_verdict(fields) -> dict | None:
-    """The verdict fields of a signed entry, or None when any is out of its domain."""
-    if not isinstance(fields, dict) or set(fields) != {
-        "status", "distance", "depth", "volume", "location", "surface_only"
-    }:  # fmt: skip
+def _encode_solid(solid: Solid) -> dict | None:
+    vertices = np.ascontiguousarray(solid.vertices, dtype="<f8")
+    faces = np.ascontiguousarray(solid.faces, dtype="<u4")
+    raw = vertices.tobytes() + faces.tobytes()
+    if len(raw) > MAX_SOLID_BYTES or len(vertices) > np.iinfo(np.uint32).max:
         return None
+    data = base64.b64encode(zlib.compress(raw, 6)).decode("ascii")
+    return {"vertices": len(vertices), "faces": len(faces), "data": data}
 
-    def number(x, *, optional=False, infinite=False):
-        if x is None and optional:
-            return None
-        if not isinstance(x, str) or len(x) > 40:
-            raise ValueError
-        value = float.fromhex(x)
-        if math.isnan(value) or value < 0 or (math.isinf(value) and not infinite):
-            raise ValueError
-        return value
 
+_FIELDS = {
+    "status", "distance", "depth", "volume", "location", "surface_only", "closest", "solid"
+}  # fmt: skip
+
+
+def _decode_verdict(fields) -> PairVerdict | None:
+    """The verdict of a signed entry, or None when any field is out of its domain."""
+    if not isinstance(fields, dict) or set(fields) != _FIELDS:
+        return None
     try:
-        status = fields["status"]
-        if status not in _STATUSES or not isinstance(fields["surface_only"], bool):
+        if not isinstance(fields["surface_only"], bool):
             return None
-        location = fields["location"]
-        if location is not None:
-            if not isinstance(location, list) or len(location) != 3:
-                return None
-            points = []
-            for p in location:
-                if not isinstance(p, list) or len(p) != 3 or not all(isinstance(c, str) for c in p):
-                    return None
-                xyz = np.array([float.fromhex(c) for c in p], dtype=np.float64)
-                if not np.all(np.isfinite(xyz)):
-                    return None
-                points.append(xyz)
-            location = tuple(points)
-        return {
-            "status": status,
-            "distance": number(fields["distance"], infinite=True),
-            "depth": number(fields["depth"], optional=True),
-            "volume": number(fields["volume"], optional=True),
-            "location": location,
-            "is_surface_only": fields["surface_only"],
-        }
-    except (ValueError, OverflowError, TypeError):
+        location = _points(fields["location"], 3)
+        closest = _points(fields["closest"], 2)
+        return PairVerdict(
+            Verdict(fields["status"]),
+            _number(fields["distance"], infinite=True),
+            depth=_number(fields["depth"], optional=True),
+            volume=_number(fields["volume"], optional=True),
+            location=None if location is None else Location(*location),
+            is_surface_only=fields["surface_only"],
+            solid=_decode_solid(fields["solid"]),
+            closest=closest,
+        )
+    except (ValueError, OverflowError, TypeError, zlib.error):
         return None
+
+
+def _number(x, *, optional: bool = False, infinite: bool = False) -> float | None:
+    """A length or volume from its hex text: not NaN, not negative, finite unless ``infinite``."""
+    if x is None and optional:
+        return None
+    if not isinstance(x, str) or len(x) > 40:
+        raise ValueError
+    value = float.fromhex(x)
+    if math.isnan(value) or value < 0 or (math.isinf(value) and not infinite):
+        raise ValueError
+    return value
+
+
+def _points(value, count: int) -> tuple[np.ndarray, ...] | None:
+    """``count`` finite (3,) float64 points from hex text; None stays None."""
+    if value is None:
+        return None
+    if not isinstance(value, list) or len(value) != count:
+        raise ValueError
+    out = []
+    for p in value:
+        if not isinstance(p, list) or len(p) != 3 or not all(isinstance(c, str) for c in p):
+            raise ValueError
+        xyz = np.array([float.fromhex(c) for c in p], dtype=np.float64)
+        if not np.all(np.isfinite(xyz)):
+            raise ValueError
+        out.append(xyz)
+    return tuple(out)
+
+
+def _decode_solid(value) -> Solid | None:
+    """A solid from its entry fields: sizes checked before and after inflating, finite
+    vertices, faces that index them."""
+    if value is None:
+        return None
+    if not isinstance(value, dict) or set(value) != {"vertices", "faces", "data"}:
+        raise ValueError
+    n, m, data = value["vertices"], value["faces"], value["data"]
+    if not all(type(k) is int and k > 0 for k in (n, m)) or not isinstance(data, str):
+        raise ValueError
+    size = 24 * n + 12 * m
+    if size > MAX_SOLID_BYTES:
+        raise ValueError
+    inflate = zlib.decompressobj()
+    raw = inflate.decompress(base64.b64decode(data, validate=True), size + 1)
+    if len(raw) != size or not inflate.eof or inflate.unused_data:
+        raise ValueError
+    vertices = np.frombuffer(raw, dtype="<f8", count=3 * n).reshape(n, 3).astype(np.float64)
+    faces = np.frombuffer(raw, dtype="<u4", offset=24 * n).reshape(m, 3).astype(np.int64)
+    if not np.all(np.isfinite(vertices)) or faces.max() >= n:
+        raise ValueError
+    return Solid(vertices, faces)

@@ -1,10 +1,11 @@
-"""What a check finds: a ``Finding`` per part pair that is not clear, and the ``CheckResult``."""
+"""What a check finds: the verdict of a part pair (``PairVerdict``), a ``Finding`` per pair that
+is not clear, and the ``CheckResult``."""
 
 from __future__ import annotations
 
 import enum
 import hashlib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -48,12 +49,89 @@ class Location:
     lower: np.ndarray
     upper: np.ndarray
 
+    def __eq__(self, other: object) -> bool:
+        """Equal when the three points are (arrays compared by value)."""
+        if not isinstance(other, Location):
+            return NotImplemented
+        mine, theirs = (
+            (self.centroid, self.lower, self.upper),
+            (other.centroid, other.lower, other.upper),
+        )
+        return all(np.array_equal(x, y) for x, y in zip(mine, theirs, strict=True))
+
     def to_dict(self) -> dict:
         return {
             "centroid": [float(x) for x in self.centroid],
             "min": [float(x) for x in self.lower],
             "max": [float(x) for x in self.upper],
         }
+
+
+@dataclass(frozen=True, eq=False)
+class Solid:
+    """A closed triangle mesh: the solid two parts share.
+
+    Attributes
+    ----------
+    vertices : (n, 3) float64
+        World coordinates, model units.
+    faces : (m, 3) int64
+        Outward wound.
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+
+
+@dataclass(frozen=True)
+class PairVerdict:
+    """What the real meshes of one part pair say: the one record of a verdict, from the verify
+    stage through the pair cache to every report and the export (which draw it, never redo it).
+
+    Attributes
+    ----------
+    status : Verdict
+    distance : float
+        True minimum distance between the two meshes, model units; 0 when they interfere or their
+        surfaces cross. For a ``CLEAR`` verdict it is the exact distance when the surfaces come
+        within reach, else ``inf`` (only known to exceed the reach).
+    depth : float or None
+        Interference depth, model units: the thickness of the shared solid, i.e. the diameter of
+        the largest ball that fits inside it; the diameter of a ball shown to fit, so never more
+        than the true depth (within 1e-3 of it on the shapes of tests/test_depth.py). None
+        unless interfering, or when a mesh is not closed (there is no shared solid to measure).
+    volume : float or None
+        Volume of the shared solid (manifold3d boolean intersection), model units cubed, when both
+        meshes are closed and the pair interferes.
+    location : Location or None
+        Interference: centroid and box of the shared solid. Touching: the box of the contact
+        region (triangle pairs within the tolerance) and its centre. Clearance: the box of the two
+        closest points and their midpoint.
+    is_surface_only : bool
+        True when a mesh is not closed (or the boolean failed), so the verdict rests on the
+        surfaces alone.
+    solid : Solid or None
+        The shared solid of an interference between closed meshes (what ``volume``, ``depth``
+        and ``location`` measure); None otherwise.
+    closest : ((3,) float64, (3,) float64) or None
+        A clearance finding's two closest points, on the first mesh and on the second, world
+        coordinates; None otherwise.
+    """
+
+    status: Verdict
+    distance: float
+    depth: float | None = None
+    volume: float | None = None
+    location: Location | None = None
+    is_surface_only: bool = False
+    solid: Solid | None = field(default=None, repr=False, compare=False)
+    closest: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False, compare=False)
+
+    def swapped(self) -> PairVerdict:
+        """The same verdict with the two meshes' roles exchanged (``closest`` reversed)."""
+        if self.closest is None:
+            return self
+        return replace(self, closest=(self.closest[1], self.closest[0]))
 
 
 @dataclass(frozen=True)
@@ -64,20 +142,12 @@ class Finding:
     ----------
     a, b : str
         Part names, ``a < b``.
-    status : Verdict
-        ``INTERFERENCE``, ``TOUCHING`` or ``CLEARANCE``.
-    distance : float
-        True minimum distance between the two meshes, model units; 0 when they meet.
-    depth : float or None
-        Interference depth (thickness of the shared volume), model units; None unless interfering.
-    volume : float or None
-        Shared volume (exact boolean) when both meshes are closed, else None.
-    location : Location or None
-        Where the clash or the closest approach is.
+    verdict : PairVerdict
+        What the meshes say, with ``a`` the first mesh (``INTERFERENCE``, ``TOUCHING`` or
+        ``CLEARANCE``); its fields are also read as the finding's own (``status``, ``distance``,
+        ``depth``, ``volume``, ``location``, ``is_surface_only``, ``solid``, ``closest``).
     id : str
         Stable identifier: sorted part names and the two meshes' content.
-    is_surface_only : bool
-        True when a mesh is not closed and the verdict rests on surfaces alone.
     approval_reason : str or None
         The reason from the approval rule when the finding is an approved exception.
     tolerance : float or None
@@ -86,15 +156,42 @@ class Finding:
 
     a: str
     b: str
-    status: Verdict
-    distance: float
-    depth: float | None = None
-    volume: float | None = None
-    location: Location | None = None
+    verdict: PairVerdict
     id: str = ""
-    is_surface_only: bool = False
     approval_reason: str | None = None
     tolerance: float | None = None
+
+    @property
+    def status(self) -> Verdict:
+        return self.verdict.status
+
+    @property
+    def distance(self) -> float:
+        return self.verdict.distance
+
+    @property
+    def depth(self) -> float | None:
+        return self.verdict.depth
+
+    @property
+    def volume(self) -> float | None:
+        return self.verdict.volume
+
+    @property
+    def location(self) -> Location | None:
+        return self.verdict.location
+
+    @property
+    def is_surface_only(self) -> bool:
+        return self.verdict.is_surface_only
+
+    @property
+    def solid(self) -> Solid | None:
+        return self.verdict.solid
+
+    @property
+    def closest(self) -> tuple[np.ndarray, np.ndarray] | None:
+        return self.verdict.closest
 
     @property
     def is_approved(self) -> bool:

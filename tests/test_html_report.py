@@ -21,7 +21,7 @@ from meshcheck.config import Approval
 from meshcheck.load import Body
 from meshcheck.pipeline import check_bodies
 from meshcheck.reports import html as html_report
-from meshcheck.reports.html import closest_points, render_html
+from meshcheck.reports.html import render_html
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(__file__)), "scripts"))
 
@@ -235,13 +235,15 @@ def test_clearance_line_joins_the_closest_points():
     result = check_bodies([a, b], clearance=0.5, jobs=1)
     (finding,) = result.findings
     assert finding.status == "clearance"
-    p, q = closest_points(a, b, finding)
+    p, q = finding.closest  # the verify stage's points, on a and on b
     np.testing.assert_allclose(np.linalg.norm(q - p), finding.distance, rtol=1e-9)
     np.testing.assert_allclose(p[:2], [1, 0], atol=1e-9)
     np.testing.assert_allclose(q[:2], [1.2, -0.2], atol=1e-9)
     data, _ = embedded(render_html(result, [a, b], version="x"))
     line = np.asarray(data["findings"][0]["line"])
     np.testing.assert_allclose(np.linalg.norm(line[1] - line[0]), finding.distance, rtol=1e-6)
+    origin = np.array([1.1, -0.1, 0.5])  # the centre of the scene's box
+    np.testing.assert_allclose(line, [p - origin, q - origin], atol=1e-9)
 
 
 def test_names_nothing_from_the_machine(tmp_path, monkeypatch):

@@ -4,20 +4,24 @@ cannot turn a failing check into a pass."""
 
 from __future__ import annotations
 
+import base64
 import json
 import os
 import shutil
 import stat
+import zlib
 
 import numpy as np
 import pytest
 import trimesh
 
+from meshcheck import cache as cache_module
 from meshcheck import pipeline
 from meshcheck.cache import PairCache, pair_key, pair_secret
 from meshcheck.errors import MeshcheckWarning
 from meshcheck.reports import render
-from meshcheck.verify import batch
+from meshcheck.results import PairVerdict, Solid, Verdict
+from meshcheck.verify import batch, verify_pair
 
 
 def write_row(directory, moved: float = 0.0) -> list[str]:
@@ -129,14 +133,7 @@ def _interfering_pair_key(paths, cache_dir):
     )
 
 
-CLEAR = {
-    "status": "clear",
-    "distance": float("inf"),
-    "depth": None,
-    "volume": None,
-    "location": None,
-    "is_surface_only": False,
-}
+CLEAR = PairVerdict(Verdict.CLEAR, float("inf"))
 
 
 def test_a_forged_clear_entry_cannot_turn_fail_into_pass(tmp_path):
@@ -207,36 +204,100 @@ def test_the_environment_secret_wins(monkeypatch):
     assert a != pair_secret()
 
 
+def _solid_verdict() -> PairVerdict:
+    a = trimesh.creation.box(extents=[1, 1, 1])
+    b = trimesh.creation.box(extents=[1, 1, 1]).apply_translation([0.7, 0.1, 0.05])
+    return verify_pair(a, b, tolerance=1e-6, clearance=None)
+
+
+def test_a_verdict_comes_back_bit_for_bit_with_its_solid_and_closest_points(tmp_path):
+    cache = PairCache(tmp_path, secret=b"k")
+    clash = _solid_verdict()
+    assert clash.solid is not None and len(clash.solid.faces) >= 12
+    p, q = np.array([0.1, 1e-17, -3.0]), np.array([0.3, 2.0, np.nextafter(-3.0, 0)])
+    near = PairVerdict(Verdict.CLEARANCE, 0.2, closest=(p, q))
+    for key, verdict in (("ab" * 32, clash), ("cd" * 32, near)):
+        cache.put(key, verdict)
+        got = cache.get(key)
+        assert got == verdict
+        for mine, theirs in ((got.solid, verdict.solid), (got.closest, verdict.closest)):
+            if theirs is None:
+                assert mine is None
+                continue
+            mine = (mine.vertices, mine.faces) if hasattr(mine, "faces") else mine
+            theirs = (theirs.vertices, theirs.faces) if hasattr(theirs, "faces") else theirs
+            for x, y in zip(mine, theirs, strict=True):
+                assert x.dtype == y.dtype and x.tobytes() == y.tobytes()
+
+
+def _solid_field(*, extra=b"", **fields):
+    """A solid's entry fields (8 vertices, 12 faces), with ``fields`` replacing its own."""
+    raw = np.zeros((8, 3)).tobytes() + np.zeros((12, 3), dtype="<u4").tobytes() + extra
+    return {"vertices": 8, "faces": 12, "data": base64.b64encode(zlib.compress(raw)).decode()} | (
+        fields
+    )
+
+
 @pytest.mark.parametrize(
-    "verdict",
+    "fields",
     [
-        {**CLEAR, "status": "passed"},
-        {**CLEAR, "distance": "nan"},
-        {**CLEAR, "location": [["0x1p+0"] * 3] * 2},
-        {**CLEAR, "surface_only": 1},
+        {"status": "passed"},
+        {"distance": "nan"},
+        {"location": [["0x1p+0"] * 3] * 2},
+        {"surface_only": 1},
+        {"closest": [["0x1p+0"] * 3, ["inf"] * 3]},
+        {"solid": _solid_field(vertices=2**40)},  # claims more than MAX_SOLID_BYTES
+        {"solid": _solid_field(vertices=True)},
+        {"solid": _solid_field(extra=b"\0")},  # more bytes than the sizes say
+        {"solid": _solid_field(faces=13)},  # fewer
+        {"solid": _solid_field(vertices=0, faces=0)},
+        {"solid": _solid_field(data="not base64!")},
+        {"solid": {**_solid_field(), "more": 1}},
     ],
 )
-def test_signed_entries_out_of_domain_are_misses(tmp_path, verdict):
+def test_signed_entries_out_of_domain_are_misses(tmp_path, fields):
     cache = PairCache(tmp_path, secret=b"k")
-    cache.put("ab" * 32, CLEAR)
+    _sign(cache, {"solid": _solid_field()})
+    assert cache.get("ab" * 32).solid.faces.shape == (12, 3)  # the untouched fields are usable
+    _sign(cache, fields)
+    assert cache.get("ab" * 32) is None
+
+
+def _sign(cache: PairCache, fields: dict) -> None:
+    """Replace fields of the entry of a stored interference verdict, and sign it again."""
+    cache.put("ab" * 32, _solid_verdict())
     path = cache.path("ab" * 32)
     with open(path) as f:
         entry = json.load(f)
-    fields = {**entry["verdict"], **{k: v for k, v in verdict.items() if k in entry["verdict"]}}
-    if verdict["distance"] == "nan":
-        fields["distance"] = "nan"
-    entry["verdict"] = fields
-    entry["mac"] = cache._mac("ab" * 32, fields)
+    entry["verdict"] = {**entry["verdict"], **fields}
+    entry["mac"] = cache._mac("ab" * 32, entry["verdict"])
     with open(path, "w") as f:
         json.dump(entry, f)
+
+
+def test_a_solid_whose_faces_index_no_vertex_is_a_miss(tmp_path):
+    cache = PairCache(tmp_path, secret=b"k")
+    good = _solid_verdict()
+    bad = PairVerdict(
+        good.status, 0.0, solid=Solid(good.solid.vertices[:3], good.solid.faces), volume=1.0
+    )
+    cache.put("ab" * 32, bad)
     assert cache.get("ab" * 32) is None
+
+
+def test_a_verdict_with_a_solid_over_the_limit_is_not_stored(tmp_path, monkeypatch):
+    monkeypatch.setattr(cache_module, "MAX_SOLID_BYTES", 100)
+    cache = PairCache(tmp_path, secret=b"k")
+    cache.put("ab" * 32, _solid_verdict())
+    assert not os.path.exists(cache.path("ab" * 32))
 
 
 def test_oversized_entries_are_not_read(tmp_path):
     cache = PairCache(tmp_path, secret=b"k")
     cache.put("cd" * 32, CLEAR)
+    assert cache.get("cd" * 32) == CLEAR
     with open(cache.path("cd" * 32), "a") as f:
-        f.write(" " * 10_000)
+        f.write(" " * (cache_module.MAX_PAIR_FILE_BYTES + 1))
     assert cache.get("cd" * 32) is None
 
 

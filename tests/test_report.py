@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from meshcheck.errors import ExitStatus
 from meshcheck.reports import FORMATS, exit_status, render, summary
-from meshcheck.results import CheckResult, Finding, Location, Part, finding_id
+from meshcheck.results import CheckResult, Finding, Location, PairVerdict, Part, Verdict, finding_id
 from meshcheck.settings import Settings, resolve_fail_on
 
 HYPOTHESIS = settings(derandomize=True, deadline=None, max_examples=50)
@@ -36,14 +36,17 @@ def make_result(
 
 def finding(a, b, status, *, approved=None, distance=0.0) -> Finding:
     interfering = status == "interference"
-    return Finding(
-        a=a,
-        b=b,
-        status=status,
-        distance=distance,
+    verdict = PairVerdict(
+        Verdict(status),
+        distance,
         depth=0.7 if interfering else None,
         volume=2.5 if interfering else None,
         location=Location(np.array([1.0, 2, 3]), np.zeros(3), np.ones(3)),
+    )
+    return Finding(
+        a=a,
+        b=b,
+        verdict=verdict,
         id=finding_id(a, "da", b, "db"),
         approval_reason=approved,
     )

@@ -16,7 +16,7 @@ from meshcheck.baseline import MAX_BASELINE_BYTES, Baseline, compare, load_basel
 from meshcheck.errors import ConfigError, ExitStatus
 from meshcheck.reports import FORMATS, exit_status, printable, render
 from meshcheck.reports.github import LIMIT
-from meshcheck.results import CheckResult, Finding, Location, Part, finding_id
+from meshcheck.results import CheckResult, Finding, Location, PairVerdict, Part, Verdict, finding_id
 from meshcheck.settings import Settings
 
 DATA = Path(__file__).parent / "data"
@@ -35,14 +35,17 @@ HOSTILE = {
 def finding(a, b, status="interference", *, approved=None, tolerance=1e-4, centroid=(1, 2, 3)):
     a, b = sorted((a, b))
     interfering = status == "interference"
-    return Finding(
-        a=a,
-        b=b,
-        status=status,
-        distance=0.0 if status != "clearance" else 0.1,
+    verdict = PairVerdict(
+        Verdict(status),
+        0.0 if status != "clearance" else 0.1,
         depth=0.25 if interfering else None,
         volume=2.5 if interfering else None,
         location=Location(np.array(centroid, float), np.zeros(3), np.ones(3)),
+    )
+    return Finding(
+        a=a,
+        b=b,
+        verdict=verdict,
         id=finding_id(a, "da", b, "db"),
         approval_reason=approved,
         tolerance=tolerance,

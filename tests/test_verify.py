@@ -437,17 +437,8 @@ def test_export_writes_parts_and_a_red_node_per_interference(tmp_path):
     a, b, c = unit(), unit((0.7, 0, 0)), unit((3, 0, 0))
     bodies = [Body(n, n, m) for n, m in (("a.stl", a), ("b.stl", b), ("c.stl", c))]
     v = verify_pair(a, b, tolerance=TOL, clearance=None)
-    finding = results.Finding(
-        a="a.stl",
-        b="b.stl",
-        status=v.status,
-        distance=v.distance,
-        depth=v.depth,
-        volume=v.volume,
-        location=v.location,
-        id="0123456789ab",
-    )
-    touching = results.Finding(a="b.stl", b="c.stl", status=Verdict.TOUCHING, distance=0.0)
+    finding = results.Finding(a="a.stl", b="b.stl", verdict=v, id="0123456789ab")
+    touching = results.Finding("b.stl", "c.stl", results.PairVerdict(Verdict.TOUCHING, 0.0))
     path = tmp_path / "clashes.glb"
     export_clashes(str(path), bodies, [finding, touching])
 
@@ -469,14 +460,8 @@ def test_export_marks_a_surface_only_clash_with_its_location_box(tmp_path):
     a, b = open_box(), unit((0.5, 0.3, 0.2))
     v = verify_pair(a, b, tolerance=TOL, clearance=None)
     assert v.is_surface_only
-    finding = results.Finding(
-        a="a.obj",
-        b="b.stl",
-        status=v.status,
-        distance=0.0,
-        location=v.location,
-        is_surface_only=True,
-    )
+    assert v.solid is None  # nothing to draw but the location's box
+    finding = results.Finding(a="a.obj", b="b.stl", verdict=v)
     path = tmp_path / "clashes.glb"
     export_clashes(str(path), [Body("a.obj", "a.obj", a), Body("b.stl", "b.stl", b)], [finding])
     scene = trimesh.load_scene(str(path))

@@ -3,8 +3,8 @@ any viewer to see the clashes.
 
 Every part becomes a node named after it: parts in an interference in orange, the others in
 translucent grey. Every interference becomes its own red node, named after the finding, holding
-the shared solid (manifold3d intersection of the two closed meshes) or, when a mesh is not closed,
-the box of the finding's location.
+the shared solid the verify stage computed (manifold3d intersection of the two closed meshes) or,
+when a mesh is not closed, the box of the finding's location. Nothing is computed here.
 """
 
 from __future__ import annotations
@@ -19,7 +19,6 @@ from .. import results
 from ..errors import ConfigError
 from ..load import Body
 from ..output import check_output, write_output
-from ..verify.pair import outward_faces, shared_solid
 
 # RGBA, 0-255.
 PART_COLOR = (160, 160, 160, 90)
@@ -40,16 +39,13 @@ def _painted(mesh: trimesh.Trimesh, rgba: tuple[int, int, int, int]) -> trimesh.
     return out
 
 
-def clash_mesh(a: Body, b: Body, finding: results.Finding) -> trimesh.Trimesh | None:
-    """The shared solid of an interference, world coordinates; the location's box when a mesh is
-    not closed or the boolean fails; None when there is neither."""
-    if a.is_closed and b.is_closed:
-        va, vb = np.asarray(a.world.vertices, float), np.asarray(b.world.vertices, float)
-        origin = 0.5 * (va.mean(axis=0) + vb.mean(axis=0))
-        fa, fb = np.asarray(a.world.faces, np.int64), np.asarray(b.world.faces, np.int64)
-        solid = shared_solid(va - origin, outward_faces(va, fa), vb - origin, outward_faces(vb, fb))
-        if solid is not None and len(solid[1]):
-            return trimesh.Trimesh(vertices=solid[0] + origin, faces=solid[1], process=False)
+def clash_mesh(finding: results.Finding) -> trimesh.Trimesh | None:
+    """What draws an interference, world coordinates: its shared solid (``Finding.solid``, from
+    the verify stage); the location's box when a mesh is not closed or the boolean failed; None
+    when there is neither."""
+    if finding.solid is not None:
+        solid = finding.solid
+        return trimesh.Trimesh(vertices=solid.vertices, faces=solid.faces, process=False)
     loc = finding.location
     if loc is None:
         return None
@@ -109,7 +105,7 @@ def export_clashes(path: str, bodies: Sequence[Body], findings: Sequence[results
     for f in clashes:
         if f.a not in by_name or f.b not in by_name:
             continue
-        mesh = clash_mesh(by_name[f.a], by_name[f.b], f)
+        mesh = clash_mesh(f)
         if mesh is None:
             continue
         name = f"interference {f.a} x {f.b}" + (f" [{f.id}]" if f.id else "")

@@ -23,17 +23,18 @@ import hashlib
 import json
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
-from importlib import resources
+from dataclasses import dataclass, field
+from importlib import metadata, resources
+from typing import TYPE_CHECKING
 
 import numpy as np
-import trimesh
 
-from ..geometry.triangles import point_distances
-from ..load import Body
 from ..results import CheckResult, Finding, Verdict
 from .common import summary
 from .gltf import clash_mesh
+
+if TYPE_CHECKING:
+    from ..load import Body
 
 INTERFERENCE, TOUCHING, CLEARANCE = Verdict.INTERFERENCE, Verdict.TOUCHING, Verdict.CLEARANCE
 
@@ -61,6 +62,72 @@ class _Mesh:
     step: float
 
 
+@dataclass
+class _Shapes:
+    """The distinct display meshes, frame-local, each found once per instance or copy."""
+
+    meshes: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)  # (vertices, faces)
+    relatives: list[np.ndarray] = field(default_factory=list)  # vertices - box centre
+    by_topology: dict[tuple, list[int]] = field(default_factory=dict)  # key -> mesh indices
+    by_mesh: dict[int, int] = field(default_factory=dict)  # id(Body.mesh) -> mesh index
+
+    def index(self, body: Body) -> tuple[int, np.ndarray]:
+        """Index of the body's display mesh, and the frame-local box centre of this copy."""
+        v = np.asarray(body.mesh.vertices, dtype=np.float64)
+        centre = _box_centre(v)
+        k = self.by_mesh.get(id(body.mesh))  # instances of one mesh share it
+        if k is None:
+            k = self.by_mesh[id(body.mesh)] = self._find_or_add(v, centre, body.mesh.faces)
+        return k, centre
+
+    def _find_or_add(self, v: np.ndarray, centre: np.ndarray, faces) -> int:
+        """A mesh equal to ``v`` up to a translation (``SAME_SHAPE``), else a new one."""
+        f = np.asarray(faces, dtype=np.int64)
+        relative = v - centre
+        size = float(np.ptp(v, axis=0).max())
+        # Same vertex count, faces and (rounded) extents; then at most _CANDIDATES vertex
+        # comparisons, so a thousand distinct parts of one topology do not cost n^2.
+        extents = np.rint(np.ptp(v, axis=0) / (SAME_SHAPE * max(size, 1e-300)))
+        key = (len(v), hashlib.sha256(f.tobytes()).hexdigest(), extents.tobytes())
+        same = (
+            j
+            for j in self.by_topology.get(key, [])[-_CANDIDATES:]
+            if np.abs(self.relatives[j] - relative).max(initial=0.0) <= SAME_SHAPE * size
+        )
+        k = next(same, None)
+        if k is None:
+            k = len(self.meshes)
+            self.meshes.append((v, f))
+            self.relatives.append(relative)
+            self.by_topology.setdefault(key, []).append(k)
+        return k
+
+
+@dataclass(frozen=True)
+class _Placed:
+    """A drawn part: its row in the data, its body, display mesh and this copy's box centre."""
+
+    row: dict
+    body: Body
+    mesh: int
+    centre: np.ndarray
+
+
+def render(result: CheckResult, *, inputs: Sequence[str] = ()) -> str:
+    """The report format's entry (``reports.render``): ``render_html`` of the result's bodies,
+    with the installed meshcheck's version."""
+    return render_html(
+        result, result.bodies, units=result.units, inputs=tuple(inputs), version=_version()
+    )
+
+
+def _version() -> str:
+    try:
+        return metadata.version("meshcheck")
+    except metadata.PackageNotFoundError:  # pragma: no cover - running from a source tree
+        return "0"
+
+
 def render_html(
     result: CheckResult,
     bodies: Sequence[Body],
@@ -74,10 +141,11 @@ def render_html(
     Parameters
     ----------
     result : CheckResult
-        The check's findings and settings.
+        The check's findings and settings; each interference's shared solid and each clearance
+        finding's closest points come from its verdict (nothing is computed here).
     bodies : sequence of Body
         The parts the check loaded (``load.load_bodies`` on the same paths); parts are matched to
-        findings by name. Interference volumes are recomputed from their world meshes.
+        findings by name.
     units : str
         Name of the model units, shown beside every length.
     inputs : sequence of str
@@ -92,6 +160,8 @@ def render_html(
 
     Examples
     --------
+    >>> import trimesh
+    >>> from meshcheck.load import Body
     >>> from meshcheck.pipeline import check_bodies
     >>> cube = trimesh.creation.box(extents=[1, 1, 1])
     >>> a = Body("a.stl", "a.stl", cube)
@@ -103,40 +173,42 @@ def render_html(
     """
     origin = _scene_origin(bodies)
     by_name = {b.name: b for b in bodies}
+    shapes = _Shapes()
+    parts, placed = _parts(result, bodies, by_name, shapes)
+    shown = _simplified(shapes.meshes, budget=DISPLAY_TRIANGLES, tiers=_tiers(placed))
+    meshes = [
+        _quantize(v, f, centre=_box_centre(original))
+        for (v, f), (original, _) in zip(shown, shapes.meshes, strict=True)
+    ]
+    mesh_rows: list[dict] = [{"matrix": None} for _ in meshes]
+    for p in placed:
+        step = meshes[p.mesh].step
+        local = _translate(p.centre) @ np.diag([step, step, step, 1.0])
+        p.row["mesh"] = p.mesh
+        p.row["matrix"] = _columns(_translate(-origin) @ np.asarray(p.body.transform) @ local)
+    findings = []
+    for f in result.findings:
+        solid = line = None
+        if f.a in by_name and f.b in by_name:
+            solid = _add_clash(f, origin, meshes, mesh_rows)
+            if f.closest is not None:
+                line = [_point(p - origin) for p in f.closest]
+        findings.append(_finding_row(result, f, origin, solid=solid, line=line))
+    blob, layout = _pack(meshes)
+    for row, place in zip(mesh_rows, layout, strict=True):
+        row.update(place)
+    triangles = {
+        "parts": sum(len(f) for _, f in shapes.meshes),
+        "shown": sum(len(f) for _, f in shown),
+    }
+    data = _data(result, units, inputs, version, mesh_rows, parts, findings, triangles)
+    return _document(_json_for_script(data), blob)
 
-    # Distinct display meshes: (vertices, faces) frame-local, found once per instance or copy.
-    shapes: list[tuple[np.ndarray, np.ndarray]] = []
-    relatives: list[np.ndarray] = []  # vertices - box centre, to recognise translated copies
-    by_topology: dict[tuple, list[int]] = {}  # (vertex count, faces, extents) -> shape indices
-    seen: dict[int, int] = {}  # id(body.mesh) -> shape index, for instances of one mesh
 
-    def shape_of(body: Body) -> tuple[int, np.ndarray]:
-        """Index of the body's display mesh, and the frame-local box centre of this copy."""
-        v = np.asarray(body.mesh.vertices, dtype=np.float64)
-        centre = _box_centre(v)
-        k = seen.get(id(body.mesh))
-        if k is None:
-            f = np.asarray(body.mesh.faces, dtype=np.int64)
-            relative = v - centre
-            size = float(np.ptp(v, axis=0).max())
-            # Same vertex count, faces and (rounded) extents; then at most _CANDIDATES vertex
-            # comparisons, so a thousand distinct parts of one topology do not cost n^2.
-            extents = np.rint(np.ptp(v, axis=0) / (SAME_SHAPE * max(size, 1e-300)))
-            key = (len(v), hashlib.sha256(f.tobytes()).hexdigest(), extents.tobytes())
-            same = (
-                j
-                for j in by_topology.get(key, [])[-_CANDIDATES:]
-                if np.abs(relatives[j] - relative).max(initial=0.0) <= SAME_SHAPE * size
-            )
-            k = next(same, None)
-            if k is None:
-                k = len(shapes)
-                shapes.append((v, f))
-                relatives.append(relative)
-                by_topology.setdefault(key, []).append(k)
-            seen[id(body.mesh)] = k
-        return k, centre
-
+def _parts(
+    result: CheckResult, bodies: Sequence[Body], by_name: Mapping[str, Body], shapes: _Shapes
+) -> tuple[list[dict], list[_Placed]]:
+    """A row per part (in the result's order), and the parts that have triangles to draw."""
     part_status = _part_statuses(result.findings)
     parts, placed = [], []
     names = [p.name for p in result.parts] or [b.name for b in bodies]
@@ -144,75 +216,70 @@ def render_html(
         body = by_name.get(name)
         row = {"name": name, "mesh": None, "matrix": None, "status": part_status.get(name)}
         if body is not None and len(body.mesh.faces):
-            placed.append((row, body, *shape_of(body)))
+            placed.append(_Placed(row, body, *shapes.index(body)))
         parts.append(row)
+    return parts, placed
 
-    triangles = sum(len(f) for _, f in shapes)
-    # What a part may lose first: 0 in no finding, 1 only touching or approved, 2 otherwise.
+
+def _tiers(placed: Sequence[_Placed]) -> dict[int, int]:
+    """What each display mesh may lose first: 0 in no finding, 1 only touching or approved,
+    2 otherwise."""
     tiers: dict[int, int] = {}
-    for row, _, k, _ in placed:
-        tier = {None: 0, TOUCHING: 1, "approved": 1}.get(row["status"], 2)
-        tiers[k] = max(tiers.get(k, 0), tier)
-    shown = _simplified(shapes, budget=DISPLAY_TRIANGLES, tiers=tiers)
-    meshes = [
-        _quantize(v, f, centre=_box_centre(original))
-        for (v, f), (original, _) in zip(shown, shapes, strict=True)
-    ]
-    mesh_rows: list[dict] = [{"matrix": None} for _ in meshes]
-    for row, body, k, centre in placed:
-        step = meshes[k].step
-        local = _translate(centre) @ np.diag([step, step, step, 1.0])
-        row["mesh"] = k
-        row["matrix"] = _columns(_translate(-origin) @ np.asarray(body.transform) @ local)
+    for p in placed:
+        tier = {None: 0, TOUCHING: 1, "approved": 1}.get(p.row["status"], 2)
+        tiers[p.mesh] = max(tiers.get(p.mesh, 0), tier)
+    return tiers
 
-    findings = []
-    for f in result.findings:
-        a, b = by_name.get(f.a), by_name.get(f.b)
-        solid = line = None
-        if f.status == INTERFERENCE and a is not None and b is not None:
-            shared = clash_mesh(a, b, f)
-            if shared is not None and len(shared.faces):
-                v = np.asarray(shared.vertices, dtype=np.float64) - origin
-                mesh = _quantize(v, np.asarray(shared.faces, dtype=np.int64))
-                s = mesh.step
-                matrix = _columns(_translate(mesh.centre) @ np.diag([s, s, s, 1.0]))
-                meshes.append(mesh)
-                mesh_rows.append({"matrix": matrix})
-                solid = len(meshes) - 1
-        if f.status == CLEARANCE and f.location is not None and a is not None and b is not None:
-            p, q = closest_points(a, b, f)
-            line = [_point(p - origin), _point(q - origin)]
-        box = None
-        if f.location is not None:
-            box = [
-                _point(np.asarray(f.location.lower) - origin),
-                _point(np.asarray(f.location.upper) - origin),
-            ]
-        findings.append(
-            {
-                "id": f.id,
-                "a": f.a,
-                "b": f.b,
-                "status": str(f.status),
-                "distance": _number(f.distance),
-                "depth": _number(f.depth),
-                "volume": _number(f.volume),
-                "surface_only": f.is_surface_only,
-                "approved": f.approval_reason,
-                "fails": result.is_failing(f),
-                "box": box,
-                "solid": solid,
-                "line": line,
-            }
-        )
 
-    blob, layout = _pack(meshes)
-    for row, place in zip(mesh_rows, layout, strict=True):
-        row.update(place)
+def _add_clash(
+    finding: Finding, origin: np.ndarray, meshes: list[_Mesh], mesh_rows: list[dict]
+) -> int | None:
+    """Add an interference's shared solid (or its box) to the meshes; its index, or None."""
+    if finding.status != INTERFERENCE:
+        return None
+    shared = clash_mesh(finding)
+    if shared is None or not len(shared.faces):
+        return None
+    v = np.asarray(shared.vertices, dtype=np.float64) - origin
+    mesh = _quantize(v, np.asarray(shared.faces, dtype=np.int64))
+    s = mesh.step
+    meshes.append(mesh)
+    mesh_rows.append({"matrix": _columns(_translate(mesh.centre) @ np.diag([s, s, s, 1.0]))})
+    return len(meshes) - 1
+
+
+def _finding_row(
+    result: CheckResult, f: Finding, origin: np.ndarray, *, solid: int | None, line
+) -> dict:
+    box = None
+    if f.location is not None:
+        box = [
+            _point(np.asarray(f.location.lower) - origin),
+            _point(np.asarray(f.location.upper) - origin),
+        ]
+    return {
+        "id": f.id,
+        "a": f.a,
+        "b": f.b,
+        "status": str(f.status),
+        "distance": _number(f.distance),
+        "depth": _number(f.depth),
+        "volume": _number(f.volume),
+        "surface_only": f.is_surface_only,
+        "approved": f.approval_reason,
+        "fails": result.is_failing(f),
+        "box": box,
+        "solid": solid,
+        "line": line,
+    }
+
+
+def _data(result, units, inputs, version, mesh_rows, parts, findings, triangles) -> dict:
+    """Everything the viewer shows but the geometry, as one JSON document."""
     s = summary(result)
     s["tolerance"] = _number(s["tolerance"])
     s["required_clearance"] = _number(s["required_clearance"])
-    data = {
+    return {
         "version": str(version),
         "units": str(units),
         "inputs": [str(x) for x in inputs],
@@ -220,9 +287,8 @@ def render_html(
         "meshes": mesh_rows,
         "parts": parts,
         "findings": findings,
-        "triangles": {"parts": triangles, "shown": sum(len(f) for _, f in shown)},
+        "triangles": triangles,
     }
-    return _document(_json_for_script(data), blob)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -266,6 +332,8 @@ def _simplified(
     for v, f in shapes:
         target = max(MIN_TRIANGLES, int(len(f) * share))
         if len(f) > target:
+            import trimesh
+
             mesh = trimesh.Trimesh(vertices=v, faces=f, process=False)
             mesh = mesh.simplify_quadric_decimation(face_count=target)
             v, f = np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64)
@@ -307,28 +375,6 @@ def _quantize(v: np.ndarray, f: np.ndarray, *, centre: np.ndarray | None = None)
     step = half / _QUANT if half > 0 else 1.0
     grid = np.clip(np.rint(relative / step), -_QUANT, _QUANT).astype(np.int16)
     return _Mesh(grid, f, centre, step)
-
-
-def closest_points(a: Body, b: Body, finding: Finding) -> tuple[np.ndarray, np.ndarray]:
-    """The two closest points of a clearance finding, on ``a`` and on ``b``, world coordinates.
-
-    The finding's location is the box spanned by the two points, so they are the ends of one of
-    its four diagonals: the one whose ends lie on ``a`` and on ``b`` (exact point-to-triangle
-    distances pick it).
-    """
-    lower = np.asarray(finding.location.lower, dtype=np.float64)
-    upper = np.asarray(finding.location.upper, dtype=np.float64)
-    centre = 0.5 * (lower + upper)
-    bits = np.array([[(k >> axis) & 1 for axis in range(3)] for k in range(8)], dtype=bool)
-    corners = np.where(bits, upper, lower) - centre
-    on = []
-    for body in (a, b):
-        w = body.world
-        v = np.asarray(w.vertices, dtype=np.float64) - centre
-        on.append(point_distances(corners, v, np.asarray(w.faces, dtype=np.int64)))
-    # corner k and corner 7 - k are opposite
-    k = int(np.argmin([on[0][k] + on[1][7 - k] for k in range(8)]))
-    return corners[k] + centre, corners[7 - k] + centre
 
 
 def _pack(meshes: Sequence[_Mesh]) -> tuple[str, list[dict]]:
@@ -463,4 +509,4 @@ rotate &middot; right-drag: pan &middot; wheel: zoom &middot; click a finding to
 """
 
 
-__all__ = ["closest_points", "render_html"]
+__all__ = ["render", "render_html"]

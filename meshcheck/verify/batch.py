@@ -7,7 +7,6 @@ them), stores the new verdicts and turns every verdict that is not clear into a 
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Sequence
 
 import numpy as np
@@ -16,9 +15,9 @@ from ..cache import PairCache, pair_key
 from ..execute import Executor, Task
 from ..load import Body
 from ..progress import Progress
-from ..results import Finding, Location, Verdict, finding_id
+from ..results import Finding, PairVerdict, Verdict, finding_id
 from ..settings import Settings
-from .pair import PairVerdict, verify_pair
+from .pair import verify_pair
 
 #: Fewer pairs than this to verify are verified in this process: starting worker processes
 #: (imports, loading the compiled kernels) costs more than the pairs take.
@@ -69,7 +68,7 @@ def verify_pairs(
             )
             hit = cache.get(keys[k])
             if hit is not None:
-                verdicts[k] = _verdict(hit)
+                verdicts[k] = hit
     todo = np.array([k for k, v in enumerate(verdicts) if v is None], dtype=np.int64)
     hits = len(pairs) - len(todo)
     with Progress("checking", len(pairs)) as bar:
@@ -86,30 +85,15 @@ def verify_pairs(
     for k, verdict in zip(todo, computed, strict=True):
         verdicts[k] = verdict
         if cache is not None:
-            cache.put(keys[k], _fields(verdict))
+            cache.put(keys[k], verdict)
     if cache is not None and len(todo):
         cache.remove_stale_temporaries()
 
-    findings = []
-    for (i, j), tol, verdict in zip(pairs, tolerance, verdicts, strict=True):
-        if verdict.status == Verdict.CLEAR:
-            continue
-        a, b = bodies[i], bodies[j]
-        (name_a, digest_a), (name_b, digest_b) = sorted([(a.name, a.digest), (b.name, b.digest)])
-        findings.append(
-            Finding(
-                a=name_a,
-                b=name_b,
-                status=verdict.status,
-                distance=verdict.distance,
-                depth=verdict.depth,
-                volume=verdict.volume,
-                location=verdict.location,
-                id=finding_id(name_a, digest_a, name_b, digest_b),
-                is_surface_only=verdict.is_surface_only,
-                tolerance=float(tol),
-            )
-        )
+    findings = [
+        _finding(bodies[i], bodies[j], verdict, float(tol))
+        for (i, j), tol, verdict in zip(pairs, tolerance, verdicts, strict=True)
+        if verdict.status != Verdict.CLEAR
+    ]
     findings.sort(key=lambda f: (f.a, f.b))
     return findings
 
@@ -224,16 +208,9 @@ def _verify(bodies, pairs, tolerance, near_surfaces, clearance, executor, progre
     return out
 
 
-def _verdict(fields: dict) -> PairVerdict:
-    location = fields["location"]
-    if location is not None:
-        location = Location(*location)
-    return PairVerdict(**(fields | {"location": location}))
-
-
-def _fields(verdict: PairVerdict) -> dict:
-    where = verdict.location
-    points = None if where is None else (where.centroid, where.lower, where.upper)
-    return {f.name: getattr(verdict, f.name) for f in dataclasses.fields(verdict)} | {
-        "location": points
-    }
+def _finding(a: Body, b: Body, verdict: PairVerdict, tolerance: float) -> Finding:
+    """The finding of a pair that is not clear, its parts (and the verdict's) in name order."""
+    if (a.name, a.digest) > (b.name, b.digest):
+        a, b, verdict = b, a, verdict.swapped()
+    pair_id = finding_id(a.name, a.digest, b.name, b.digest)
+    return Finding(a.name, b.name, verdict, id=pair_id, tolerance=tolerance)

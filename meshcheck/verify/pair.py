@@ -32,50 +32,13 @@ from ..geometry.triangles import (
     winding_numbers,
 )
 from ..mesh import is_closed
-from ..results import Verdict
+from ..results import PairVerdict, Solid, Verdict
 from .depth import depth_bounds
 
 # Points tested with winding numbers (each costs one pass over the other mesh's triangles): one per
 # shell for burial (a triangle soup can have a shell per triangle), and the surface-only probes.
 _MAX_SHELL_PROBES = 20000
 _MAX_SURFACE_PROBES = 4096
-
-
-@dataclass(frozen=True)
-class PairVerdict:
-    """What the real meshes of one part pair say.
-
-    Attributes
-    ----------
-    status : str
-        ``INTERFERENCE``, ``TOUCHING``, ``CLEARANCE`` or ``CLEAR`` (``results.Verdict``).
-    distance : float
-        True minimum distance between the two meshes, model units; 0 when they interfere or their
-        surfaces cross. For a ``CLEAR`` verdict it is the exact distance when the surfaces come
-        within reach, else ``inf`` (only known to exceed the reach).
-    depth : float or None
-        Interference depth, model units: the thickness of the shared solid, i.e. the diameter of
-        the largest ball that fits inside it; the diameter of a ball shown to fit, so never more
-        than the true depth (within 1e-3 of it on the shapes of tests/test_depth.py). None
-        unless interfering, or when a mesh is not closed (there is no shared solid to measure).
-    volume : float or None
-        Volume of the shared solid (manifold3d boolean intersection), model units cubed, when both
-        meshes are closed and the pair interferes.
-    location : results.Location or None
-        Interference: centroid and box of the shared solid. Touching: the box of the contact
-        region (triangle pairs within the tolerance) and its centre. Clearance: the box of the two
-        closest points and their midpoint.
-    is_surface_only : bool
-        True when a mesh is not closed (or the boolean failed), so the verdict rests on the
-        surfaces alone.
-    """
-
-    status: str
-    distance: float
-    depth: float | None = None
-    volume: float | None = None
-    location: results.Location | None = None
-    is_surface_only: bool = False
 
 
 def verify_pair(
@@ -160,7 +123,11 @@ def verify_pair(
         p, q = near.point_a[k] + origin, near.point_b[k] + origin
         where = results.Location(0.5 * (p + q), np.minimum(p, q), np.maximum(p, q))
         return PairVerdict(
-            Verdict.CLEARANCE, distance, location=where, is_surface_only=not is_closed
+            Verdict.CLEARANCE,
+            distance,
+            location=where,
+            is_surface_only=not is_closed,
+            closest=(p, q),
         )
     return PairVerdict(Verdict.CLEAR, distance, is_surface_only=not is_closed)
 
@@ -363,7 +330,14 @@ def _solid_verdict(m: _Pair, solid, *, tolerance: float, distance: float, near) 
         where = results.Location(
             centroid + m.origin, v.min(axis=0) + m.origin, v.max(axis=0) + m.origin
         )
-        return PairVerdict(Verdict.INTERFERENCE, 0.0, depth=depth, volume=volume, location=where)
+        return PairVerdict(
+            Verdict.INTERFERENCE,
+            0.0,
+            depth=depth,
+            volume=volume,
+            location=where,
+            solid=Solid(v + m.origin, f) if len(f) else None,
+        )
     return PairVerdict(Verdict.TOUCHING, distance, location=_contact_region(m, near, tolerance))
 
 
