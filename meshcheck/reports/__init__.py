@@ -1,20 +1,23 @@
-"""Results -> reports, one module per format behind one interface, and the exit status.
+"""Results -> reports: one module per format behind one interface, and the exit status.
 
-Each format module has ``render(result) -> str`` (text ending in a newline); ``render`` here picks
-one by name. Every format shows each finding's stable ID (``Finding.id``), its baseline state when
-there is a baseline, and renders part names (which come from files) as data: ``printable`` for
-text, escapes for Markdown, XML and JSON.
+Every format module (``text``, ``json``, ``junit``, ``github``, ``sarif``, ``markdown``,
+``html``) has the same entry, ``render(result, *, inputs=()) -> str`` (text ending in a newline;
+``inputs`` are the paths the user gave, which a format may list); ``render`` here picks one by
+name. Every format shows each finding's stable ID (``Finding.id``), its baseline state when there
+is a baseline, and renders part names (which come from files) as data: ``printable`` for text,
+escapes for Markdown, XML and JSON. Formats render what the check computed and compute nothing:
+the HTML view draws each interference's shared solid from its verdict (``Finding.solid``).
 
-``html`` (``reports/html.py``) draws the parts too, so it also takes the bodies
-(``CheckResult.bodies``), the inputs and the version.
+``gltf`` is the ``--export`` (a file of the assembly with its clashes), not a report format.
 """
 
 from __future__ import annotations
 
-import importlib
 from collections.abc import Sequence
+from typing import Protocol
 
 from ..results import CheckResult
+from . import github, html, json, junit, markdown, sarif, text
 from .common import (
     describe,
     exit_status,
@@ -23,7 +26,24 @@ from .common import (
     summary_line,
 )
 
-FORMATS = ("text", "json", "junit", "github", "sarif", "markdown", "html")
+
+class Format(Protocol):
+    """What every format module provides."""
+
+    def render(self, result: CheckResult, *, inputs: Sequence[str] = ()) -> str: ...
+
+
+#: Format name -> its module, in the order the command line lists them.
+MODULES: dict[str, Format] = {
+    "text": text,
+    "json": json,
+    "junit": junit,
+    "github": github,
+    "sarif": sarif,
+    "markdown": markdown,
+    "html": html,
+}
+FORMATS = tuple(MODULES)
 
 
 def render(result: CheckResult, fmt: str = "text", *, inputs: Sequence[str] = ()) -> str:
@@ -31,29 +51,15 @@ def render(result: CheckResult, fmt: str = "text", *, inputs: Sequence[str] = ()
 
     ``inputs`` are the paths the user gave (the HTML report lists them).
     """
-    if fmt not in FORMATS:
+    if fmt not in MODULES:
         raise ValueError(f"unknown format {fmt!r}; choose from {', '.join(FORMATS)}")
-    if fmt == "html":
-        return _render_html(result, inputs=inputs)
-    return importlib.import_module(f"{__name__}.{fmt}").render(result)
-
-
-def _render_html(result: CheckResult, *, inputs: Sequence[str]) -> str:
-    from importlib import metadata
-
-    from .html import render_html
-
-    try:
-        version = metadata.version("meshcheck")
-    except metadata.PackageNotFoundError:  # pragma: no cover
-        version = "0"
-    return render_html(
-        result, result.bodies, units=result.units, inputs=tuple(inputs), version=version
-    )
+    return MODULES[fmt].render(result, inputs=inputs)
 
 
 __all__ = [
     "FORMATS",
+    "MODULES",
+    "Format",
     "describe",
     "exit_status",
     "printable",

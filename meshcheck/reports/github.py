@@ -12,6 +12,8 @@ annotation of that type says how many more there are, and those are printed as p
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 from ..results import CheckResult, Finding, Verdict
 from .common import (
     describe,
@@ -47,7 +49,7 @@ def level(result: CheckResult, finding: Finding) -> str:
     return "warning"
 
 
-def render(result: CheckResult) -> str:
+def render(result: CheckResult, *, inputs: Sequence[str] = ()) -> str:
     # (properties, title, message) per annotation, most severe first within each level
     annotations: dict[str, list[tuple[str, str, str]]] = {name: [] for name in LEVELS}
     paths = part_files(result)

@@ -31,7 +31,6 @@ import numpy as np
 
 from ..results import CheckResult, Finding, Verdict
 from .common import summary
-from .gltf import clash_mesh
 
 if TYPE_CHECKING:
     from ..load import Body
@@ -237,6 +236,8 @@ def _add_clash(
     """Add an interference's shared solid (or its box) to the meshes; its index, or None."""
     if finding.status != INTERFERENCE:
         return None
+    from .gltf import clash_mesh  # here: trimesh is not imported for the command line's start
+
     shared = clash_mesh(finding)
     if shared is None or not len(shared.faces):
         return None

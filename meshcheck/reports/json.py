@@ -8,6 +8,7 @@ Output is ASCII (``\\uXXXX`` escapes), so any name survives any terminal or file
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 
 from ..results import CheckResult
 from .common import summary
@@ -31,5 +32,5 @@ def document(result: CheckResult) -> dict:
     return doc
 
 
-def render(result: CheckResult) -> str:
+def render(result: CheckResult, *, inputs: Sequence[str] = ()) -> str:
     return json.dumps(document(result), indent=2, ensure_ascii=True, allow_nan=False) + "\n"

@@ -10,13 +10,14 @@ control characters, so every name goes through ``printable``.
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from xml.etree import ElementTree as ET
 
 from ..results import CheckResult
 from .common import describe, part_files, printable, resolution
 
 
-def render(result: CheckResult) -> str:
+def render(result: CheckResult, *, inputs: Sequence[str] = ()) -> str:
     paths = part_files(result)
     cases = []
     for f in result.findings:

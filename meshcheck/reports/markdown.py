@@ -8,6 +8,7 @@ break the table nor inject a link, an image or HTML.
 from __future__ import annotations
 
 import re
+from collections.abc import Sequence
 
 from ..results import CheckResult
 from .common import describe, plural, printable, resolution, summary, summary_line
@@ -29,7 +30,7 @@ def escape(text: str) -> str:
     return _MARKUP.sub(r"\\\1", printable(text))
 
 
-def render(result: CheckResult) -> str:
+def render(result: CheckResult, *, inputs: Sequence[str] = ()) -> str:
     s = summary(result)
     icon = "✅" if s["passed"] else "❌"
     lines = [f"## {icon} meshcheck: {'PASS' if s['passed'] else 'FAIL'}", ""]

@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import os
 import urllib.parse
+from collections.abc import Sequence
 from importlib import metadata
 
 from ..results import FINDING_STATUSES, CheckResult, Finding, Verdict
@@ -136,5 +137,5 @@ def _srcroot() -> str:
     return "file://" + urllib.parse.quote(os.fsencode(os.getcwd())).rstrip("/") + "/"
 
 
-def render(result: CheckResult) -> str:
+def render(result: CheckResult, *, inputs: Sequence[str] = ()) -> str:
     return json.dumps(document(result), indent=2, ensure_ascii=True, allow_nan=False) + "\n"

@@ -7,6 +7,7 @@ cut in the middle when they still do not fit; the JSON report keeps them whole.
 from __future__ import annotations
 
 import textwrap
+from collections.abc import Sequence
 
 from ..results import CheckResult
 from .common import describe, printable, resolution, summary_line
@@ -44,7 +45,7 @@ def shorten(text: str, width: int) -> str:
     return text[:head] + "..." + text[len(text) - (keep - head) :]
 
 
-def render(result: CheckResult) -> str:
+def render(result: CheckResult, *, inputs: Sequence[str] = ()) -> str:
     """The table of findings, resolved baseline findings, the configuration file, the summary."""
     prefix = shared_prefix([p.name for p in result.parts])
     has_baseline = result.baseline is not None
