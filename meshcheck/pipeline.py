@@ -46,6 +46,7 @@ from .settings import (
 )
 from .units import DEFAULT_UNIT
 from .verify import verify_pairs
+from .verify.shells import warn_overlapping_shells
 
 _EPS32 = float(np.finfo(np.float32).eps)
 
@@ -149,6 +150,8 @@ def check_bodies(
     if settings is None:
         settings = Settings(**fields)
     names = [_names(b) for b in bodies]
+    if not settings.split:  # a part's own shells that clash are never a finding: say so
+        warn_overlapping_shells(bodies)
     _check_patterns(settings, names)
     # The key cache entries are signed with, read once for the run (None: no cache).
     secret = None if settings.cache_dir is None else pair_secret()

@@ -45,6 +45,13 @@ TOLERANCE_FRACTION = 1e-5
 #: STL stores float32, so a face at coordinate x is only known to 2^-24 |x|, and two coincident
 #: faces of two files can be that far apart for each vertex.
 FLOAT32_ULPS = 8.0
+
+#: Two closed shells of one part whose overlap is no thicker than this fraction of their size
+#: (the diagonal of their larger extents) only touch, and draw no "shells overlap" warning
+#: (``verify.shells``). Shells a CAD exporter wrote face to face land up to ~1e-7 of the size
+#: apart (float32 STL); 1e-6 keeps a 10x margin, and stays under ``TOLERANCE_FRACTION``, so
+#: shells overlapping by what would be an interference between two parts are warned about.
+SHELL_TOUCH_FRACTION = 1e-6
 _FLOAT32_EPS = float(np.finfo(np.float32).eps)
 
 
@@ -283,6 +290,7 @@ def resolve_fail_on(words: Sequence[str] | None, *, clearance: float | None) -> 
 __all__ = [
     "DEFAULT_THRESHOLD",
     "FLOAT32_ULPS",
+    "SHELL_TOUCH_FRACTION",
     "TOLERANCE_FRACTION",
     "Settings",
     "default_cache_dir",

@@ -17,6 +17,7 @@ from meshes import box
 
 from meshcheck.errors import InputError, MeshcheckWarning
 from meshcheck.load import expand_paths, load_bodies, split_shells
+from meshcheck.verify.shells import warn_overlapping_shells
 
 HYPOTHESIS = settings(derandomize=True, deadline=None, max_examples=40)
 
@@ -562,11 +563,16 @@ def _3mf_mesh(mesh) -> str:
 
 
 def test_overlapping_closed_shells_warn_and_suggest_split(tmp_path):
+    import meshcheck
+
     path = write_stl(tmp_path / "assy.stl", trimesh.util.concatenate([box(), box(at=(0.5, 0, 0))]))
-    with pytest.warns(MeshcheckWarning, match=r"assy\.stl: closed shells 1 and 2 .* --split"):
-        (body,) = load_bodies([path])
+    (body,) = load_bodies([path])  # the loader keeps it; the check warns (verify.shells)
     assert len(body.mesh.faces) == 24
-    assert len(load_bodies([path], split=True)) == 2  # no warning: the clash is checked
+    with pytest.warns(MeshcheckWarning, match=r"assy\.stl: closed shells 1 and 2 .* --split"):
+        result = meshcheck.check([path], cache_dir=None)
+    assert result.warnings[-1].startswith(f"{path}: closed shells 1 and 2 of this part overlap")
+    split = meshcheck.check([path], split=True, cache_dir=None)  # no warning: the clash is checked
+    assert [str(f.status) for f in split.findings] == ["interference"]
 
 
 def test_touching_or_apart_shells_do_not_warn(tmp_path):
@@ -574,8 +580,9 @@ def test_touching_or_apart_shells_do_not_warn(tmp_path):
     # merged into one vertex, making the file one non-manifold shell)
     touching = trimesh.util.concatenate([box(), box(at=(1 + 1e-6, 0, 0)), box(at=(5, 0, 0))])
     path = write_stl(tmp_path / "assy.stl", touching)
-    (body,) = load_bodies([path])  # filterwarnings = error: any warning fails
+    (body,) = load_bodies([path])
     assert len(body.mesh.faces) == 36
+    warn_overlapping_shells([body])  # filterwarnings = error: any warning fails
 
 
 def test_mm_stl_beside_a_metre_gltf_is_checked_in_one_unit(tmp_path):

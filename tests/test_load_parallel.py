@@ -70,7 +70,6 @@ def read_both(paths, executor):
                 paths,
                 Budget(Limits()),
                 STEP,
-                overlaps=True,
                 executor=each,
                 parallel=True,
             )
@@ -81,7 +80,7 @@ def read_both(paths, executor):
 def assert_same(serial, parallel):
     assert len(serial) == len(parallel)
     for a, b in zip(serial, parallel, strict=True):
-        assert (a.declared, a.deflection, a.overlaps) == (b.declared, b.deflection, b.overlaps)
+        assert (a.declared, a.deflection) == (b.declared, b.deflection)
         assert [(n, g) for n, g, _ in a.items] == [(n, g) for n, g, _ in b.items]
         for (_, _, pa), (_, _, pb) in zip(a.items, b.items, strict=True):
             assert pa.tobytes() == pb.tobytes()
@@ -97,7 +96,6 @@ def test_parallel_reading_gives_the_serial_arrays_and_warnings(tmp_path, pool):
     assert any("not closed" in w for w in serial_warned)
     assert any("dropped 1 degenerate" in w for w in serial_warned)
     assert_same(serial, parallel)
-    assert [r.overlaps for r in serial].count([(1, 2)]) == 1
 
 
 def test_parallel_loading_gives_the_serial_bodies(tmp_path, pool):
@@ -113,7 +111,6 @@ def test_parallel_loading_gives_the_serial_bodies(tmp_path, pool):
             runs.append((bodies, [str(w.message) for w in caught]))
         (serial, serial_warned), (parallel, parallel_warned) = runs
         assert serial_warned == parallel_warned
-        assert any("overlap each other" in w for w in serial_warned) == (not split)
         assert [b.name for b in serial] == [b.name for b in parallel]
         assert [b.relative_name for b in serial] == [b.relative_name for b in parallel]
         assert [b.digest for b in serial] == [b.digest for b in parallel]

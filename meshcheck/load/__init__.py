@@ -51,8 +51,9 @@ glTF nodes that do not form a tree, files without triangles (point clouds), NaN 
 coordinates, and placements that flatten a part or take its coordinates beyond
 ``Limits.max_coordinate``. Triangles with a repeated vertex are dropped with a warning; triangles
 of zero area with three distinct vertices are kept (they keep a closed surface closed). Meshes
-that are not closed are kept; a file whose closed shells overlap each other (without ``split``)
-is kept. Each of those raises a ``MeshcheckWarning`` whose message starts with the part name.
+that are not closed are kept. Each of those raises a ``MeshcheckWarning`` whose message starts
+with the part name. (A file whose closed shells overlap each other is kept too; the check warns
+about it, ``verify.shells``: the test is the verify stage's.)
 """
 
 from __future__ import annotations
@@ -217,7 +218,6 @@ def load_bodies(
         [path for path, _ in files],
         budget,
         StepOptions(cache_dir, step_deflection, units),
-        overlaps=not split,
         executor=executor,
         progress=progress,
         parallel=parallel,
@@ -236,8 +236,6 @@ def load_bodies(
                     raise InputError(part.name, "given more than once")
                 seen.add(part.name)
                 bodies.append(part)
-        if not split:
-            _warn_overlapping_shells(file_bodies, file_read)
     _warn_mixed_units(sizes, report)
     return bodies
 
@@ -317,26 +315,6 @@ def _warn_mixed_units(sizes: list[tuple[float, str]], report: str) -> None:
             f"({big[0]:.4g} against {small[0]:.4g} {report} across): mixed units? "
             "(files that declare no unit are read in --units, default mm)",
         )
-
-
-def _warn_overlapping_shells(bodies: list[Body], file_read: FileRead) -> None:
-    """Warn once per mesh whose closed shells overlap each other (they are checked as one part).
-
-    ``bodies`` are the file's, one per ``file_read.items``; the overlaps were found as it was read.
-    """
-    seen = set()
-    for body, (_, g, _) in zip(bodies, file_read.items, strict=True):
-        if g in seen:
-            continue
-        seen.add(g)
-        overlap = file_read.overlaps[g]
-        if overlap is not None:
-            i, j = overlap
-            warn(
-                body.name,
-                f"closed shells {i} and {j} of this part overlap each other; they are checked as "
-                "one part, so their clash is not reported (use --split to check shells as parts)",
-            )
 
 
 # --------------------------------------------------------------------------------------------

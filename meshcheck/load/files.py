@@ -31,7 +31,6 @@ from .. import units as units_
 from ..errors import InputError, MeshcheckError, MeshcheckWarning
 from ..geometry import topology
 from ..mesh import as_mesh, clean_arrays, warn
-from ..verify.shells import overlapping_shells
 from .gltf import read_gltf
 from .limits import Budget, Limits, read_file
 from .scene import read_scene
@@ -82,16 +81,12 @@ class FileRead:
         The unit the file declares.
     deflection : float
         How far its triangles may lie from the true surface, in that unit (0 for mesh files).
-    overlaps : list of (int, int) or None
-        Per geometry, two of its closed shells that overlap (``mesh.overlapping_shells``), or
-        None; the whole list is None when not asked for.
     """
 
     items: list[tuple[str, int, np.ndarray]]
     geometries: list[tuple[np.ndarray, np.ndarray, bool]]
     declared: str | None
     deflection: float
-    overlaps: list[tuple[int, int] | None] | None = None
 
     @property
     def triangles(self) -> int:
@@ -108,7 +103,7 @@ def is_multi(path: str, items: Sequence) -> bool:
     return len(items) > 1 or os.path.splitext(path)[1].lower() in STEP_EXTENSIONS
 
 
-def read(path: str, budget: Budget, step: StepOptions, *, overlaps: bool = False) -> FileRead:
+def read(path: str, budget: Budget, step: StepOptions) -> FileRead:
     """Read and clean one file, checked against and counted in ``budget``.
 
     Parameters
@@ -117,20 +112,18 @@ def read(path: str, budget: Budget, step: StepOptions, *, overlaps: bool = False
     budget : Budget
         The run's budget; the file's triangles and parts are taken from it.
     step : StepOptions
-    overlaps : bool
-        Also find overlapping closed shells of each geometry (``FileRead.overlaps``).
 
     Raises
     ------
     InputError
         The file cannot be checked (see ``meshcheck.load``).
     """
-    out = _read(path, budget, step, overlaps=overlaps)
+    out = _read(path, budget, step)
     budget.take(path, out.triangles, len(out.items))
     return out
 
 
-def _read(path: str, budget: Budget, step: StepOptions, *, overlaps: bool) -> FileRead:
+def _read(path: str, budget: Budget, step: StepOptions) -> FileRead:
     """``read`` without taking from the budget (its checks still run)."""
     if not os.path.exists(path):
         raise InputError(path, "no such file or directory")
@@ -162,7 +155,6 @@ def _read(path: str, budget: Budget, step: StepOptions, *, overlaps: bool) -> Fi
     multi = is_multi(path, items)
     index: dict[int, int] = {}  # id(geometry) -> its index: cleaned once, shared by instances
     geometries: list[tuple[np.ndarray, np.ndarray, bool]] = []
-    found: list[tuple[int, int] | None] | None = [] if overlaps else None
     out = []
     for node, geom, transform in sorted(items, key=lambda item: item[0]):
         name = f"{path}#{node}" if multi else path
@@ -173,20 +165,11 @@ def _read(path: str, budget: Budget, step: StepOptions, *, overlaps: bool) -> Fi
             closed = topology.is_closed(f)
             index[id(geom)] = len(geometries)
             geometries.append((v, f, closed))
-            if found is not None:
-                found.append(_overlap(v, f, closed))
         g = index[id(geom)]
         if not geometries[g][2]:
             warn(name, "mesh is not closed (not watertight); its findings rest on surfaces only")
         out.append((node, g, np.asarray(transform, dtype=np.float64)))
-    return FileRead(out, geometries, declared, float(deflection), found)
-
-
-def _overlap(v: np.ndarray, f: np.ndarray, closed: bool) -> tuple[int, int] | None:
-    """``overlapping_shells`` of a cleaned mesh; the mesh is built only when it has two shells."""
-    if topology.shell_labels(f, len(v))[1] == 1:
-        return None
-    return overlapping_shells(as_mesh(v, f, closed=closed))
+    return FileRead(out, geometries, declared, float(deflection))
 
 
 def _read_step(path: str, options: StepOptions):
@@ -222,7 +205,6 @@ def read_files(
     budget: Budget,
     step: StepOptions,
     *,
-    overlaps: bool = False,
     executor=None,
     progress: Callable[[int, int], None] | None = None,
     parallel: bool | None = None,
@@ -233,7 +215,7 @@ def read_files(
     ----------
     paths : sequence of str
         Files, in argument order.
-    budget, step, overlaps
+    budget, step
         As for ``read``.
     executor : execute.Executor, optional
         The run's executor. Files of ``WORKER_EXTENSIONS`` are read in its processes when it has
@@ -260,7 +242,7 @@ def read_files(
     if not (local and parallel and in_workers):
         out = []
         for done, path in enumerate(paths, start=1):
-            out.append(read(path, budget, step, overlaps=overlaps))
+            out.append(read(path, budget, step))
             if progress is not None:
                 progress(done, total)
         return out
@@ -271,7 +253,7 @@ def read_files(
     chunks = [in_workers[a : a + per_task] for a in range(0, len(in_workers), per_task)]
     tasks = [
         Task(
-            ([paths[k] for k in chunk], budget.limits, step, overlaps),
+            ([paths[k] for k in chunk], budget.limits, step),
             size=_size(paths[k] for k in chunk),
         )
         for chunk in chunks
@@ -293,7 +275,7 @@ def read_files(
         if k in outcome:
             out.append(_replay(path, budget, outcome[k]))
         else:  # a main-process format, or its worker died: read it here
-            out.append(read(path, budget, step, overlaps=overlaps))
+            out.append(read(path, budget, step))
             done = min(done + 1, total)
             if progress is not None:
                 progress(done, total)
@@ -315,9 +297,7 @@ def parallel_pays(paths: Sequence[str], jobs: int) -> bool:
     return jobs > 1 and saved > START_SECONDS
 
 
-def read_task(
-    store: dict, paths: list[str], limits: Limits, step: StepOptions, overlaps: bool
-) -> list[tuple]:
+def read_task(store: dict, paths: list[str], limits: Limits, step: StepOptions) -> list[tuple]:
     """Read files in a worker process; see ``read_files``.
 
     Returns one outcome per file, stopping after the first file that cannot be read:
@@ -332,7 +312,7 @@ def read_task(
             warnings.simplefilter("always")
             budget = _Recorder(limits, caught)
             try:
-                result = _read(path, budget, step, overlaps=overlaps)
+                result = _read(path, budget, step)
             except MeshcheckError as exc:
                 result = (type(exc), exc.path, exc.reason)
         if isinstance(result, FileRead):

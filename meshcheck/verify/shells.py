@@ -1,25 +1,54 @@
-"""Shells of one mesh that share volume: the loader's warning that a file's bodies overlap.
+"""Shells of one mesh that share volume: the warning that a part's bodies overlap.
 
-The exact test is the verify stage's own (``pair.verify_pair``) on each pair of closed shells whose
-boxes overlap; the loader calls this on files with more than one shell.
+A part read from a file holding several closed shells (without ``--split``) is checked as one
+part, so a clash between its own shells is never a finding; ``warn_overlapping_shells`` says so.
+The exact test is the verify stage's own (``pair.verify_pair``) on each pair of closed shells
+whose boxes overlap. The check runs it on the loaded bodies before anything else
+(``pipeline.check_bodies``), so its warnings follow the loader's.
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 import numpy as np
 import trimesh
 
 from ..geometry.broadphase import candidate_pairs
-from ..mesh import is_closed, shell_labels, split_shells
+from ..load import Body
+from ..mesh import is_closed, shell_labels, split_shells, warn
 from ..results import Verdict
+from ..settings import SHELL_TOUCH_FRACTION
 from .pair import verify_pair
+
+
+def warn_overlapping_shells(bodies: Sequence[Body]) -> None:
+    """Warn once per mesh whose closed shells overlap each other (``overlapping_shells``).
+
+    Instances of one mesh (``Body.mesh`` shared) are warned about once, under the first one's
+    name; the message starts with the part name, as the loader's warnings do.
+    """
+    seen: set[int] = set()  # id(Body.mesh): instances share their mesh
+    for body in bodies:
+        if id(body.mesh) in seen:
+            continue
+        seen.add(id(body.mesh))
+        overlap = overlapping_shells(body.mesh)
+        if overlap is not None:
+            i, j = overlap
+            warn(
+                body.name,
+                f"closed shells {i} and {j} of this part overlap each other; they are checked as "
+                "one part, so their clash is not reported (use --split to check shells as parts)",
+            )
 
 
 def overlapping_shells(mesh: trimesh.Trimesh) -> tuple[int, int] | None:
     """Two closed shells of ``mesh`` that share volume, as 1-based shell numbers, or None.
 
-    Shells are numbered as ``split_shells`` lists them. Shells that only touch (within 1e-6 of
-    their size) do not count; the exact test is ``verify.verify_pair``.
+    Shells are numbered as ``split_shells`` lists them. Shells that only touch (within
+    ``SHELL_TOUCH_FRACTION`` of their size) do not count; the exact test is
+    ``verify.verify_pair``.
     """
     if shell_labels(mesh)[1] == 1:
         return None
@@ -31,7 +60,7 @@ def overlapping_shells(mesh: trimesh.Trimesh) -> tuple[int, int] | None:
     upper = np.array([shells[k].bounds[1] for k in solid])
     for i, j in candidate_pairs(lower, upper, margin=0.0):
         a, b = shells[solid[i]], shells[solid[j]]
-        tolerance = 1e-6 * float(np.linalg.norm(np.maximum(a.extents, b.extents)))
+        tolerance = SHELL_TOUCH_FRACTION * float(np.linalg.norm(np.maximum(a.extents, b.extents)))
         shared = np.minimum(upper[i], upper[j]) - np.maximum(lower[i], lower[j])
         if shared.min() <= tolerance:  # boxes meeting face to face (an assembly export's
             continue  # neighbours) cannot share a solid thicker than the tolerance
