@@ -13,60 +13,15 @@ import json
 from collections.abc import Sequence
 from xml.etree import ElementTree as ET
 
-from ..results import CheckResult
+from ..results import CheckResult, Finding
 from .common import describe, part_files, printable, resolution
 
 
 def render(result: CheckResult, *, inputs: Sequence[str] = ()) -> str:
+    """The findings, then the clear pairs (or parts), as one ``testsuite``."""
     paths = part_files(result)
-    cases = []
-    for f in result.findings:
-        a, b = printable(f.a), printable(f.b)
-        case = ET.Element(
-            "testcase",
-            classname=f"meshcheck.{f.status}",
-            name=f"{a} <-> {b} [{f.id}]",
-            file=printable(paths.get(f.a, f.a.split("#")[0])),
-            time="0",
-        )
-        message = f"{f.status}: {a} and {b}: {describe(f, resolution(result, f))}"
-        state = result.baseline_state(f)
-        if state is not None:
-            message += f" ({state} since the baseline)"
-        props = ET.SubElement(case, "properties")
-        for key, value in (("id", f.id), ("status", f.status), ("a", a), ("b", b)):
-            ET.SubElement(props, "property", name=key, value=value)
-        if state is not None:
-            ET.SubElement(props, "property", name="baseline", value=state)
-        if f.is_approved:
-            ET.SubElement(case, "skipped", message=f"approved: {printable(f.approval_reason)}")
-        elif result.is_failing(f):
-            failure = ET.SubElement(case, "failure", message=message, type=f.status)
-            # ASCII JSON: the names as data, with no character XML refuses
-            failure.text = json.dumps(f.to_dict(), indent=2)
-        else:
-            ET.SubElement(case, "system-out").text = message
-        cases.append(case)
-
-    found = {(f.a, f.b) for f in result.findings}
-    if result.checked_pairs:
-        for a, b in sorted({tuple(sorted(p)) for p in result.checked_pairs} - found):
-            name = f"{printable(a)} <-> {printable(b)}"
-            cases.append(ET.Element("testcase", classname="meshcheck.clear", name=name, time="0"))
-    else:
-        named = {n for pair in found for n in pair}
-        for part in result.parts:
-            if part.name not in named:
-                cases.append(
-                    ET.Element(
-                        "testcase",
-                        classname="meshcheck.clear",
-                        name=f"{printable(part.name)}: no findings",
-                        file=printable(part.path),
-                        time="0",
-                    )
-                )
-
+    cases = [_finding_case(result, f, paths) for f in result.findings]
+    cases.extend(_clear_cases(result))
     failures = sum(1 for c in cases if c.find("failure") is not None)
     skipped = sum(1 for c in cases if c.find("skipped") is not None)
     counts = {
@@ -79,17 +34,7 @@ def render(result: CheckResult, *, inputs: Sequence[str] = ()) -> str:
     root = ET.Element("testsuites", name="meshcheck", **counts)
     suite = ET.SubElement(root, "testsuite", name="meshcheck", **counts)
     props = ET.SubElement(suite, "properties")
-    settings = {
-        "parts": len(result.parts),
-        "pairs_checked": len(result.checked_pairs),
-        "tolerance": result.tolerance,
-        "clearance": result.clearance,
-        "units": result.units,
-        "fail_on": ",".join(result.fail_on) + (",new" if result.settings.fail_on_new else ""),
-        "config": result.settings.config_path,
-        "baseline": None if result.baseline is None else result.baseline.path,
-    }
-    for key, value in settings.items():
+    for key, value in _settings(result).items():
         text = "" if value is None else printable(str(value))
         ET.SubElement(props, "property", name=key, value=text)
     suite.extend(cases)
@@ -100,3 +45,74 @@ def render(result: CheckResult, *, inputs: Sequence[str] = ()) -> str:
     ET.indent(root)
     body = ET.tostring(root, encoding="unicode")
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + body + "\n"
+
+
+def _finding_case(result: CheckResult, f: Finding, paths: dict[str, str]) -> ET.Element:
+    """A finding's test case: failed, skipped (approved) or passed with its measurements."""
+    a, b = printable(f.a), printable(f.b)
+    case = ET.Element(
+        "testcase",
+        classname=f"meshcheck.{f.status}",
+        name=f"{a} <-> {b} [{f.id}]",
+        file=printable(paths.get(f.a, f.a.split("#")[0])),
+        time="0",
+    )
+    message = f"{f.status}: {a} and {b}: {describe(f, resolution(result, f))}"
+    state = result.baseline_state(f)
+    if state is not None:
+        message += f" ({state} since the baseline)"
+    props = ET.SubElement(case, "properties")
+    for key, value in (("id", f.id), ("status", f.status), ("a", a), ("b", b)):
+        ET.SubElement(props, "property", name=key, value=value)
+    if state is not None:
+        ET.SubElement(props, "property", name="baseline", value=state)
+    if f.is_approved:
+        ET.SubElement(case, "skipped", message=f"approved: {printable(f.approval_reason)}")
+    elif result.is_failing(f):
+        failure = ET.SubElement(case, "failure", message=message, type=f.status)
+        # ASCII JSON: the names as data, with no character XML refuses
+        failure.text = json.dumps(f.to_dict(), indent=2)
+    else:
+        ET.SubElement(case, "system-out").text = message
+    return case
+
+
+def _clear_cases(result: CheckResult) -> list[ET.Element]:
+    """A passing case per checked pair without a finding; per part when no pairs are named."""
+    found = {(f.a, f.b) for f in result.findings}
+    if result.checked_pairs:
+        return [
+            ET.Element(
+                "testcase",
+                classname="meshcheck.clear",
+                name=f"{printable(a)} <-> {printable(b)}",
+                time="0",
+            )
+            for a, b in sorted({tuple(sorted(p)) for p in result.checked_pairs} - found)
+        ]
+    named = {n for pair in found for n in pair}
+    return [
+        ET.Element(
+            "testcase",
+            classname="meshcheck.clear",
+            name=f"{printable(part.name)}: no findings",
+            file=printable(part.path),
+            time="0",
+        )
+        for part in result.parts
+        if part.name not in named
+    ]
+
+
+def _settings(result: CheckResult) -> dict:
+    """The suite's properties: what the run checked and with which settings."""
+    return {
+        "parts": len(result.parts),
+        "pairs_checked": len(result.checked_pairs),
+        "tolerance": result.tolerance,
+        "clearance": result.clearance,
+        "units": result.units,
+        "fail_on": ",".join(result.fail_on) + (",new" if result.settings.fail_on_new else ""),
+        "config": result.settings.config_path,
+        "baseline": None if result.baseline is None else result.baseline.path,
+    }

@@ -87,49 +87,21 @@ def verify_pair(
     """
     tolerance = float(tolerance)
     reach = tolerance + (float(clearance) if clearance else 0.0)
-    is_closed = _is_closed(a) and _is_closed(b)
-    va, fa = np.asarray(a.vertices, dtype=np.float64), np.asarray(a.faces, dtype=np.int64)
-    vb, fb = np.asarray(b.vertices, dtype=np.float64), np.asarray(b.faces, dtype=np.int64)
-    origin = _common_origin(va, vb)
-    va, vb = va - origin, vb - origin
-    flipped = (False, False)
-    if is_closed:  # manifold3d and the inward rays want outward winding
-        oa, ob = outward_faces(va, fa), outward_faces(vb, fb)
-        flipped = (oa is not fa, ob is not fb)
-        fa, fb = oa, ob
-    keys = ((id(a), flipped[0]), (id(b), flipped[1]))
-    meshes = _Pair(va, fa, vb, fb, origin, keys, {} if memo is None else memo)
-
+    meshes = _recentred(a, b, {} if memo is None else memo)
     if surfaces_apart:
         if _is_buried(meshes):
-            return _interference(
-                meshes, tolerance=tolerance, is_closed=is_closed, distance=0.0, near=None
-            )
-        return PairVerdict(Verdict.CLEAR, math.inf, is_surface_only=not is_closed)
+            return _interference(meshes, tolerance=tolerance, distance=0.0, near=None)
+        return PairVerdict(Verdict.CLEAR, math.inf, is_surface_only=not meshes.is_closed)
 
     near = _near_pairs(meshes, reach)
     distance = float(near.distance.min()) if len(near.distance) else math.inf
-
     if distance <= tolerance:
-        return _interference(
-            meshes, tolerance=tolerance, is_closed=is_closed, distance=distance, near=near
-        )
+        return _interference(meshes, tolerance=tolerance, distance=distance, near=near)
     if _is_buried(meshes):
-        return _interference(
-            meshes, tolerance=tolerance, is_closed=is_closed, distance=0.0, near=near
-        )
+        return _interference(meshes, tolerance=tolerance, distance=0.0, near=near)
     if clearance is not None and distance < clearance:
-        k = int(np.argmin(near.distance))
-        p, q = near.point_a[k] + origin, near.point_b[k] + origin
-        where = results.Location(0.5 * (p + q), np.minimum(p, q), np.maximum(p, q))
-        return PairVerdict(
-            Verdict.CLEARANCE,
-            distance,
-            location=where,
-            is_surface_only=not is_closed,
-            closest=(p, q),
-        )
-    return PairVerdict(Verdict.CLEAR, distance, is_surface_only=not is_closed)
+        return _clearance_verdict(meshes, near, distance)
+    return PairVerdict(Verdict.CLEAR, distance, is_surface_only=not meshes.is_closed)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -146,6 +118,38 @@ class _Pair:
     origin: np.ndarray
     keys: tuple  # per mesh: (id of the caller's mesh, faces flipped?), the key into ``memo``
     memo: dict  # see ``verify_pair``
+    is_closed: bool  # both meshes closed (then their faces are wound outward)
+
+
+def _recentred(a: trimesh.Trimesh, b: trimesh.Trimesh, memo: dict) -> _Pair:
+    """Both meshes as float64 arrays re-centred on a point between them; closed ones wound
+    outward (manifold3d and the inward rays want that)."""
+    is_closed = _is_closed(a) and _is_closed(b)
+    va, fa = np.asarray(a.vertices, dtype=np.float64), np.asarray(a.faces, dtype=np.int64)
+    vb, fb = np.asarray(b.vertices, dtype=np.float64), np.asarray(b.faces, dtype=np.int64)
+    origin = _common_origin(va, vb)
+    va, vb = va - origin, vb - origin
+    flipped = (False, False)
+    if is_closed:
+        oa, ob = outward_faces(va, fa), outward_faces(vb, fb)
+        flipped = (oa is not fa, ob is not fb)
+        fa, fb = oa, ob
+    keys = ((id(a), flipped[0]), (id(b), flipped[1]))
+    return _Pair(va, fa, vb, fb, origin, keys, memo, is_closed)
+
+
+def _clearance_verdict(m: _Pair, near: _Near, distance: float) -> PairVerdict:
+    """A clearance finding: the two closest points, their box and its centre, world frame."""
+    k = int(np.argmin(near.distance))
+    p, q = near.point_a[k] + m.origin, near.point_b[k] + m.origin
+    where = results.Location(0.5 * (p + q), np.minimum(p, q), np.maximum(p, q))
+    return PairVerdict(
+        Verdict.CLEARANCE,
+        distance,
+        location=where,
+        is_surface_only=not m.is_closed,
+        closest=(p, q),
+    )
 
 
 @dataclass(frozen=True)
@@ -307,10 +311,10 @@ def solid_depth(v: np.ndarray, f: np.ndarray) -> float:
 
 
 def _interference(
-    m: _Pair, *, tolerance: float, is_closed: bool, distance: float, near: _Near | None
+    m: _Pair, *, tolerance: float, distance: float, near: _Near | None
 ) -> PairVerdict:
     """Interference or touching, for meshes that meet or where one may be buried in the other."""
-    if is_closed:
+    if m.is_closed:
         solid = shared_solid(m.va, m.fa, m.vb, m.fb)
         if solid is not None:
             return _solid_verdict(m, solid, tolerance=tolerance, distance=distance, near=near)
