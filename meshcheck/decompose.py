@@ -27,11 +27,11 @@ import numpy as np
 from .errors import MeshcheckWarning
 from .execute import Executor, LocalPool, Task, default_jobs
 from .load import Body, is_closed, local_geometries
+from .settings import DEFAULT_THRESHOLD
 
 # CoACD settings chosen with bench/coacd_settings.py (its figures are in README, "CoACD settings").
 # The verify stage is exact, so the pieces only have to be a good filter: these are about fifty
 # times faster than CoACD's defaults and filter a little worse, well ahead of the bare hull.
-DEFAULT_THRESHOLD = 0.1  # concavity threshold (CoACD default 0.05)
 DEFAULT_OPTIONS = {
     "resolution": 300,  # surface samples for the concavity metric (default 2000)
     "mcts_nodes": 5,  # MCTS children per node (default 20)

@@ -28,7 +28,8 @@ from .config import (
 from .errors import ConfigError
 from .results import FINDING_STATUSES, Verdict
 
-DEFAULT_THRESHOLD = 0.1  # CoACD concavity threshold; see decompose.DEFAULT_OPTIONS
+#: CoACD concavity threshold (CoACD's own default is 0.05); see decompose.DEFAULT_OPTIONS.
+DEFAULT_THRESHOLD = 0.1
 SCHEDULER_VARIABLE = "MESHCHECK_SCHEDULER"  # the environment's default for --scheduler
 
 # ---------------------------------------------------------------------------------------------

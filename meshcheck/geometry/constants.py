@@ -95,6 +95,48 @@ HILL_CLIMB_MIN_VERTICES = 1024
 PARALLEL_MIN_PAIRS = 256
 
 # ---------------------------------------------------------------------------------------------
+# Depth of a shared solid (``meshcheck.verify.depth``): the largest ball inside it
+# ---------------------------------------------------------------------------------------------
+
+#: Two faces sharing an edge are flat there when their unit normals' dot product is within this
+#: of 1 (an angle below 4.5e-5 rad): a wall's diagonal, a cap's fan. Such an edge casts only its
+#: faces' own rays, so seeding skips it. Far above the rounding of a unit normal (~1e-16), far
+#: below any bend a model means.
+FLAT_EDGE_COS = 1e-9
+
+#: A bisector of two unit normals shorter than this (faces folded back onto each other, a knife
+#: edge) has no reliable direction (its rounding, ~1e-16 / 1e-6, turns it by 1e-10 rad at most
+#: above it), so the edge casts no ray.
+MIN_BISECTOR = 1e-6
+
+#: A seed ray ignores hits closer than this fraction of the solid's size to its start: the
+#: faces it starts on (a few ulps away after rounding) are not the far wall it looks for.
+RAY_SKIP_REL = 1e-9
+
+#: The ball's ascent stops when a step grows the radius by less than this fraction: LP rounding
+#: (~1e-15 relative) would otherwise keep it stepping in place.
+ASCENT_REL = 1e-10
+
+#: Safety factor on an LP's upper bound on the ball: the bound is computed in float64 from a
+#: scaled problem, so it is widened by 1e-12 (a thousand ulps) to stay an upper bound.
+BOUND_SAFETY_REL = 1e-12
+
+#: An LP dual weight below this does not count a polygon as bounding the ball (HiGHS reports
+#: zero duals to ~1e-12).
+DUAL_WEIGHT_MIN = 1e-9
+
+#: Triangles sharing an edge lie on one plane when their unit normals agree within ``1 - COS``
+#: (1e-15: a few ulps, i.e. exactly, up to rounding) and their planes' offsets within
+#: ``COPLANAR_OFFSET_REL`` of the solid's size (1e-13: re-centred float64 coordinates carry
+#: ~1e-16 relative noise, a few hundred times that after a boolean's intersections).
+COPLANAR_COS = 1e-15
+COPLANAR_OFFSET_REL = 1e-13
+
+#: Coplanar triangles cover a convex polygon when their area equals their hull's within this
+#: fraction (summing triangle areas rounds to ~1e-15 relative; a notch any smaller is no notch).
+CONVEX_AREA_REL = 1e-12
+
+# ---------------------------------------------------------------------------------------------
 # Status codes (mirrored by ``meshcheck.geometry.gjk.Status``)
 # ---------------------------------------------------------------------------------------------
 

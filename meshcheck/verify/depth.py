@@ -42,6 +42,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..geometry.constants import (
+    ASCENT_REL,
+    BOUND_SAFETY_REL,
+    CONVEX_AREA_REL,
+    COPLANAR_COS,
+    COPLANAR_OFFSET_REL,
+    DUAL_WEIGHT_MIN,
+    FLAT_EDGE_COS,
+    MIN_BISECTOR,
+    RAY_SKIP_REL,
+)
 from ..geometry.triangles import (
     closest_points_on_triangles,
     inscribed_ball,
@@ -312,7 +323,7 @@ def _hull_inradius(points: np.ndarray) -> tuple[float, np.ndarray | None]:
     # For every feasible (x, r): r = sum y_i r <= sum y_i (-o_i - n_i . x)
     #                                          <= -y . o + |N^T y| |x|, and |x| <= sqrt(3).
     bound = float(-y @ offset + np.linalg.norm(normal.T @ y) * math.sqrt(3.0))
-    return max(bound, 0.0) * scale * (1.0 + 1e-12), centre
+    return max(bound, 0.0) * scale * (1.0 + BOUND_SAFETY_REL), centre
 
 
 # ---------------------------------------------------------------------------------------------
@@ -363,7 +374,8 @@ class _Search:
         lift = np.einsum("ij,ij->i", self.normal[owner[pair]], v[third[pair + 1]] - v[e[pair, 0]])
         # Flat edges (a wall's diagonals, a cap's fan) cast the faces' own rays: skipped.
         bent = (
-            np.einsum("ij,ij->i", self.normal[owner[pair]], self.normal[owner[pair + 1]]) < 1 - 1e-9
+            np.einsum("ij,ij->i", self.normal[owner[pair]], self.normal[owner[pair + 1]])
+            < 1 - FLAT_EDGE_COS
         )
         for edges in (pair[bent & (lift > 0.0)], pair[bent & (lift <= 0.0)]):
             self._grow_edge_seeds(e, owner, _strided(edges, _MAX_SEEDS), size)
@@ -371,10 +383,10 @@ class _Search:
     def _grow_edge_seeds(self, e, owner, pair, size) -> None:
         bisector = -(self.normal[owner[pair]] + self.normal[owner[pair + 1]])
         length = np.linalg.norm(bisector, axis=1)
-        ok = length > 1e-6
+        ok = length > MIN_BISECTOR
         o = 0.5 * (self.v[e[pair, 0]] + self.v[e[pair, 1]])[ok]
         d = bisector[ok] / length[ok, None]
-        t = _ray_hits(o, d, self.tri, 1e-9 * size)
+        t = _ray_hits(o, d, self.tri, RAY_SKIP_REL * size)
         hit = np.isfinite(t)
         points = o[hit] + 0.5 * t[hit, None] * d[hit]
         if len(points) == 0:
@@ -414,7 +426,7 @@ class _Search:
             if y is None:
                 break
             ry = float(point_distances(y.reshape(1, 3), self.v, self.f)[0])
-            if ry <= r * (1.0 + 1e-10):
+            if ry <= r * (1.0 + ASCENT_REL):
                 break
             x, r = y, ry
         if r > self.radius:
@@ -500,7 +512,7 @@ class _Search:
             return min(bound, convex), longest
         # Split across the axis along which the weighted polygons' distances change most: a
         # direction parallel to all of them (a shell's axis) gains nothing from a cut.
-        used = groups[weights > 1e-9]
+        used = groups[weights > DUAL_WEIGHT_MIN]
         slope = np.abs(self.normal[used]).max(axis=0) * (hi - lo)
         return convex, int(np.argmax(slope + 1e-3 * (hi - lo)))
 
@@ -597,8 +609,8 @@ def _convex_faces(v: np.ndarray, f: np.ndarray) -> np.ndarray:
     flat = (
         (area2[a] > 0)
         & (area2[b] > 0)
-        & (np.einsum("ij,ij->i", unit[a], unit[b]) >= 1.0 - 1e-15)
-        & (np.abs(offset[a] - offset[b]) <= 1e-13 * size)
+        & (np.einsum("ij,ij->i", unit[a], unit[b]) >= 1.0 - COPLANAR_COS)
+        & (np.abs(offset[a] - offset[b]) <= COPLANAR_OFFSET_REL * size)
     )
     graph = coo_matrix((np.ones(int(flat.sum())), (a[flat], b[flat])), shape=(m, m))
     _, label = connected_components(graph, directed=False)
@@ -631,7 +643,7 @@ def _is_convex_polygon(tri: np.ndarray, normal: np.ndarray) -> bool:
     t = uv.reshape(-1, 3, 2)
     d1, d2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
     area = 0.5 * np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]).sum()
-    return abs(area - hull) <= 1e-12 * hull
+    return abs(area - hull) <= CONVEX_AREA_REL * hull
 
 
 def _triangle_distances(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
