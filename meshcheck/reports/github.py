@@ -13,6 +13,7 @@ annotation of that type says how many more there are, and those are printed as p
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 from ..results import CheckResult, Finding, Verdict
 from .common import (
@@ -49,9 +50,18 @@ def level(result: CheckResult, finding: Finding) -> str:
     return "warning"
 
 
+@dataclass(frozen=True)
+class _Annotation:
+    """One workflow command's parts: its properties (escaped), title and message (raw)."""
+
+    properties: str
+    title: str
+    message: str
+
+
 def render(result: CheckResult, *, inputs: Sequence[str] = ()) -> str:
-    # (properties, title, message) per annotation, most severe first within each level
-    annotations: dict[str, list[tuple[str, str, str]]] = {name: [] for name in LEVELS}
+    # most severe first within each level
+    annotations: dict[str, list[_Annotation]] = {name: [] for name in LEVELS}
     paths = part_files(result)
     for f in sorted(result.findings, key=lambda f: severity(result, f)):
         extra = f" (approved: {f.approval_reason})" if f.is_approved else ""
@@ -59,21 +69,21 @@ def render(result: CheckResult, *, inputs: Sequence[str] = ()) -> str:
         title = f"meshcheck {f.status} [{f.id}]" + (f" {state}" if state else "")
         props = f"file={_property(part_file(paths, f.a))},title={_property(title)}"
         message = f"{f.a} and {f.b}: {f.status}, {describe(f, resolution(result, f))}{extra}"
-        annotations[level(result, f)].append((props, title, message))
+        annotations[level(result, f)].append(_Annotation(props, title, message))
     for w in result.warnings:
-        annotations["warning"].append(("title=meshcheck input", "meshcheck input", w))
+        annotations["warning"].append(_Annotation("title=meshcheck input", "meshcheck input", w))
 
     lines, overflow = [], []
     for name in LEVELS:
         entries = annotations[name]
         shown = entries if len(entries) <= LIMIT else entries[: LIMIT - 1]
-        for props, _, message in shown:
-            lines.append(f"::{name} {props}::{_data(message)}")
+        for a in shown:
+            lines.append(f"::{name} {a.properties}::{_data(a.message)}")
         rest = entries[len(shown) :]
         if rest:
             more = f"{plural(len(rest), 'more ' + name)} not annotated (GitHub shows {LIMIT})"
             lines.append(f"::{name} title=meshcheck::{more}: see the log of this step")
-            overflow += [f"meshcheck: {name}: {t}: {printable(m)}" for _, t, m in rest]
+            overflow += [f"meshcheck: {name}: {a.title}: {printable(a.message)}" for a in rest]
     if result.baseline is not None:
         for r in result.baseline.resolved(result.findings):
             overflow.append(
