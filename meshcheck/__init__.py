@@ -25,7 +25,7 @@ from .errors import ConfigError, ExitStatus, InputError, MeshcheckError, Meshche
 if TYPE_CHECKING:
     from .geometry import Contact, Status, intersects, query, signed_distance
     from .pipeline import check
-    from .results import CheckResult, Finding, Location, Part, Verdict
+    from .results import CheckResult, Finding, Location, PairVerdict, Part, Verdict
     from .settings import Settings
 
 _LAZY = {
@@ -38,6 +38,7 @@ _LAZY = {
     "CheckResult": ".results",
     "Finding": ".results",
     "Location": ".results",
+    "PairVerdict": ".results",
     "Part": ".results",
     "Verdict": ".results",
     "Settings": ".settings",
@@ -53,6 +54,7 @@ __all__ = [
     "Location",
     "MeshcheckError",
     "MeshcheckWarning",
+    "PairVerdict",
     "Part",
     "Settings",
     "Status",

@@ -24,6 +24,9 @@ from ..output import check_output, write_output
 PART_COLOR = (160, 160, 160, 90)
 CLASHING_PART_COLOR = (255, 140, 0, 200)
 CLASH_COLOR = (230, 0, 0, 255)
+#: Least extent of a drawn location box, model units: a flat contact region still draws as a
+#: (thin) box rather than a degenerate one viewers drop.
+MIN_BOX_EXTENT = 1e-9
 
 
 def _painted(mesh: trimesh.Trimesh, rgba: tuple[int, int, int, int]) -> trimesh.Trimesh:
@@ -49,7 +52,7 @@ def clash_mesh(finding: results.Finding) -> trimesh.Trimesh | None:
     loc = finding.location
     if loc is None:
         return None
-    extent = np.maximum(np.asarray(loc.upper) - np.asarray(loc.lower), 1e-9)
+    extent = np.maximum(np.asarray(loc.upper) - np.asarray(loc.lower), MIN_BOX_EXTENT)
     box = trimesh.creation.box(extents=extent)
     box.apply_translation(0.5 * (np.asarray(loc.lower) + np.asarray(loc.upper)))
     return box
