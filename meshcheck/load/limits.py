@@ -157,9 +157,27 @@ def check_placement(
                 f"placed coordinates reach {shown}, beyond the {limits.max_coordinate:g} "
                 "meshcheck can check exactly",
             )
-        linear = transform[:3, :3]
-        if not is_identity and np.linalg.det(linear / np.max(np.abs(linear), initial=0.0)) == 0.0:
-            raise InputError(name, "placement transform is singular (it flattens the part)")
+        if not is_identity and is_singular(transform[:3, :3]):
+            raise InputError(
+                name, "placement transform is singular (it flattens the part or collapses it)"
+            )
+
+
+#: A placement whose smallest singular value is below this fraction of its largest flattens the
+#: part: float64 keeps ~16 digits, and a real scale never spans 12 orders of magnitude.
+SINGULAR_RATIO = 1e-12
+
+
+def is_singular(linear: np.ndarray) -> bool:
+    """True when the (3, 3) linear part of a placement collapses a volume (all zeros included).
+
+    Examples
+    --------
+    >>> is_singular(np.zeros((3, 3))), is_singular(np.diag([1.0, 0.0, 1.0])), is_singular(np.eye(3))
+    (True, True, False)
+    """
+    singular = np.linalg.svd(np.asarray(linear, dtype=np.float64), compute_uv=False)
+    return not singular[-1] > SINGULAR_RATIO * singular[0]
 
 
 IDENTITY = np.eye(4)

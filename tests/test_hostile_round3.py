@@ -1,0 +1,158 @@
+"""Hostile inputs, round three (issue 26): no wrong PASS, no hang, no crash that reads as a bug.
+
+Every case that runs the command runs it in a subprocess with a wall-time cap (``timeout``) and
+an address-space cap (``RLIMIT_AS``), and checks the exit status and that stderr's last line is
+the one error line. Servers the tests start listen on 127.0.0.1 only and are stopped by process
+id (or closed, for a socket this process holds).
+"""
+
+from __future__ import annotations
+
+import base64
+import json
+import os
+import resource
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from meshes import box
+
+from meshcheck.errors import ExitStatus
+
+CORE = "http://schemas.microsoft.com/3dmanufacturing/core/2015/02"
+
+#: The address space a run may take (numpy, scipy, numba and trimesh map ~1.5 GiB of it at import).
+MEMORY_CAP = 3 << 30
+
+
+def _cap_memory(limit: int = MEMORY_CAP):
+    def apply():
+        resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+
+    return apply
+
+
+def run(args, *, cwd=None, seconds: float = 240, env=None, cache: bool = False, memory=MEMORY_CAP):
+    """``python -m meshcheck ARGS`` in a capped subprocess: (exit status, stdout, stderr lines)."""
+    extra = [] if cache else ["--no-cache"]
+    proc = subprocess.run(
+        [sys.executable, "-m", "meshcheck", *map(str, args), *extra],
+        capture_output=True,
+        timeout=seconds,
+        cwd=cwd,
+        env={**os.environ, **(env or {})},
+        preexec_fn=_cap_memory(memory),
+        check=False,
+    )
+    lines = proc.stderr.decode(errors="replace").splitlines()
+    assert not any("Traceback" in line for line in lines), lines
+    return proc.returncode, proc.stdout.decode(errors="replace"), lines
+
+
+def mesh_xml(mesh) -> str:
+    coords = mesh.vertices.tolist()
+    verts = "".join(f'<vertex x="{x!r}" y="{y!r}" z="{z!r}"/>' for x, y, z in coords)
+    tris = "".join(f'<triangle v1="{a}" v2="{b}" v3="{c}"/>' for a, b, c in mesh.faces)
+    return f"<mesh><vertices>{verts}</vertices><triangles>{tris}</triangles></mesh>"
+
+
+def write_3mf(path, build: str, mesh=None) -> str:
+    import zipfile
+
+    objects = f'<object id="1" name="cube">{mesh_xml(mesh or box())}</object>'
+    model = f'<model xmlns="{CORE}" unit="millimeter"><resources>{objects}</resources>'
+    model += f"<build>{build}</build></model>"
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as z:
+        z.writestr("3D/3dmodel.model", model)
+    return str(path)
+
+
+def gltf_doc(nodes: list[dict]) -> dict:
+    """A glTF holding one unit cube (float32 positions, metres), placed by ``nodes``."""
+    cube = box()
+    v = np.asarray(cube.vertices, dtype=np.float32)
+    f = np.asarray(cube.faces, dtype=np.uint32)
+    data = v.tobytes() + f.tobytes()
+    return {
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": list(range(len(nodes)))}],
+        "nodes": nodes,
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+        "buffers": [{
+            "byteLength": len(data),
+            "uri": "data:application/octet-stream;base64," + base64.b64encode(data).decode(),
+        }],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": v.nbytes},
+            {"buffer": 0, "byteOffset": v.nbytes, "byteLength": f.nbytes},
+        ],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": len(v), "type": "VEC3",
+             "min": v.min(axis=0).tolist(), "max": v.max(axis=0).tolist()},
+            {"bufferView": 1, "componentType": 5125, "count": f.size, "type": "SCALAR"},
+        ],
+    }  # fmt: skip
+
+
+def write_gltf(path, nodes: list[dict]) -> str:
+    path.write_text(json.dumps(gltf_doc(nodes)))
+    return str(path)
+
+
+def one_error(lines, status, code, *needles) -> str:
+    """Assert exit ``code`` and that stderr's last line is the error holding ``needles``."""
+    assert status == code, lines
+    assert lines and lines[-1].startswith("error: "), lines
+    for needle in needles:
+        assert needle in lines[-1], lines
+    return lines[-1]
+
+
+# ------------------------------------------------------------------------------------------
+# Wrong PASS 1: a singular or non-finite placement is exit 3, naming the file and the node
+
+
+def test_3mf_item_scaled_to_zero_is_refused(tmp_path):
+    # 0.2: the collapsed cube dropped out of the check, exit 0
+    build = '<item objectid="1"/><item objectid="1" transform="0 0 0 0 0 0 0 0 0 0.5 0.2 0.1"/>'
+    path = write_3mf(tmp_path / "flat.3mf", build)
+    status, _, lines = run([path])
+    one_error(lines, status, ExitStatus.INPUT, f"{path}#cube", "singular")
+
+
+@pytest.mark.parametrize(
+    "node",
+    [
+        {"scale": [0.0, 0.0, 0.0], "translation": [0.5, 0.2, 0.1]},
+        {"scale": [1.0, 0.0, 1.0]},
+        {"matrix": [0.0] * 12 + [0.5, 0.2, 0.1, 1.0]},
+    ],
+    ids=["zero-scale", "flat-scale", "zero-matrix"],
+)
+def test_gltf_singular_node_is_refused(tmp_path, node):
+    path = write_gltf(tmp_path / "flat.gltf", [{"mesh": 0, "name": "base"}, {"mesh": 0, **node}])
+    status, _, lines = run([path])
+    one_error(lines, status, ExitStatus.INPUT, f"{path}#1", "singular")
+
+
+def test_singular_placement_is_refused_in_the_library(tmp_path):
+    from meshcheck.errors import InputError
+    from meshcheck.load import load_bodies
+
+    item = '<item objectid="1" transform="0 0 0 0 0 0 0 0 0 1 1 1"/>'
+    path = write_3mf(tmp_path / "flat.3mf", item)
+    with pytest.raises(InputError) as info:
+        load_bodies([path])
+    assert info.value.path == path
+    assert "singular" in info.value.reason
+
+
+def test_gltf_zero_quaternion_is_refused(tmp_path):
+    # 0.2: trimesh read a zero rotation as no rotation, placing the part where nobody put it
+    nodes = [{"mesh": 0, "name": "base"}, {"mesh": 0, "rotation": [0.0, 0.0, 0.0, 0.0]}]
+    path = write_gltf(tmp_path / "q.gltf", nodes)
+    status, _, lines = run([path])
+    one_error(lines, status, ExitStatus.INPUT, path, "node 1", "not a unit quaternion")
