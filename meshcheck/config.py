@@ -39,7 +39,8 @@ def matches(pattern: str, names: str | Sequence[str]) -> bool:
 @dataclass(frozen=True)
 class Approval:
     """An approved finding, with the reason: by part-name patterns ``a`` and ``b`` (either order),
-    or by the finding's stable ``id`` (which lapses when either mesh changes)."""
+    or by the finding's stable ``id`` (which lapses when either part's mesh or placement
+    changes)."""
 
     a: str | None
     b: str | None
@@ -126,7 +127,7 @@ class Config:
         Finding statuses that fail the run, as written (``settings.resolve_fail_on`` reads them).
     approvals : tuple of Approval
         The ``[[ignore]]`` entries, in file order: by part-name patterns, or by stable ID (such an
-        approval lapses when either mesh changes, since the ID hashes both meshes' content).
+        approval lapses when either part changes or moves: the ID hashes meshes and placements).
     groups : Groups or None
         Check only pairs across two groups of parts.
     units : str or None

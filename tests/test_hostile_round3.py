@@ -156,3 +156,45 @@ def test_gltf_zero_quaternion_is_refused(tmp_path):
     path = write_gltf(tmp_path / "q.gltf", nodes)
     status, _, lines = run([path])
     one_error(lines, status, ExitStatus.INPUT, path, "node 1", "not a unit quaternion")
+
+
+# ------------------------------------------------------------------------------------------
+# Wrong PASS 2: a finding's ID changes when either part moves
+
+
+def _clash(tmp_path, name: str, overlap: float) -> str:
+    """A glTF of two unit cubes (metres), the second moved so they overlap by ``overlap``."""
+    nodes = [
+        {"mesh": 0, "name": "base"},
+        {"mesh": 0, "name": "pin", "translation": [1 - overlap, 0, 0]},
+    ]
+    folder = tmp_path / name
+    folder.mkdir()
+    return write_gltf(folder / "asm.gltf", nodes)
+
+
+def test_moving_a_node_changes_the_finding_id_and_lapses_approval_and_baseline(tmp_path):
+    # 0.2: a 0.01 m clash moved to 0.9 m kept its ID: approved by ID and "active" in the baseline
+    small, big = _clash(tmp_path, "small", 0.01), _clash(tmp_path, "big", 0.9)
+    status, out, lines = run(["asm.gltf", "--format", "json"], cwd=os.path.dirname(small))
+    assert status == ExitStatus.FAILED, lines
+    (finding,) = json.loads(out)["results"]
+    baseline = tmp_path / "baseline.json"
+    baseline.write_text(out)
+    config = tmp_path / "meshcheck.toml"
+    config.write_text(f'[[ignore]]\nid = "{finding["id"]}"\nreason = "reviewed: 0.01 m"\n')
+    cwd = os.path.dirname(small)
+    status, _, lines = run(["asm.gltf", "--config", config], cwd=cwd)
+    assert status == ExitStatus.OK, lines  # the approval holds while nothing moved
+
+    cwd = os.path.dirname(big)
+    status, out, lines = run(["asm.gltf", "--format", "json"], cwd=cwd)
+    (moved,) = json.loads(out)["results"]
+    assert (moved["a"], moved["b"]) == (finding["a"], finding["b"])
+    assert moved["id"] != finding["id"]
+    status, _, lines = run(["asm.gltf", "--config", config], cwd=cwd)
+    assert status == ExitStatus.FAILED, lines  # the approval lapsed
+    status, _, lines = run(
+        ["asm.gltf", "--baseline", baseline, "--fail-on", "new", "--no-config"], cwd=cwd
+    )
+    assert status == ExitStatus.FAILED, lines  # new against the baseline

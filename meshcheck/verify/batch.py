@@ -94,18 +94,21 @@ def verify_pairs(
     for (i, j), tol, verdict in zip(pairs, tolerance, verdicts, strict=True):
         if verdict.status == Verdict.CLEAR:
             continue
-        a, b = bodies[i], bodies[j]
-        (name_a, digest_a), (name_b, digest_b) = sorted([(a.name, a.digest), (b.name, b.digest)])
+        a, b = sorted((bodies[i], bodies[j]), key=lambda body: (body.name, body.digest))
         findings.append(
             Finding(
-                a=name_a,
-                b=name_b,
+                a=a.name,
+                b=b.name,
                 status=verdict.status,
                 distance=verdict.distance,
                 depth=verdict.depth,
                 volume=verdict.volume,
                 location=verdict.location,
-                id=finding_id(name_a, digest_a, name_b, digest_b),
+                id=finding_id(
+                    *(a.name, a.digest, b.name, b.digest),
+                    placement_a=a.transform,
+                    placement_b=b.transform,
+                ),
                 is_surface_only=verdict.is_surface_only,
                 tolerance=float(tol),
             )
