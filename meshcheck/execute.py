@@ -375,6 +375,7 @@ class DaskExecutor(Executor):
             raise ExecutionError(
                 address, 'running on a cluster needs Dask: pip install "meshcheck[dask]"'
             ) from None
+        _identify(address, connect_timeout)
         try:
             self.client = Client(address, timeout=connect_timeout, set_as_default=False)
         except (OSError, TimeoutError) as exc:
@@ -546,6 +547,40 @@ def _probe(address: str, timeout: float) -> None:
         raise ExecutionError(
             address, f"cannot reach the Dask scheduler ({exc.strerror or exc})"
         ) from None
+
+
+def _identify(address: str, timeout: float) -> None:
+    """Fail within ``timeout`` seconds, with one line, unless a Dask scheduler answers at
+    ``address``: something that accepts and never answers, sends garbage or announces a frame of
+    2^62 bytes is refused here, before a ``Client`` (whose waits are not all bounded) is made."""
+    import asyncio
+
+    async def ask() -> object:
+        from distributed.comm import connect
+
+        comm = await connect(address, timeout=timeout)
+        try:
+            await comm.write({"op": "identity", "reply": True})
+            return await comm.read()
+        finally:
+            comm.abort()
+
+    try:
+        reply = asyncio.run(asyncio.wait_for(ask(), timeout))
+    except TimeoutError:
+        raise ExecutionError(
+            address, f"no answer from the Dask scheduler within {timeout:g} s"
+        ) from None
+    except MemoryError:
+        raise ExecutionError(
+            address, "not a Dask scheduler (it announced a huge message)"
+        ) from None
+    except Exception as exc:  # garbage on the wire surfaces as any exception
+        raise ExecutionError(
+            address, f"not a Dask scheduler ({type(exc).__name__}: {str(exc)[:120]})"
+        ) from None
+    if not isinstance(reply, dict) or reply.get("type") != "Scheduler":
+        raise ExecutionError(address, "not a Dask scheduler (its answer is not a scheduler's)")
 
 
 def executor_for(*, jobs: int | None = None, scheduler: str | None = None) -> Executor:

@@ -14,6 +14,7 @@ import os
 import resource
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -198,3 +199,72 @@ def test_moving_a_node_changes_the_finding_id_and_lapses_approval_and_baseline(t
         ["asm.gltf", "--baseline", baseline, "--fail-on", "new", "--no-config"], cwd=cwd
     )
     assert status == ExitStatus.FAILED, lines  # new against the baseline
+
+
+# ------------------------------------------------------------------------------------------
+# The scheduler: addresses checked up front, every wait on it bounded
+
+PLATE = os.path.join(os.path.dirname(__file__), "..", "sample_meshes", "plate.stl")
+
+
+@pytest.mark.parametrize(
+    "address", ["foo://bar:1", "inproc://x", "ucx://10.0.0.5:8786", "tcp://[::1", "tcp://h:99999"]
+)
+def test_scheduler_address_is_checked_before_any_work(address):
+    # 0.2: exit 4 after ~23 s with Client.__del__ tracebacks
+    start = time.monotonic()
+    status, _, lines = run(["--no-config", "--scheduler", address, PLATE], seconds=120)
+    one_error(lines, status, ExitStatus.USAGE, "scheduler")
+    assert len(lines) == 1, lines
+    assert time.monotonic() - start < 60  # interpreter start-up on a loaded machine
+
+
+class Listener:
+    """A TCP server on 127.0.0.1 in a child process, stopped by its process id.
+
+    ``mode`` ``silent`` accepts and never answers; ``garbage`` sends bytes that are no Dask
+    message; ``huge`` sends a frame header announcing 2^62 bytes.
+    """
+
+    CODE = """
+import socket, sys, time
+mode = sys.argv[1]
+server = socket.socket()
+server.bind(("127.0.0.1", 0))
+server.listen(16)
+print(server.getsockname()[1], flush=True)
+held = []
+while True:
+    conn, _ = server.accept()
+    held.append(conn)
+    if mode == "garbage":
+        conn.sendall(b"HTTP/1.0 200 OK\\r\\n\\r\\n" + bytes(range(256)) * 64)
+    elif mode == "huge":
+        conn.sendall((1).to_bytes(8, "little") + (1 << 62).to_bytes(8, "little"))
+"""
+
+    def __init__(self, mode: str):
+        self.process = subprocess.Popen(
+            [sys.executable, "-c", self.CODE, mode], stdout=subprocess.PIPE, text=True
+        )
+        self.port = int(self.process.stdout.readline())
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        os.kill(self.process.pid, 9)
+        self.process.wait(timeout=30)
+
+
+@pytest.mark.parametrize("mode", ["silent", "garbage", "huge"])
+def test_scheduler_that_never_answers_is_exit_3_within_seconds(mode):
+    pytest.importorskip("distributed")
+    with Listener(mode) as server:
+        address = f"tcp://127.0.0.1:{server.port}"
+        start = time.monotonic()
+        status, _, lines = run(["--no-config", "--scheduler", address, PLATE], seconds=150)
+        seconds = time.monotonic() - start
+    one_error(lines, status, ExitStatus.INPUT, address, "scheduler")
+    assert not any("Exception ignored" in line for line in lines), lines
+    assert seconds < 60, seconds  # 0.2: still running after 300 s
