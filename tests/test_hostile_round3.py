@@ -268,3 +268,37 @@ def test_scheduler_that_never_answers_is_exit_3_within_seconds(mode):
     one_error(lines, status, ExitStatus.INPUT, address, "scheduler")
     assert not any("Exception ignored" in line for line in lines), lines
     assert seconds < 60, seconds  # 0.2: still running after 300 s
+
+
+# ------------------------------------------------------------------------------------------
+# The configuration file: read without blocking, bounded in size and nesting
+
+
+def _config_cases(folder):
+    fifo = folder / "fifo.toml"
+    os.mkfifo(fifo)
+    deep = folder / "deep.toml"
+    deep.write_text("x = " + "[" * 50_000 + "]" * 50_000 + "\n")
+    sparse = folder / "sparse.toml"
+    with open(sparse, "wb") as fh:
+        fh.truncate(3 << 30)  # 3 GB of holes: no disk used
+    return {"fifo": fifo, "/dev/zero": "/dev/zero", "nested": deep, "sparse": sparse}
+
+
+@pytest.mark.parametrize("case", ["fifo", "/dev/zero", "nested", "sparse"])
+def test_config_that_is_a_fifo_a_device_deep_or_huge_is_one_line(tmp_path, case):
+    # 0.2: a FIFO hung, /dev/zero ate 1.8 GB, 50,000-deep TOML was a RecursionError (exit 4),
+    # a 3 GB sparse file a MemoryError
+    config = _config_cases(tmp_path)[case]
+    start = time.monotonic()
+    status, _, lines = run(["--config", config, PLATE], seconds=120, memory=2 << 30)
+    one_error(lines, status, ExitStatus.USAGE, str(config))
+    assert len(lines) == 1, lines
+    assert time.monotonic() - start < 60
+
+
+def test_foreign_pyproject_nested_deep_is_skipped_by_discovery(tmp_path):
+    # 0.2: a deeply nested pyproject.toml found by discovery was a RecursionError (exit 4)
+    (tmp_path / "pyproject.toml").write_text("x = " + "[" * 50_000 + "]" * 50_000 + "\n")
+    status, _, lines = run([os.path.abspath(PLATE)], cwd=tmp_path, seconds=120)
+    assert status == ExitStatus.OK, lines
