@@ -302,3 +302,95 @@ def test_foreign_pyproject_nested_deep_is_skipped_by_discovery(tmp_path):
     (tmp_path / "pyproject.toml").write_text("x = " + "[" * 50_000 + "]" * 50_000 + "\n")
     status, _, lines = run([os.path.abspath(PLATE)], cwd=tmp_path, seconds=120)
     assert status == ExitStatus.OK, lines
+
+
+# ------------------------------------------------------------------------------------------
+# Wrong PASS 3: an output that is also an input is refused, by path and by inode
+
+
+def _clash_stl(folder):
+    """Two unit cubes overlapping by 0.5 (an interference), as binary STL files."""
+    a, b = folder / "a.stl", folder / "b.stl"
+    box().export(str(a))
+    box(at=(0.5, 0, 0)).export(str(b))
+    return a, b
+
+
+@pytest.mark.parametrize(
+    "case",
+    ["baseline-path", "baseline-hardlink", "config", "config-found", "mesh-in-dir", "mesh-link"],
+)
+def test_output_that_is_an_input_is_refused(tmp_path, case):
+    # 0.2: --baseline out/b.json -o out/b.json wrote the failing run's finding into the baseline,
+    # and the re-run of the same job was green
+    a, b = _clash_stl(tmp_path)
+    baseline = tmp_path / "b.json"
+    status, out, lines = run([a, b, "--format", "json", "--no-config"])
+    baseline.write_text(json.dumps({**json.loads(out), "results": []}))
+    config = tmp_path / "meshcheck.toml"
+    config.write_text("tolerance = 0.001\n")
+    args = {
+        "baseline-path": ["--no-config", "--baseline", baseline, "-o", baseline],
+        "baseline-hardlink": ["--no-config", "--baseline", baseline, "-o", tmp_path / "hard.json"],
+        "config": ["--config", config, "--report", f"json:{config}"],
+        "config-found": ["--report", f"json:{config}"],
+        "mesh-in-dir": ["--no-config", "-o", tmp_path / "b.stl"],
+        "mesh-link": ["--no-config", "-o", tmp_path / "hard.stl"],
+    }[case]
+    os.link(baseline, tmp_path / "hard.json")
+    os.link(b, tmp_path / "hard.stl")
+    before = baseline.read_bytes(), config.read_bytes(), b.read_bytes()
+    files = [tmp_path] if case == "mesh-in-dir" else [a, b]
+    if case == "mesh-in-dir":
+        os.unlink(tmp_path / "hard.stl")
+    status, _, lines = run([*files, *args, "--fail-on", "new"], cwd=tmp_path)
+    one_error(lines, status, ExitStatus.USAGE, "is an input")
+    assert (baseline.read_bytes(), config.read_bytes(), b.read_bytes()) == before
+
+
+# ------------------------------------------------------------------------------------------
+# stderr: progress lines carry a prefix, an error is the last line, no PASS after it
+
+SLOW_START = """
+import importlib.abc, sys, time
+
+class Slow(importlib.abc.MetaPathFinder):
+    def find_spec(self, name, path, target=None):
+        if name == "meshcheck.pipeline":
+            time.sleep(3.0)  # longer than progress.QUIET_SECONDS: the start gets its lines
+        return None
+
+sys.meta_path.insert(0, Slow())
+"""
+
+
+@pytest.fixture
+def slow_start(tmp_path):
+    """Environment whose interpreter takes 3 s to import the pipeline (a busy machine)."""
+    folder = tmp_path / "slow"
+    folder.mkdir()
+    (folder / "sitecustomize.py").write_text(SLOW_START)
+    return {"PYTHONPATH": f"{folder}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
+
+
+def test_under_a_slow_start_progress_is_prefixed_and_the_error_is_last(tmp_path, slow_start):
+    a, b = _clash_stl(tmp_path)
+    status, _, lines = run([a, b, "--no-config", "-o", "/dev/full"], env=slow_start)
+    assert any(line.startswith("meshcheck: starting") for line in lines), lines  # it was slow
+    one_error(lines, status, ExitStatus.OUTPUT, "/dev/full", "cannot write the report")
+    assert all(line.startswith(("meshcheck: ", "error: ")) for line in lines), lines
+
+
+def test_no_pass_line_follows_an_output_error(tmp_path):
+    # 0.2: "error: out/full: cannot write the report" then "PASS: ...; report written to ..."
+    a, b = box(), box(at=(3, 0, 0))
+    paths = [tmp_path / "a.stl", tmp_path / "b.stl"]
+    for mesh, path in zip((a, b), paths, strict=True):
+        mesh.export(str(path))
+    report = tmp_path / "r.json"
+    status, _, lines = run(
+        [*paths, "--no-config", "--format", "json", "-o", report, "--report", "json:/dev/full"]
+    )
+    one_error(lines, status, ExitStatus.OUTPUT, "/dev/full")
+    assert not any("PASS" in line for line in lines), lines
+    assert json.loads(report.read_text())["summary"]["passed"] is True  # the other one is out
