@@ -157,6 +157,7 @@ def check_bodies(
     with Progress("comparing hulls", 0):
         hulls = pack_convex(_world_hulls(bodies, geometry), is_hull=True)
         diagonal, magnitude = part_sizes(hulls.lower, hulls.upper)
+        magnitude = np.where([b.is_float32 for b in bodies], magnitude, 0.0)  # the float32 floor
         deflection = max((b.deflection for b in bodies), default=0.0)
         pairs = select_pairs(hulls, settings, names, diagonal, magnitude, deflection)
         tolerance = _tolerances(settings, bodies, diagonal, magnitude, pairs)

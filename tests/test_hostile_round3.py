@@ -394,3 +394,58 @@ def test_no_pass_line_follows_an_output_error(tmp_path):
     one_error(lines, status, ExitStatus.OUTPUT, "/dev/full")
     assert not any("PASS" in line for line in lines), lines
     assert json.loads(report.read_text())["summary"]["passed"] is True  # the other one is out
+
+
+# ------------------------------------------------------------------------------------------
+# Wrong PASS 4: the float32 floor applies only to coordinates that went through float32
+
+
+def _ascii_stl(path, mesh) -> str:
+    """An ASCII STL in full float64 (repr of every coordinate)."""
+    lines = ["solid part"]
+    for tri in mesh.triangles.tolist():
+        lines += ["facet normal 0 0 0", "outer loop"]
+        lines += [f"vertex {x!r} {y!r} {z!r}" for x, y, z in tri]
+        lines += ["endloop", "endfacet"]
+    path.write_text("\n".join([*lines, "endsolid part", ""]))
+    return str(path)
+
+
+def test_part_buried_far_from_the_origin_in_ascii_stl_is_interference(tmp_path):
+    # 0.2: a 0.01 mm part inside a 1000 mm part at 1e6 mm, both ASCII STL in float64: the float32
+    # floor (~0.95 mm there) made the pair touching, exit 0
+    at = (1e6 + 0.123456789, 2.5, 0.0)
+    big = _ascii_stl(tmp_path / "big.stl", box((1000.0, 1000.0, 1000.0), at))
+    small = _ascii_stl(tmp_path / "small.stl", box((0.01, 0.01, 0.01), at))
+    status, out, lines = run([big, small, "--no-config", "--format", "json"])
+    assert status == ExitStatus.FAILED, lines
+    (finding,) = json.loads(out)["results"]
+    assert finding["status"] == "interference"
+    assert finding["tolerance"] < 1e-6
+
+
+@pytest.mark.parametrize(
+    ("name", "expected"),
+    [("binary.stl", True), ("ascii.stl", False), ("part.obj", False), ("part.glb", True),
+     ("float.ply", True), ("double.ply", False), ("part.3mf", False)],
+)  # fmt: skip
+def test_each_reader_says_whether_its_coordinates_went_through_float32(tmp_path, name, expected):
+    from meshcheck.load import load_bodies
+
+    mesh, path = box(), tmp_path / name
+    if name == "ascii.stl":
+        _ascii_stl(path, mesh)
+    elif name == "part.3mf":
+        write_3mf(path, '<item objectid="1"/>')
+    elif name.endswith(".ply"):
+        kind = "float" if name == "float.ply" else "double"
+        head = f"ply\nformat ascii 1.0\nelement vertex {len(mesh.vertices)}\n"
+        head += "".join(f"property {kind} {c}\n" for c in "xyz")
+        head += f"element face {len(mesh.faces)}\nproperty list uchar int vertex_indices\n"
+        rows = [" ".join(map(repr, v)) for v in mesh.vertices.tolist()]
+        rows += ["3 " + " ".join(map(str, f)) for f in mesh.faces.tolist()]
+        path.write_text(head + "end_header\n" + "\n".join(rows) + "\n")
+    else:
+        mesh.export(str(path))
+    (body,) = load_bodies([str(path)])
+    assert body.is_float32 is expected

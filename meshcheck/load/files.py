@@ -34,7 +34,7 @@ from ..mesh import as_mesh, clean_arrays, warn
 from ..verify.shells import overlapping_shells
 from .gltf import read_gltf
 from .limits import Budget, Limits, read_file
-from .scene import read_scene
+from .scene import read_scene, stores_float32
 from .threemf import read_3mf
 
 STEP_EXTENSIONS = (".step", ".stp")
@@ -85,6 +85,8 @@ class FileRead:
     overlaps : list of (int, int) or None
         Per geometry, two of its closed shells that overlap (``mesh.overlapping_shells``), or
         None; the whole list is None when not asked for.
+    is_float32 : bool
+        Whether the reader got the coordinates through float32 (``Body.is_float32``).
     """
 
     items: list[tuple[str, int, np.ndarray]]
@@ -92,6 +94,7 @@ class FileRead:
     declared: str | None
     deflection: float
     overlaps: list[tuple[int, int] | None] | None = None
+    is_float32: bool = True
 
     @property
     def triangles(self) -> int:
@@ -145,6 +148,9 @@ def _read(path: str, budget: Budget, step: StepOptions, *, overlaps: bool) -> Fi
         )
     data = read_file(path, budget.limits)
     declared, deflection = None, 0.0
+    # Which coordinates went through float32, per reader: STEP through cascadio's GLB, glTF
+    # (POSITION accessors are float32), binary STL and float PLY; 3MF and text meshes are double.
+    is_float32 = ext in (*STEP_EXTENSIONS, ".glb", ".gltf") or stores_float32(ext, data)
     with np.errstate(all="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # refused below with the real reason
         # A reader takes (path, bytes, budget) and returns (node, mesh, placement) items and the
@@ -179,7 +185,7 @@ def _read(path: str, budget: Budget, step: StepOptions, *, overlaps: bool) -> Fi
         if not geometries[g][2]:
             warn(name, "mesh is not closed (not watertight); its findings rest on surfaces only")
         out.append((node, g, np.asarray(transform, dtype=np.float64)))
-    return FileRead(out, geometries, declared, float(deflection), found)
+    return FileRead(out, geometries, declared, float(deflection), found, is_float32)
 
 
 def _overlap(v: np.ndarray, f: np.ndarray, closed: bool) -> tuple[int, int] | None:

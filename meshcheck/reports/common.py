@@ -63,7 +63,7 @@ def exit_status(result: CheckResult) -> ExitStatus:
 
 _TOLERANCE_RULE = (
     "per pair: max(1e-5 x the smaller part's bounding-box diagonal, "
-    "8 float32 ulps of the pair's largest coordinate)"
+    "8 x 2^-23 x the largest coordinate of its parts stored in float32)"
 )
 
 
