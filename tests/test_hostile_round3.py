@@ -449,3 +449,70 @@ def test_each_reader_says_whether_its_coordinates_went_through_float32(tmp_path,
         mesh.export(str(path))
     (body,) = load_bodies([str(path)])
     assert body.is_float32 is expected
+
+
+# ------------------------------------------------------------------------------------------
+# The cache: entries that are FIFOs are misses; folders that are symbolic links are not followed
+
+
+def _cached_run(tmp_path, files, cache):
+    return run([*files, "--no-config", "--cache-dir", cache, "-j", "1"], cache=True, seconds=120)
+
+
+def _entries(cache):
+    return [
+        os.path.join(folder, name)
+        for folder, _, names in os.walk(cache)
+        for name in names
+        if not name.startswith(".") and name.endswith((".bin", ".json", ".npz"))
+    ]
+
+
+def test_cache_entries_that_are_fifos_are_misses(tmp_path):
+    # 0.2: a FIFO in place of a decomposition, pair or tessellation entry hung every run
+    step_writer = pytest.importorskip("step_writer")
+    files = list(_clash_stl(tmp_path))
+    step = tmp_path / "pair.step"
+    products = {
+        "a": step_writer.box((0, 0, 0), (1, 1, 1)),
+        "b": step_writer.box((0, 0, 0), (1, 1, 1)),
+    }
+    moved = np.eye(4)
+    moved[0, 3] = 0.5
+    step_writer.write_step(str(step), products, [("a", np.eye(4)), ("b", moved)])
+    files.append(step)
+    cache = tmp_path / "cache"
+    status, _, lines = _cached_run(tmp_path, files, cache)
+    assert status == ExitStatus.FAILED, lines
+    entries = _entries(cache)
+    kinds = {os.path.basename(os.path.dirname(os.path.dirname(e))).split("-v")[0] for e in entries}
+    assert {"decompositions", "pairs", "tessellations"} <= kinds, entries
+    for entry in entries:
+        os.unlink(entry)
+        os.mkfifo(entry)
+    status, _, lines = _cached_run(tmp_path, files, cache)  # 0.2: TimeoutExpired
+    assert status == ExitStatus.FAILED, lines
+
+
+def test_cache_subfolder_symlinks_are_never_followed(tmp_path):
+    # 0.2: decompositions-vN/XX -> elsewhere: entries were written outside the cache, and the
+    # stale-file clean-up deleted .tmp-* files there
+    files = list(_clash_stl(tmp_path))
+    cache = tmp_path / "cache"
+    status, _, lines = _cached_run(tmp_path, files, cache)
+    assert status == ExitStatus.FAILED, lines
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    bait = elsewhere / ".tmp-precious"
+    bait.write_text("not the cache's")
+    os.utime(bait, (0, 0))  # older than any stale cutoff
+    for entry in _entries(cache):
+        folder = os.path.dirname(entry)
+        if not os.path.islink(folder):
+            for name in os.listdir(folder):
+                os.unlink(os.path.join(folder, name))
+            os.rmdir(folder)
+            os.symlink(elsewhere, folder)
+    status, _, lines = _cached_run(tmp_path, files, cache)
+    assert status == ExitStatus.FAILED, lines
+    assert os.listdir(elsewhere) == [".tmp-precious"], os.listdir(elsewhere)
