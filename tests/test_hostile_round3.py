@@ -516,3 +516,27 @@ def test_cache_subfolder_symlinks_are_never_followed(tmp_path):
     status, _, lines = _cached_run(tmp_path, files, cache)
     assert status == ExitStatus.FAILED, lines
     assert os.listdir(elsewhere) == [".tmp-precious"], os.listdir(elsewhere)
+
+
+# ------------------------------------------------------------------------------------------
+# Candidate pairs are budgeted like triangles
+
+
+def test_2000_coincident_cubes_are_refused_with_the_pair_count(tmp_path):
+    # 0.2: 2 million candidate pairs, 5,872 done after 60 s at 1.3 GB
+    items = '<item objectid="1"/>' * 2000
+    path = write_3mf(tmp_path / "stack.3mf", items)
+    start = time.monotonic()
+    status, _, lines = run([path, "-j", "1"], seconds=180, memory=3 << 30)
+    one_error(lines, status, ExitStatus.INPUT, "1_999_000 candidate part pairs", "2000 parts")
+    assert time.monotonic() - start < 120
+
+
+def test_2000_coincident_step_instances_are_refused_not_a_memory_error(tmp_path):
+    # 0.2: MemoryError in surfaces_near, exit 4
+    step_writer = pytest.importorskip("step_writer")
+    path = tmp_path / "stack.step"
+    products = {"cube": step_writer.box((0, 0, 0), (1, 1, 1))}
+    step_writer.write_step(str(path), products, [("cube", np.eye(4))] * 2000)
+    status, _, lines = run([path, "-j", "1"], seconds=300, memory=3 << 30)
+    one_error(lines, status, ExitStatus.INPUT, "1_999_000 candidate part pairs")

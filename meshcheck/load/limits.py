@@ -77,6 +77,29 @@ class Budget:
         self.parts += parts
 
 
+#: Candidate part pairs (bounding boxes that meet) a run verifies at most. A dense real assembly
+#: of 10,000 parts has a few tens of thousands; 2,000 copies of one part at one spot have 2
+#: million (hours of verification, gigabytes of memory). More is refused with exit 3.
+MAX_CANDIDATE_PAIRS = 500_000
+
+
+def check_candidate_pairs(count: int, parts: int) -> None:
+    """Refuse a run whose broad phase leaves more than ``MAX_CANDIDATE_PAIRS`` part pairs.
+
+    Raises
+    ------
+    InputError
+        Saying how many pairs among how many parts, and the likely cause.
+    """
+    if count > MAX_CANDIDATE_PAIRS:
+        raise InputError(
+            None,
+            f"{_n(count)} candidate part pairs (bounding boxes that meet) among {_n(parts)} parts "
+            f"exceed the limit of {_n(MAX_CANDIDATE_PAIRS)} per run: many copies of a part at "
+            "one place? (check fewer parts at once, or split the assembly with [groups])",
+        )
+
+
 def _n(count: int) -> str:
     return f"{count:,}".replace(",", "_") if count >= 100_000 else str(count)
 
