@@ -33,8 +33,8 @@ from ..geometry import topology
 from ..mesh import as_mesh, clean_arrays, warn
 from ..verify.shells import overlapping_shells
 from .gltf import read_gltf
-from .limits import Budget, Limits, read_file
-from .scene import read_scene, stores_float32
+from .limits import MAX_TEXT_LINE, Budget, Limits, read_file
+from .scene import STL_HEADER, STL_RECORD, read_scene, stores_float32
 from .threemf import read_3mf
 
 STEP_EXTENSIONS = (".step", ".stp")
@@ -146,7 +146,12 @@ def _read(path: str, budget: Budget, step: StepOptions, *, overlaps: bool) -> Fi
             f"unsupported file type {ext or '(no extension)'}; "
             f"supported: {', '.join(SUPPORTED_EXTENSIONS)}",
         )
-    data = read_file(path, budget.limits)
+    data = read_file(
+        path,
+        budget.limits,
+        check=_stl_head_check(path, budget) if ext == ".stl" else None,
+        max_line=MAX_TEXT_LINE if ext in (".obj", ".off") else None,
+    )
     declared, deflection = None, 0.0
     # Which coordinates went through float32, per reader: STEP through cascadio's GLB, glTF
     # (POSITION accessors are float32), binary STL and float PLY; 3MF and text meshes are double.
@@ -186,6 +191,18 @@ def _read(path: str, budget: Budget, step: StepOptions, *, overlaps: bool) -> Fi
             warn(name, "mesh is not closed (not watertight); its findings rest on surfaces only")
         out.append((node, g, np.asarray(transform, dtype=np.float64)))
     return FileRead(out, geometries, declared, float(deflection), found, is_float32)
+
+
+def _stl_head_check(path: str, budget: Budget):
+    """A check of a binary STL's declared triangles against the budget, before it is read."""
+
+    def check(head: bytes, size: int) -> None:
+        if len(head) >= STL_HEADER:
+            count = int.from_bytes(head[80:84], "little")
+            if size == STL_HEADER + STL_RECORD * count:
+                budget.check_triangles(path, count)
+
+    return check
 
 
 def _overlap(v: np.ndarray, f: np.ndarray, closed: bool) -> tuple[int, int] | None:
