@@ -588,5 +588,27 @@ def executor_for(*, jobs: int | None = None, scheduler: str | None = None) -> Ex
     (``jobs``, default all cores), else this process alone for ``jobs=1``."""
     if scheduler:
         return DaskExecutor(scheduler)
-    jobs = jobs or default_jobs()
+    jobs = min(jobs or default_jobs(), max_local_jobs())
     return Executor() if jobs <= 1 else LocalPool(jobs)
+
+
+#: Memory a local worker is counted to need (its interpreter, numpy, trimesh, CoACD and one
+#: task's meshes): ``-j`` never starts more workers than the available memory holds of these.
+WORKER_BYTES = 256 << 20
+
+
+def max_local_jobs() -> int:
+    """Local workers a run may start: no more than the cores this process may run on, nor than
+    the available memory holds ``WORKER_BYTES`` (``-j 10000`` starts what the machine can run).
+    """
+    available = None
+    try:
+        with open("/proc/meminfo", "rb") as fh:
+            for line in fh:
+                if line.startswith(b"MemAvailable:"):
+                    available = int(line.split()[1]) * 1024
+                    break
+    except (OSError, ValueError, IndexError):
+        pass
+    by_memory = default_jobs() if available is None else max(1, available // WORKER_BYTES)
+    return max(1, min(default_jobs(), by_memory))

@@ -540,3 +540,78 @@ def test_2000_coincident_step_instances_are_refused_not_a_memory_error(tmp_path)
     step_writer.write_step(str(path), products, [("cube", np.eye(4))] * 2000)
     status, _, lines = run([path, "-j", "1"], seconds=300, memory=3 << 30)
     one_error(lines, status, ExitStatus.INPUT, "1_999_000 candidate part pairs")
+
+
+# ------------------------------------------------------------------------------------------
+# Budgets are checked before reading
+
+#: Address space for the 500 MB cases: a run needs ~1.2 GiB of it (mostly mapped libraries), so
+#: holding the file and parsing it cannot fit, while refusing it before reading does.
+SMALL_MEMORY = 1400 << 20
+
+
+def test_500_mb_obj_line_is_refused_as_it_is_read(tmp_path):
+    # 0.2: exit 3 only after 15 s and 1.7 GB, reason "MemoryError"
+    path = tmp_path / "line.obj"
+    with open(path, "wb") as fh:
+        fh.write(b"v 0 0 0 ")
+        fh.truncate(500 << 20)  # sparse: one 500 MB line, no disk used
+    start = time.monotonic()
+    status, _, lines = run([path], seconds=120, memory=SMALL_MEMORY)
+    one_error(lines, status, ExitStatus.INPUT, str(path), "line over 1_048_576 bytes")
+    assert time.monotonic() - start < 60
+
+
+def test_stl_declaring_more_triangles_than_allowed_is_refused_before_reading(tmp_path):
+    # 0.2: refused only after reading 500 MB (1.2 GB peak)
+    path = tmp_path / "big.stl"
+    count = 10_000_000
+    with open(path, "wb") as fh:
+        fh.write(b"\0" * 80 + count.to_bytes(4, "little"))
+        fh.truncate(84 + 50 * count)  # sparse, and the size a binary STL of that count has
+    status, _, lines = run([path, "--max-triangles", "1000000"], seconds=120, memory=SMALL_MEMORY)
+    one_error(lines, status, ExitStatus.INPUT, str(path), "10_000_000 triangles", "--max-triangles")
+
+
+# ------------------------------------------------------------------------------------------
+# Names that would be runner commands or mentions
+
+
+@pytest.mark.parametrize("fmt", ["text", "github"])
+def test_runner_command_syntax_in_a_name_is_escaped(tmp_path, fmt):
+    # 0.2: "##[error]FORGED" passed raw into the text and GitHub reports
+    a, b = tmp_path / "##[error]FORGED.stl", tmp_path / "##vso[task.complete]x.stl"
+    box().export(str(a))
+    box(at=(0.5, 0, 0)).export(str(b))
+    status, out, lines = run([a, b, "--no-config", "--format", fmt])
+    assert status == ExitStatus.FAILED, lines
+    assert "FORGED" in out
+    assert "##[" not in out and "##vso[" not in out, out
+    assert not any("##[" in line for line in lines), lines
+
+
+def test_mention_in_a_name_is_escaped_in_markdown(tmp_path):
+    # 0.2: "@user" in a part name pinged the user when the summary was posted on a PR
+    a, b = tmp_path / "@octocat.stl", tmp_path / "b.stl"
+    box().export(str(a))
+    box(at=(0.5, 0, 0)).export(str(b))
+    status, out, lines = run([a, b, "--no-config", "--format", "markdown"])
+    assert status == ExitStatus.FAILED, lines
+    assert "octocat" in out
+    assert "@octocat" not in out, out
+
+
+# ------------------------------------------------------------------------------------------
+# Workers
+
+
+def test_jobs_are_capped_by_cores_and_memory():
+    # 0.2: -j 10000 with 40 parts started 40 workers on 2 cores (2.6 GB)
+    from meshcheck.execute import WORKER_BYTES, default_jobs, executor_for
+
+    with executor_for(jobs=10_000) as executor:
+        assert executor.jobs <= default_jobs()
+        available = [ln for ln in open("/proc/meminfo") if ln.startswith("MemAvailable:")]
+        if available:
+            assert executor.jobs <= max(1, int(available[0].split()[1]) * 1024 // WORKER_BYTES)
+        assert not executor.is_started  # nothing was started to find out
