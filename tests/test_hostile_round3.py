@@ -563,14 +563,15 @@ def test_500_mb_obj_line_is_refused_as_it_is_read(tmp_path):
 
 
 def test_stl_declaring_more_triangles_than_allowed_is_refused_before_reading(tmp_path):
-    # 0.2: refused only after reading 500 MB (1.2 GB peak)
+    # 0.2: a 500 MB STL declaring 10^7 triangles was refused only after 1.2 GB; here 1 GB, so
+    # reading it cannot fit the address space
     path = tmp_path / "big.stl"
-    count = 10_000_000
+    count = 20_000_000
     with open(path, "wb") as fh:
         fh.write(b"\0" * 80 + count.to_bytes(4, "little"))
         fh.truncate(84 + 50 * count)  # sparse, and the size a binary STL of that count has
     status, _, lines = run([path, "--max-triangles", "1000000"], seconds=120, memory=SMALL_MEMORY)
-    one_error(lines, status, ExitStatus.INPUT, str(path), "10_000_000 triangles", "--max-triangles")
+    one_error(lines, status, ExitStatus.INPUT, str(path), "20_000_000 triangles", "--max-triangles")
 
 
 # ------------------------------------------------------------------------------------------
