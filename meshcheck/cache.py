@@ -56,6 +56,7 @@ import itertools
 import json
 import math
 import os
+import stat
 import struct
 import tempfile
 import zlib
@@ -171,19 +172,13 @@ class DecompositionCache:
         """``(pieces, signed)`` for ``key``, or None when missing or unusable; ``signed`` is
         True when the entry's signature is valid under this cache's secret."""
         header = self.HEADER
-        try:
-            with open(self.path(key), "rb") as f:
-                size = os.fstat(f.fileno()).st_size
-                if size < header.size or size > self.MAX_BYTES:
-                    return None
-                magic, n_points, n_pieces, checksum, signature = header.unpack(f.read(header.size))
-                if magic != self.MAGIC or size != header.size + 8 * (n_pieces + 1) + 24 * n_points:
-                    return None
-                body = f.read(size - header.size)
-        except (OSError, ValueError, struct.error):
+        data = read_entry(self.path(key), self.MAX_BYTES)
+        if data is None or len(data) < header.size:
             return None
-        if len(body) != size - header.size:
+        magic, n_points, n_pieces, checksum, signature = header.unpack_from(data)
+        if magic != self.MAGIC or len(data) != header.size + 8 * (n_pieces + 1) + 24 * n_points:
             return None
+        body = data[header.size :]
         starts = np.frombuffer(body, dtype="<i8", count=n_pieces + 1)
         points = np.frombuffer(body, dtype="<f8", offset=8 * (n_pieces + 1)).reshape(-1, 3)
         if not _valid(points, starts) or not hmac.compare_digest(
@@ -239,12 +234,54 @@ def _valid(points: np.ndarray, starts: np.ndarray) -> bool:
 STALE_SECONDS = 3600.0
 
 
+def read_entry(path: str, limit: int) -> bytes | None:
+    """The bytes of the cache entry at ``path`` (``ROOT/XX/NAME``), or None for a miss.
+
+    Only a regular file of at most ``limit`` bytes is read, opened without blocking and without
+    following a symbolic link, in folders that are not symbolic links either: a FIFO, a device,
+    a link or an oversized file (a restored CI cache can hold any of them) is a miss, never a
+    hang or a read outside the cache.
+    """
+    if not _folders_are_real(path):
+        return None
+    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOFOLLOW", 0)
+    try:
+        fd = os.open(path, flags | getattr(os, "O_BINARY", 0))
+    except OSError:
+        return None
+    try:
+        with os.fdopen(fd, "rb") as f:
+            info = os.fstat(f.fileno())
+            if not stat.S_ISREG(info.st_mode) or info.st_size > limit:
+                return None
+            data = f.read(limit + 1)
+    except (OSError, ValueError):
+        return None
+    return data if len(data) == info.st_size else None
+
+
+def _folders_are_real(path: str) -> bool:
+    """True when the two folders above an entry (the cache's ``NAME-vN`` and ``XX``) are real
+    directories, not symbolic links (which would lead reads, writes and clean-ups elsewhere)."""
+    sub = os.path.dirname(path)
+    for folder in (os.path.dirname(sub), sub):
+        try:
+            if not stat.S_ISDIR(os.lstat(folder).st_mode):
+                return False
+        except OSError:
+            return False
+    return True
+
+
 def write_atomically(final: str, suffix: str, write) -> None:
-    """Write an entry at ``final`` through ``write(file)`` to a temporary file in the same
-    directory, then ``os.replace`` it into place: readers see a whole entry or none. A failure to
-    write only costs a recompute."""
+    """Write an entry at ``final`` (``ROOT/XX/NAME``) through ``write(file)`` to a temporary file
+    in the same directory, then ``os.replace`` it into place: readers see a whole entry or none.
+    Nothing is written when a folder on the way is a symbolic link. A failure to write only
+    costs a recompute."""
     try:
         os.makedirs(os.path.dirname(final), exist_ok=True)
+        if not _folders_are_real(final):
+            return
         fd, tmp = tempfile.mkstemp(dir=os.path.dirname(final), prefix=".tmp-", suffix=suffix)
     except OSError:
         return
@@ -261,9 +298,15 @@ def _remove_stale_temporaries(directory: str) -> None:
     import time
 
     cutoff = time.time() - STALE_SECONDS
+    if not _folders_are_real(os.path.join(directory, "entry")):
+        return  # never clean up through a symbolic link, outside the cache
     with contextlib.suppress(OSError):
         for entry in os.scandir(directory):
-            if entry.name.startswith(".tmp-") and entry.stat().st_mtime < cutoff:
+            if (
+                entry.name.startswith(".tmp-")
+                and entry.is_file(follow_symlinks=False)
+                and entry.stat(follow_symlinks=False).st_mtime < cutoff
+            ):
                 with contextlib.suppress(OSError):
                     os.unlink(entry.path)
 
@@ -476,13 +519,10 @@ class PairCache:
         verdict : PairVerdict or None
             Exactly what ``put`` stored, bit for bit (its shared solid and closest points too).
         """
+        raw = read_entry(self.path(key), MAX_PAIR_FILE_BYTES)
         try:
-            with open(self.path(key), "rb") as f:
-                if os.fstat(f.fileno()).st_size > MAX_PAIR_FILE_BYTES:
-                    return None
-                raw = f.read(MAX_PAIR_FILE_BYTES + 1)
-            entry = json.loads(raw)
-        except (OSError, ValueError, RecursionError):
+            entry = json.loads(raw) if raw is not None else None
+        except (ValueError, RecursionError):
             return None
         if not isinstance(entry, dict) or set(entry) != {"key", "verdict", "mac"}:
             return None
@@ -506,7 +546,7 @@ class PairCache:
         """Remove temporary files killed writers left (call once per run, not per entry)."""
         with contextlib.suppress(OSError):
             for entry in os.scandir(self.root):
-                if entry.is_dir():
+                if entry.is_dir(follow_symlinks=False):
                     _remove_stale_temporaries(entry.path)
 
     def _mac(self, key: str, fields) -> str:

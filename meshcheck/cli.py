@@ -221,69 +221,60 @@ def main(**options):
         _internal_error(exc)
 
 
-def _run(
-    ctx,
-    *,
-    fmt,
-    files,
-    output,
-    reports,
-    baseline_path,
-    clearance,
-    tolerance,
-    threshold,
-    fail_on,
-    units,
-    step_deflection,
-    max_triangles,
-    split,
-    config_path,
-    no_config,
-    cache_dir,
-    no_cache,
-    jobs,
-    scheduler,
-    export_path,
-):
-    from .settings import Settings
-
-    # Everything that can be refused is refused before the check runs.
+def _run(ctx, *, files, fmt, output, reports, baseline_path, export_path, **options):
+    """Refuse what can be refused, check, write the reports, exit with the run's status."""
     try:
         targets = _targets(ctx, fmt, output, reports)
-        for _, path in targets:
-            check_output(path)
-        if export_path is not None:
-            from .reports.gltf import export_type
-
-            export_type(export_path)
-        _refuse_inputs_as_outputs(files, [p for _, p in targets] + [export_path])
-        baseline = None
-        if baseline_path is not None:
-            from .baseline import load_baseline
-
-            baseline = load_baseline(baseline_path)
-        if no_config and config_path is None:
-            config = None
-        else:
-            config = "auto" if config_path is None else config_path
-        settings = Settings.from_options(
-            config=config,
-            clearance=clearance,
-            tolerance=tolerance,
-            threshold=threshold,
-            fail_on=fail_on,
-            units=units,
-            max_triangles=max_triangles,
-            step_deflection=step_deflection,
-            split=split,
-            cache_dir=cache_dir,
-            use_cache=not no_cache,
-            jobs=jobs,
-            scheduler=scheduler,
-        )
+        _check_outputs(targets, export_path)
+        settings = _settings(**options)
+        inputs = [*files, baseline_path, settings.config_path]
+        _refuse_inputs_as_outputs(inputs, [p for _, p in targets] + [export_path])
+        baseline = _baseline(baseline_path)
     except MeshcheckError as exc:
         _fail(exc)
+    result = _check(files, settings, baseline, export_path)
+    written = _write_reports(result, targets, files)
+    if written:
+        noun = "report" if len(written) == 1 else "reports"
+        where = ", ".join(printable(p) for p in written)
+        click.echo(f"{summary_line(result)}; {noun} written to {where}", err=True)
+    # The report is out. Freezing the heap spares the interpreter's exit-time collections a walk
+    # over the ~135k objects numpy, scipy and trimesh created: 0.2 s of a 1.5 s warm run.
+    gc.freeze()
+    sys.exit(int(exit_status(result)))
 
+
+def _check_outputs(targets, export_path) -> None:
+    """Refuse report and export paths meshcheck may not write (``output.check_output``)."""
+    for _, path in targets:
+        check_output(path)
+    if export_path is not None:
+        from .reports.gltf import export_type
+
+        export_type(export_path)
+
+
+def _settings(*, config_path, no_config, no_cache, **options):
+    """The run's ``Settings`` from the remaining options and the configuration file."""
+    from .settings import Settings
+
+    if no_config and config_path is None:
+        config = None
+    else:
+        config = "auto" if config_path is None else config_path
+    return Settings.from_options(config=config, use_cache=not no_cache, **options)
+
+
+def _baseline(path):
+    if path is None:
+        return None
+    from .baseline import load_baseline
+
+    return load_baseline(path)
+
+
+def _check(files, settings, baseline, export_path):
+    """Run the check (and the export); print its warnings; exit on an error, after them."""
     from .progress import Progress
 
     with Progress("starting", 0):  # numba, trimesh, scipy: seconds on a cold disk
@@ -311,25 +302,25 @@ def _run(
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
     if error is not None:
         _fail(error)
+    return result
 
-    failed = False
+
+def _write_reports(result, targets, files) -> list[str]:
+    """Write every report; the files written when all of them went to files. A report that
+    cannot be written is an error line and exit 5, after the others are written; then no summary
+    line follows (stderr's last line is the error)."""
+    failed = None
     for report_fmt, path in targets:
         try:
             write_output(path, render(result, report_fmt, inputs=files))
         except OutputError as exc:
             click.echo(f"error: {printable(str(exc))}", err=True)
-            failed = True
-    files_written = [path for _, path in targets if path != STDOUT]
-    if files_written and all(path != STDOUT for _, path in targets):
-        noun = "report" if len(files_written) == 1 else "reports"
-        where = ", ".join(printable(p) for p in files_written)
-        click.echo(f"{summary_line(result)}; {noun} written to {where}", err=True)
-    if failed:
+            failed = exc
+    if failed is not None:
         sys.exit(int(ExitStatus.OUTPUT))
-    # The report is out. Freezing the heap spares the interpreter's exit-time collections a walk
-    # over the ~135k objects numpy, scipy and trimesh created: 0.2 s of a 1.5 s warm run.
-    gc.freeze()
-    sys.exit(int(exit_status(result)))
+    if any(path == STDOUT for _, path in targets):
+        return []
+    return [path for _, path in targets]
 
 
 def _targets(ctx, fmt, output, reports) -> list[tuple[str, str]]:
@@ -356,15 +347,48 @@ def _targets(ctx, fmt, output, reports) -> list[tuple[str, str]]:
     return targets
 
 
-def _refuse_inputs_as_outputs(files, outputs) -> None:
-    """A ConfigError when an output path is one of the input files (``-o part.stl``)."""
+def _refuse_inputs_as_outputs(inputs, outputs) -> None:
+    """A ConfigError when an output would be written over an input: a mesh (also one below a
+    directory argument), the baseline or the configuration file. Compared by real path and, for
+    outputs that exist, by device and inode (a hard link is the same file).
+    """
     outputs = [path for path in outputs if path is not None and path != STDOUT]
     if not outputs:
         return
-    inputs = {os.path.realpath(f) for f in files if os.path.isfile(f)}
+    paths, inodes = set(), set()
+    for path in _input_files([p for p in inputs if p is not None]):
+        paths.add(os.path.realpath(path))
+        try:
+            info = os.stat(path)
+        except OSError:
+            continue
+        inodes.add((info.st_dev, info.st_ino))
     for path in outputs:
-        if os.path.realpath(path) in inputs:
-            raise ConfigError(path, "is an input file: meshcheck does not write over its inputs")
+        try:
+            info = os.stat(path)
+            same_inode = (info.st_dev, info.st_ino) in inodes
+        except OSError:
+            same_inode = False
+        if same_inode or os.path.realpath(path) in paths:
+            raise ConfigError(
+                path,
+                "is an input (a mesh, the baseline or the configuration): meshcheck does "
+                "not write over its inputs",
+            )
+
+
+def _input_files(inputs):
+    """The files the inputs stand for: files as given, and each mesh file below a directory."""
+    for path in inputs:
+        if not os.path.isdir(path):
+            yield path
+            continue
+        from .load.files import SUPPORTED_EXTENSIONS
+
+        for folder, _, names in os.walk(path):
+            for name in names:
+                if os.path.splitext(name)[1].lower() in SUPPORTED_EXTENSIONS:
+                    yield os.path.join(folder, name)
 
 
 def _fail(exc: MeshcheckError):

@@ -39,7 +39,8 @@ def matches(pattern: str, names: str | Sequence[str]) -> bool:
 @dataclass(frozen=True)
 class Approval:
     """An approved finding, with the reason: by part-name patterns ``a`` and ``b`` (either order),
-    or by the finding's stable ``id`` (which lapses when either mesh changes)."""
+    or by the finding's stable ``id`` (which lapses when either part's mesh or placement
+    changes)."""
 
     a: str | None
     b: str | None
@@ -126,7 +127,7 @@ class Config:
         Finding statuses that fail the run, as written (``settings.resolve_fail_on`` reads them).
     approvals : tuple of Approval
         The ``[[ignore]]`` entries, in file order: by part-name patterns, or by stable ID (such an
-        approval lapses when either mesh changes, since the ID hashes both meshes' content).
+        approval lapses when either part changes or moves: the ID hashes meshes and placements).
     groups : Groups or None
         Check only pairs across two groups of parts.
     units : str or None
@@ -176,20 +177,60 @@ def _has_tool_table(path: str) -> bool:
     try:
         doc = _read_toml(path)
     except ConfigError:
-        return False  # a broken pyproject.toml that is not ours is somebody else's problem
+        # Not ours to judge: a pyproject.toml that is broken, huge, nested beyond reason or not a
+        # regular file is somebody else's, and discovery skips it.
+        return False
     return isinstance(doc.get("tool"), dict) and "meshcheck" in doc["tool"]
 
 
+#: A configuration file larger than this is refused before reading (a real one is a few kB; a
+#: pyproject.toml with a long tool section, a few hundred).
+MAX_CONFIG_BYTES = 4 << 20
+
+
 def _read_toml(path: str) -> dict:
+    """The TOML document in ``path``: a regular file of at most ``MAX_CONFIG_BYTES``, opened
+    without blocking (a FIFO or device is refused, never read)."""
     import tomllib
 
     try:
-        with open(path, "rb") as f:
-            return tomllib.load(f)
+        data = _read_regular(path, MAX_CONFIG_BYTES)
+        return tomllib.loads(data.decode("utf-8"))
     except OSError as exc:
-        raise ConfigError(path, f"cannot be read ({exc.strerror})") from None
+        raise ConfigError(path, f"cannot be read ({exc.strerror or exc})") from None
+    except UnicodeDecodeError:
+        raise ConfigError(path, "invalid TOML: not UTF-8") from None
+    except RecursionError:
+        raise ConfigError(path, "invalid TOML: nested too deep") from None
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(path, f"invalid TOML: {exc}") from None
+
+
+def _read_regular(path: str, limit: int) -> bytes:
+    """The bytes of the regular file ``path``, checked through one non-blocking descriptor.
+
+    Raises
+    ------
+    ConfigError
+        It is not a regular file, or holds more than ``limit`` bytes.
+    OSError
+        It cannot be opened or read.
+    """
+    import stat
+
+    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0))
+    with os.fdopen(fd, "rb") as fh:
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
+            raise ConfigError(path, "cannot be read: not a regular file")
+        if info.st_size > limit:
+            raise ConfigError(
+                path, f"is {info.st_size} bytes, over the limit of {limit} for a configuration"
+            )
+        data = fh.read(limit + 1)
+    if len(data) > limit:  # it grew while being read
+        raise ConfigError(path, f"is over the limit of {limit} bytes for a configuration")
+    return data
 
 
 def load_config(path: str | os.PathLike) -> Config:
@@ -201,7 +242,8 @@ def load_config(path: str | os.PathLike) -> Config:
     Parameters
     ----------
     path : str or path-like
-        A ``meshcheck.toml`` or ``pyproject.toml``.
+        A ``meshcheck.toml`` or ``pyproject.toml``: a regular file of at most
+        ``MAX_CONFIG_BYTES``.
 
     Returns
     -------
@@ -234,13 +276,7 @@ def load_config(path: str | os.PathLike) -> Config:
         b = ["bolts/*"]
     """
     path = os.fspath(path)
-    doc = _read_toml(path)
-    where = "top level"
-    if os.path.basename(path) == "pyproject.toml":
-        doc = doc.get("tool", {}).get("meshcheck", {})
-        where = "[tool.meshcheck]"
-    if not isinstance(doc, dict):
-        raise ConfigError(path, f"{where} must be a table")
+    doc, where = _settings_table(path)
 
     def fail(reason: str):
         raise ConfigError(path, reason)
@@ -255,19 +291,48 @@ def load_config(path: str | os.PathLike) -> Config:
             return None
         if isinstance(value, bool) or not isinstance(value, int | float):
             fail(f"{key} must be a number, not {type(value).__name__}")
-        low, high = NUMBER_RANGES[key]
-        return checked_number(key, value, low, high, path=path)
+        return checked_number(key, value, *NUMBER_RANGES[key], path=path)
 
-    fail_on = doc.get("fail_on")
-    if fail_on is not None:
-        if isinstance(fail_on, str):
-            fail_on = [fail_on]
-        if not isinstance(fail_on, list) or not all(isinstance(s, str) for s in fail_on):
-            fail("fail_on must be a list of strings")
-        parse_fail_on(fail_on, path=path)  # validated here, resolved with the clearance later
-        fail_on = tuple(fail_on)
+    return Config(
+        path=path,
+        tolerance=number("tolerance"),
+        clearance=number("clearance"),
+        threshold=number("threshold"),
+        fail_on=_fail_on(doc.get("fail_on"), path, fail),
+        approvals=_approvals(doc.get("ignore", []), fail),
+        groups=_groups(doc.get("groups"), fail),
+        scheduler=_scheduler(doc.get("scheduler"), fail),
+        units=_unit(doc.get("units"), fail),
+    )
 
-    ignore = doc.get("ignore", [])
+
+def _settings_table(path: str) -> tuple[dict, str]:
+    """The table of ``path`` that holds meshcheck's settings, and where it is, for messages."""
+    doc = _read_toml(path)
+    where = "top level"
+    if os.path.basename(path) == "pyproject.toml":
+        tool = doc.get("tool", {})
+        doc = tool.get("meshcheck", {}) if isinstance(tool, dict) else tool
+        where = "[tool.meshcheck]"
+    if not isinstance(doc, dict):
+        raise ConfigError(path, f"{where} must be a table")
+    return doc, where
+
+
+def _fail_on(value, path: str, fail) -> tuple[str, ...] | None:
+    """The ``fail_on`` key, validated (resolved with the clearance later)."""
+    if value is None:
+        return None
+    if isinstance(value, str):
+        value = [value]
+    if not isinstance(value, list) or not all(isinstance(s, str) for s in value):
+        fail("fail_on must be a list of strings")
+    parse_fail_on(value, path=path)
+    return tuple(value)
+
+
+def _approvals(ignore, fail) -> tuple[Approval, ...]:
+    """The ``[[ignore]]`` entries as approvals, in file order."""
     if not isinstance(ignore, list):
         fail("ignore must be an array of tables ([[ignore]] entries with a, b and reason)")
     approvals = []
@@ -292,56 +357,82 @@ def load_config(path: str | os.PathLike) -> Config:
             )
         else:
             approvals.append(Approval(rule["a"], rule["b"], rule["reason"].strip()))
+    return tuple(approvals)
 
-    groups = doc.get("groups")
-    if groups is not None:
-        if not isinstance(groups, dict):
-            fail("groups must be a table with a and b")
-        for key in groups:
-            if key not in ("a", "b"):
-                fail(f"unknown key {key!r} in groups (known: a, b)")
-        patterns = []
-        for key in ("a", "b"):
-            value = groups.get(key)
-            if isinstance(value, str):
-                value = [value]
-            if (
-                not isinstance(value, list)
-                or not value
-                or not all(isinstance(p, str) and p for p in value)
-            ):
-                fail(f"groups.{key} must be a non-empty list of glob patterns")
-            patterns.append(tuple(value))
-        groups = Groups(*patterns)
 
-    scheduler = doc.get("scheduler")
-    if scheduler is not None:
-        try:
-            scheduler = checked_scheduler(scheduler)
-        except ConfigError as exc:
-            fail(exc.reason)
+def _groups(groups, fail) -> Groups | None:
+    """The ``[groups]`` table, or None when absent."""
+    if groups is None:
+        return None
+    if not isinstance(groups, dict):
+        fail("groups must be a table with a and b")
+    for key in groups:
+        if key not in ("a", "b"):
+            fail(f"unknown key {key!r} in groups (known: a, b)")
+    patterns = []
+    for key in ("a", "b"):
+        value = groups.get(key)
+        if isinstance(value, str):
+            value = [value]
+        if (
+            not isinstance(value, list)
+            or not value
+            or not all(isinstance(p, str) and p for p in value)
+        ):
+            fail(f"groups.{key} must be a non-empty list of glob patterns")
+        patterns.append(tuple(value))
+    return Groups(*patterns)
 
-    return Config(
-        path=path,
-        tolerance=number("tolerance"),
-        clearance=number("clearance"),
-        threshold=number("threshold"),
-        fail_on=fail_on,
-        approvals=tuple(approvals),
-        groups=groups,
-        scheduler=scheduler,
-        units=_unit(doc.get("units"), fail),
-    )
+
+def _scheduler(value, fail) -> str | None:
+    """The ``scheduler`` key, checked, or None when absent."""
+    if value is None:
+        return None
+    try:
+        return checked_scheduler(value)
+    except ConfigError as exc:
+        fail(exc.reason)
+
+
+#: URL schemes of the Dask schedulers meshcheck connects to (``inproc://``, ``ucx://`` and others
+#: need a cluster set up in-process or extra libraries; they are refused up front).
+SCHEDULER_SCHEMES = ("tcp", "tls")
 
 
 def checked_scheduler(value) -> str:
-    """A Dask scheduler address as given (``tcp://HOST:PORT``, ``HOST:PORT``...), checked to be a
-    short printable string; whether something answers there is found out when connecting."""
+    """A Dask scheduler address as given (``tcp://HOST:PORT``, ``tls://HOST:PORT``, ``HOST:PORT``),
+    checked up front; whether a scheduler answers there is found out when connecting.
+
+    Raises
+    ------
+    ConfigError
+        Not such an address: another scheme, no host, a port outside 1..65535, a broken IPv6
+        literal, spaces or control characters.
+
+    Examples
+    --------
+    >>> checked_scheduler("10.0.0.5:8786"), checked_scheduler("tls://[::1]:8786")
+    ('10.0.0.5:8786', 'tls://[::1]:8786')
+    """
+    from urllib.parse import urlsplit
+
+    usage = "scheduler must be a scheduler address like tcp://HOST:8786"
     if not isinstance(value, str) or not value.strip():
-        raise ConfigError(None, "scheduler must be a scheduler address like tcp://HOST:8786")
+        raise ConfigError(None, usage)
     value = value.strip()
     if len(value) > 500 or not value.isprintable() or any(c.isspace() for c in value):
-        raise ConfigError(None, "scheduler must be a scheduler address like tcp://HOST:8786")
+        raise ConfigError(None, usage)
+    try:
+        parts = urlsplit(value if "://" in value else f"tcp://{value}")
+        host, port = parts.hostname, parts.port
+    except ValueError as exc:
+        raise ConfigError(None, f"{usage}, not {value!r} ({exc})") from None
+    if parts.scheme not in SCHEDULER_SCHEMES:
+        raise ConfigError(
+            None, f"{usage}: scheme {parts.scheme}:// is not supported (use tcp:// or tls://)"
+        )
+    if not host or port is None or port == 0 or parts.path not in ("", "/") or parts.query:
+        raise ConfigError(None, f"{usage}, not {value!r}")
     return value
 
 

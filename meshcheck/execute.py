@@ -375,6 +375,7 @@ class DaskExecutor(Executor):
             raise ExecutionError(
                 address, 'running on a cluster needs Dask: pip install "meshcheck[dask]"'
             ) from None
+        _identify(address, connect_timeout)
         try:
             self.client = Client(address, timeout=connect_timeout, set_as_default=False)
         except (OSError, TimeoutError) as exc:
@@ -548,10 +549,66 @@ def _probe(address: str, timeout: float) -> None:
         ) from None
 
 
+def _identify(address: str, timeout: float) -> None:
+    """Fail within ``timeout`` seconds, with one line, unless a Dask scheduler answers at
+    ``address``: something that accepts and never answers, sends garbage or announces a frame of
+    2^62 bytes is refused here, before a ``Client`` (whose waits are not all bounded) is made."""
+    import asyncio
+
+    async def ask() -> object:
+        from distributed.comm import connect
+
+        comm = await connect(address, timeout=timeout)
+        try:
+            await comm.write({"op": "identity", "reply": True})
+            return await comm.read()
+        finally:
+            comm.abort()
+
+    try:
+        reply = asyncio.run(asyncio.wait_for(ask(), timeout))
+    except TimeoutError:
+        raise ExecutionError(
+            address, f"no answer from the Dask scheduler within {timeout:g} s"
+        ) from None
+    except MemoryError:
+        raise ExecutionError(
+            address, "not a Dask scheduler (it announced a huge message)"
+        ) from None
+    except Exception as exc:  # garbage on the wire surfaces as any exception
+        raise ExecutionError(
+            address, f"not a Dask scheduler ({type(exc).__name__}: {str(exc)[:120]})"
+        ) from None
+    if not isinstance(reply, dict) or reply.get("type") != "Scheduler":
+        raise ExecutionError(address, "not a Dask scheduler (its answer is not a scheduler's)")
+
+
 def executor_for(*, jobs: int | None = None, scheduler: str | None = None) -> Executor:
     """The executor a run uses: a Dask cluster when ``scheduler`` is given, else local processes
     (``jobs``, default all cores), else this process alone for ``jobs=1``."""
     if scheduler:
         return DaskExecutor(scheduler)
-    jobs = jobs or default_jobs()
+    jobs = min(jobs or default_jobs(), max_local_jobs())
     return Executor() if jobs <= 1 else LocalPool(jobs)
+
+
+#: Memory a local worker is counted to need (its interpreter, numpy, trimesh, CoACD and one
+#: task's meshes): ``-j`` never starts more workers than the available memory holds of these.
+WORKER_BYTES = 256 << 20
+
+
+def max_local_jobs() -> int:
+    """Local workers a run may start: no more than the cores this process may run on, nor than
+    the available memory holds ``WORKER_BYTES`` (``-j 10000`` starts what the machine can run).
+    """
+    available = None
+    try:
+        with open("/proc/meminfo", "rb") as fh:
+            for line in fh:
+                if line.startswith(b"MemAvailable:"):
+                    available = int(line.split()[1]) * 1024
+                    break
+    except (OSError, ValueError, IndexError):
+        pass
+    by_memory = default_jobs() if available is None else max(1, available // WORKER_BYTES)
+    return max(1, min(default_jobs(), by_memory))

@@ -35,6 +35,7 @@ from .execute import Executor, executor_for
 from .geometry import ConvexPack, Status, pack_convex, query_pairs
 from .geometry.broadphase import candidate_pairs, group_pairs
 from .load import Body, Limits, load_bodies, local_geometries
+from .load.limits import check_candidate_pairs
 from .progress import Progress
 from .results import CheckResult, Finding, Part
 from .settings import (
@@ -160,8 +161,10 @@ def check_bodies(
     with Progress("comparing hulls", 0):
         hulls = pack_convex(_world_hulls(bodies, geometry), is_hull=True)
         diagonal, magnitude = part_sizes(hulls.lower, hulls.upper)
+        magnitude = np.where([b.is_float32 for b in bodies], magnitude, 0.0)  # the float32 floor
         deflection = max((b.deflection for b in bodies), default=0.0)
         pairs = select_pairs(hulls, settings, names, diagonal, magnitude, deflection)
+        check_candidate_pairs(len(pairs), len(bodies))  # budgeted, like triangles
         tolerance = _tolerances(settings, bodies, diagonal, magnitude, pairs)
         reach = tolerance + (settings.clearance or 0.0)
         hull_query = query_pairs(hulls, pairs, tolerance=tolerance, depth=False, max_distance=reach)

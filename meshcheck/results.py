@@ -304,9 +304,47 @@ class CheckResult:
         return not self.failed
 
 
-def finding_id(name_a: str, digest_a: str, name_b: str, digest_b: str) -> str:
-    """Stable 12-hex-digit ID of a part pair: sorted names and the meshes' content digests."""
-    (na, da), (nb, db) = sorted([(name_a, digest_a), (name_b, digest_b)])
-    text = "\0".join((na, da, nb, db))
-    # surrogateescape: a file name that is not UTF-8 keeps its bytes
-    return hashlib.sha256(text.encode("utf-8", "surrogateescape")).hexdigest()[:12]
+def finding_id(
+    name_a: str,
+    digest_a: str,
+    name_b: str,
+    digest_b: str,
+    *,
+    placement_a: np.ndarray | None = None,
+    placement_b: np.ndarray | None = None,
+) -> str:
+    """Stable 12-hex-digit ID of a part pair: sorted names, the meshes' content digests, and
+    where each part is placed.
+
+    Parameters
+    ----------
+    name_a, name_b : str
+        The parts' names.
+    digest_a, digest_b : str
+        Digests of their frame-local geometry (``Body.digest``).
+    placement_a, placement_b : (4, 4) float64, optional
+        Frame -> world transforms (``Body.transform``); None hashes as no placement. Moving a
+        glTF node, a 3MF item or a STEP instance changes the ID, as editing an STL does.
+
+    Examples
+    --------
+    >>> finding_id("a", "1", "b", "2") == finding_id("b", "2", "a", "1")
+    True
+    >>> moved = np.eye(4)
+    >>> moved[0, 3] = 0.5
+    >>> finding_id("a", "1", "b", "2") == finding_id("a", "1", "b", "2", placement_b=moved)
+    False
+    """
+    parts = sorted([(name_a, digest_a, placement_a), (name_b, digest_b, placement_b)], key=_name)
+    h = hashlib.sha256()
+    for k, (name, digest, placement) in enumerate(parts):
+        # surrogateescape: a file name that is not UTF-8 keeps its bytes
+        text = ("\0" if k else "") + f"{name}\0{digest}"
+        h.update(text.encode("utf-8", "surrogateescape"))
+        if placement is not None:  # + 0.0 makes -0.0 and 0.0 one placement
+            h.update(b"\0@" + (np.asarray(placement, dtype=np.float64) + 0.0).tobytes())
+    return h.hexdigest()[:12]
+
+
+def _name(part: tuple) -> tuple[str, str]:
+    return part[0], part[1]

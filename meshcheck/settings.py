@@ -42,9 +42,11 @@ SCHEDULER_VARIABLE = "MESHCHECK_SCHEDULER"  # the environment's default for --sc
 #: engineer specifies (1 um on a 100 mm part).
 TOLERANCE_FRACTION = 1e-5
 
-#: ... and never below this many float32 units in the last place at the pair's largest coordinate:
-#: STL stores float32, so a face at coordinate x is only known to 2^-24 |x|, and two coincident
-#: faces of two files can be that far apart for each vertex.
+#: ... and, for parts whose coordinates went through float32 (``Body.is_float32``: binary STL,
+#: float PLY, glTF, STEP), never below ``FLOAT32_ULPS * 2^-23 * |x|`` at the largest such
+#: coordinate x of the pair (at least 8 float32 units in the last place at x): a float32 face at
+#: x is only known to 2^-24 |x|, and two coincident faces of two files can be that far apart for
+#: each vertex. Coordinates read in double (ASCII STL, OBJ, 3MF...) get no such floor.
 FLOAT32_ULPS = 8.0
 
 #: Two closed shells of one part whose overlap is no thicker than this fraction of their size
@@ -73,9 +75,18 @@ def part_sizes(lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.nda
 def pair_tolerances(diagonal: np.ndarray, magnitude: np.ndarray, pairs: np.ndarray) -> np.ndarray:
     """Default touching tolerance of each pair, from the two parts alone, model units, ``(k,)``.
 
-    ``max(TOLERANCE_FRACTION * smaller diagonal, FLOAT32_ULPS * eps32 * largest coordinate)``;
-    parts without extent fall back to the coordinate term (and to ``TOLERANCE_FRACTION`` units at
+    ``max(TOLERANCE_FRACTION * smaller diagonal, FLOAT32_ULPS * 2^-23 * largest magnitude)``;
+    parts without extent fall back to the magnitude term (and to ``TOLERANCE_FRACTION`` units at
     the origin).
+
+    Parameters
+    ----------
+    diagonal : (n,) float64
+        Each part's bounding-box diagonal, model units.
+    magnitude : (n,) float64
+        Each part's largest absolute coordinate when its coordinates went through float32
+        (``Body.is_float32``), else 0: the float32 floor applies to those parts only.
+    pairs : (k, 2) int64
 
     Examples
     --------

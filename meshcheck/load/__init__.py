@@ -296,6 +296,7 @@ def _place(
             relative_name=f"{rel}#{node}" if multi else rel,
             units=report,
             deflection=file_read.deflection * factor,
+            is_float32=file_read.is_float32,
         )
         bodies.append(body)
     corners = np.vstack(corners)
@@ -335,6 +336,7 @@ def split_body(body: Body) -> list[Body]:
             relative_name=f"{body.relative_name}#{k}",
             units=body.units,
             deflection=body.deflection,
+            is_float32=body.is_float32,
         )
         for k, shell in enumerate(shells, start=1)
     ]

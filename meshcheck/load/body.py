@@ -36,6 +36,11 @@ class Body:
     deflection : float
         How far the triangles may lie from the true surface, report units: the tessellation
         tolerance of a part read from CAD (STEP), 0 for a mesh file (the mesh is the part).
+    is_float32 : bool
+        Whether its coordinates went through float32 on the way here (binary STL, float PLY, glTF,
+        STEP through its GLB), so coincident faces far from the origin can be float32 rounding
+        apart (``settings.pair_tolerances``). False for coordinates read in double (ASCII STL,
+        OBJ, OFF, double PLY, 3MF). Default True: a body built in Python claims nothing.
     """
 
     name: str
@@ -45,6 +50,7 @@ class Body:
     relative_name: str = ""
     units: str = "mm"
     deflection: float = 0.0
+    is_float32: bool = True
 
     def __post_init__(self):
         if not self.relative_name:

@@ -32,8 +32,8 @@ from ..errors import InputError, MeshcheckError, MeshcheckWarning
 from ..geometry import topology
 from ..mesh import as_mesh, clean_arrays, warn
 from .gltf import read_gltf
-from .limits import Budget, Limits, read_file
-from .scene import read_scene
+from .limits import MAX_TEXT_LINE, Budget, Limits, read_file
+from .scene import STL_HEADER, STL_RECORD, read_scene, stores_float32
 from .threemf import read_3mf
 
 STEP_EXTENSIONS = (".step", ".stp")
@@ -81,12 +81,15 @@ class FileRead:
         The unit the file declares.
     deflection : float
         How far its triangles may lie from the true surface, in that unit (0 for mesh files).
+    is_float32 : bool
+        Whether the reader got the coordinates through float32 (``Body.is_float32``).
     """
 
     items: list[tuple[str, int, np.ndarray]]
     geometries: list[tuple[np.ndarray, np.ndarray, bool]]
     declared: str | None
     deflection: float
+    is_float32: bool = True
 
     @property
     def triangles(self) -> int:
@@ -136,8 +139,16 @@ def _read(path: str, budget: Budget, step: StepOptions) -> FileRead:
             f"unsupported file type {ext or '(no extension)'}; "
             f"supported: {', '.join(SUPPORTED_EXTENSIONS)}",
         )
-    data = read_file(path, budget.limits)
+    data = read_file(
+        path,
+        budget.limits,
+        check=_stl_head_check(path, budget) if ext == ".stl" else None,
+        max_line=MAX_TEXT_LINE if ext in (".obj", ".off") else None,
+    )
     declared, deflection = None, 0.0
+    # Which coordinates went through float32, per reader: STEP through cascadio's GLB, glTF
+    # (POSITION accessors are float32), binary STL and float PLY; 3MF and text meshes are double.
+    is_float32 = ext in (*STEP_EXTENSIONS, ".glb", ".gltf") or stores_float32(ext, data)
     with np.errstate(all="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # refused below with the real reason
         # A reader takes (path, bytes, budget) and returns (node, mesh, placement) items and the
@@ -169,7 +180,19 @@ def _read(path: str, budget: Budget, step: StepOptions) -> FileRead:
         if not geometries[g][2]:
             warn(name, "mesh is not closed (not watertight); its findings rest on surfaces only")
         out.append((node, g, np.asarray(transform, dtype=np.float64)))
-    return FileRead(out, geometries, declared, float(deflection))
+    return FileRead(out, geometries, declared, float(deflection), is_float32=is_float32)
+
+
+def _stl_head_check(path: str, budget: Budget):
+    """A check of a binary STL's declared triangles against the budget, before it is read."""
+
+    def check(head: bytes, size: int) -> None:
+        if len(head) >= STL_HEADER:
+            count = int.from_bytes(head[80:84], "little")
+            if size == STL_HEADER + STL_RECORD * count:
+                budget.check_triangles(path, count)
+
+    return check
 
 
 def _read_step(path: str, options: StepOptions):

@@ -30,6 +30,12 @@ _TRIANGLES, _STRIP, _FAN = 4, 5, 6
 _TRANSFORM_KEYS = frozenset(("matrix", "translation", "rotation", "scale"))
 
 
+#: How far a node's rotation quaternion may be from unit length (exporters round it to float32;
+#: trimesh normalises it). A zero or far-off quaternion is refused: taken as it is, it would
+#: place the part where its author did not.
+UNIT_QUATERNION_SLACK = 1e-3
+
+
 class _Malformed(Exception):
     pass
 
@@ -261,7 +267,10 @@ def _walk_nodes(path: str, header: dict) -> list[tuple[int, int, np.ndarray]]:
             world = parent.copy()
             world[:3, 3] += parent[:3, :3] @ _numbers(node["translation"], 3, "translation")
         else:
-            world = parent @ _local_matrix(node)
+            try:
+                world = parent @ _local_matrix(node)
+            except _Malformed as exc:
+                raise _Malformed(f"node {i}: {exc}") from None
         if "mesh" in node:
             m = _count(node["mesh"], f"node {i} mesh")
             if m >= n_meshes:
@@ -285,6 +294,8 @@ def _local_matrix(node: dict) -> np.ndarray:
         out = out @ t
     if "rotation" in node:
         x, y, z, w = _numbers(node["rotation"], 4, "rotation")
+        if abs(np.linalg.norm([x, y, z, w]) - 1.0) > UNIT_QUATERNION_SLACK:
+            raise _Malformed("rotation is not a unit quaternion")
         out = out @ trimesh.transformations.quaternion_matrix([w, x, y, z])
     if "scale" in node:
         out = out @ np.diag([*_numbers(node["scale"], 3, "scale"), 1.0])

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import stat
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -77,15 +78,59 @@ class Budget:
         self.parts += parts
 
 
+#: Candidate part pairs (bounding boxes that meet) a run verifies at most. A dense real assembly
+#: of 10,000 parts has a few tens of thousands; 2,000 copies of one part at one spot have 2
+#: million (hours of verification, gigabytes of memory). More is refused with exit 3.
+MAX_CANDIDATE_PAIRS = 500_000
+
+
+def check_candidate_pairs(count: int, parts: int) -> None:
+    """Refuse a run whose broad phase leaves more than ``MAX_CANDIDATE_PAIRS`` part pairs.
+
+    Raises
+    ------
+    InputError
+        Saying how many pairs among how many parts, and the likely cause.
+    """
+    if count > MAX_CANDIDATE_PAIRS:
+        raise InputError(
+            None,
+            f"{_n(count)} candidate part pairs (bounding boxes that meet) among {_n(parts)} parts "
+            f"exceed the limit of {_n(MAX_CANDIDATE_PAIRS)} per run: many copies of a part at "
+            "one place? (check fewer parts at once, or split the assembly with [groups])",
+        )
+
+
 def _n(count: int) -> str:
     return f"{count:,}".replace(",", "_") if count >= 100_000 else str(count)
 
 
-def read_file(path: str, limits: Limits) -> bytes:
+#: Longest line a text mesh format (OBJ, OFF) may have: a polygon of 10,000 corners fits many
+#: times over. A longer one is refused as it is read, before it is held or parsed.
+MAX_TEXT_LINE = 1 << 20
+#: Bytes of a file's start handed to a reader's ``check`` before the rest is read.
+HEAD_BYTES = 4096
+
+
+def read_file(
+    path: str,
+    limits: Limits,
+    *,
+    check: Callable[[bytes, int], None] | None = None,
+    max_line: int | None = None,
+) -> bytes:
     """The bytes of a regular file, refusing what cannot be read or is over ``max_file_bytes``.
 
     The file is opened once and checked through its descriptor, so what is checked is what is
     read; a FIFO or device is refused without blocking on it.
+
+    Parameters
+    ----------
+    check : callable, optional
+        ``check(head, size)`` with the first ``HEAD_BYTES`` and the file's size, before the rest
+        is read: a reader's budget checks on what its header declares.
+    max_line : int, optional
+        Refuse the file, as soon as it is met, at a line longer than this many bytes.
     """
     try:
         fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0))
@@ -104,12 +149,16 @@ def read_file(path: str, limits: Limits) -> bytes:
             raise InputError(
                 path, f"file has {_n(size)} bytes, over the limit of {_n(limits.max_file_bytes)}"
             )
+        if check is not None:
+            check(os.pread(fd, HEAD_BYTES, 0), size)
         chunks = []
-        left = size
+        left, run = size, 0
         while left > 0:
             chunk = os.read(fd, min(left, 1 << 24))
             if not chunk:
                 break
+            if max_line is not None:
+                run = _longest_line(path, chunk, run, max_line)
             chunks.append(chunk)
             left -= len(chunk)
         return b"".join(chunks)
@@ -117,6 +166,23 @@ def read_file(path: str, limits: Limits) -> bytes:
         raise InputError(path, f"cannot be read ({exc.strerror or exc})") from None
     finally:
         os.close(fd)
+
+
+def _longest_line(path: str, chunk: bytes, run: int, limit: int) -> int:
+    """Refuse a line longer than ``limit`` in ``chunk``, given the ``run`` of bytes since the
+    last newline before it; the run at its end."""
+    newlines = np.flatnonzero(np.frombuffer(chunk, dtype=np.uint8) == 10)
+    if not len(newlines):
+        longest, run = run + len(chunk), run + len(chunk)
+    else:
+        gaps = np.diff(newlines) - 1
+        longest = max(run + int(newlines[0]), int(gaps.max(initial=0)))
+        run = len(chunk) - 1 - int(newlines[-1])
+    if max(longest, run) > limit:
+        raise InputError(
+            path, f"has a line over {_n(limit)} bytes long: not a mesh file meshcheck reads"
+        )
+    return run
 
 
 def check_placement(
@@ -157,9 +223,27 @@ def check_placement(
                 f"placed coordinates reach {shown}, beyond the {limits.max_coordinate:g} "
                 "meshcheck can check exactly",
             )
-        linear = transform[:3, :3]
-        if not is_identity and np.linalg.det(linear / np.max(np.abs(linear), initial=0.0)) == 0.0:
-            raise InputError(name, "placement transform is singular (it flattens the part)")
+        if not is_identity and is_singular(transform[:3, :3]):
+            raise InputError(
+                name, "placement transform is singular (it flattens the part or collapses it)"
+            )
+
+
+#: A placement whose smallest singular value is below this fraction of its largest flattens the
+#: part: float64 keeps ~16 digits, and a real scale never spans 12 orders of magnitude.
+SINGULAR_RATIO = 1e-12
+
+
+def is_singular(linear: np.ndarray) -> bool:
+    """True when the (3, 3) linear part of a placement collapses a volume (all zeros included).
+
+    Examples
+    --------
+    >>> is_singular(np.zeros((3, 3))), is_singular(np.diag([1.0, 0.0, 1.0])), is_singular(np.eye(3))
+    (True, True, False)
+    """
+    singular = np.linalg.svd(np.asarray(linear, dtype=np.float64), compute_uv=False)
+    return not singular[-1] > SINGULAR_RATIO * singular[0]
 
 
 IDENTITY = np.eye(4)

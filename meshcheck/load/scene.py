@@ -98,6 +98,20 @@ def _check_stl(path: str, data: bytes, budget: Budget) -> bool:
     )
 
 
+def stores_float32(ext: str, data: bytes) -> bool:
+    """Whether an STL/OBJ/PLY/OFF file stores its coordinates as float32: a binary STL (its
+    size matches its triangle count), a PLY whose vertex ``x`` is ``float``/``float32``.
+    Text coordinates (ASCII STL, OBJ, OFF, ASCII PLY) are read in double."""
+    if ext == ".stl":
+        head = data[:STL_HEADER]
+        count = int.from_bytes(head[80:84], "little") if len(head) == STL_HEADER else -1
+        return len(data) == STL_HEADER + STL_RECORD * count
+    if ext == ".ply":
+        header = data[: max(data.find(b"end_header", 0, 1 << 20), 0)]
+        return re.search(rb"property[ \t]+float(32)?[ \t]+x\s", header) is not None
+    return False
+
+
 def _is_text(block: bytes) -> bool:
     """True when a block holds no NUL or other control bytes but tab, CR, LF, FF."""
     return not re.search(rb"[\x00-\x08\x0b\x0e-\x1f\x7f]", block)

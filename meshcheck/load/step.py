@@ -514,6 +514,10 @@ _ARRAYS = [
 ]
 
 
+#: A tessellation cache entry larger than this is a miss (an assembly's is megabytes).
+MAX_TESSELLATION_BYTES = 1 << 30
+
+
 class TessellationCache:
     """Tessellated STEP files stored under ``directory``, one ``.npz`` per file and setting.
 
@@ -537,12 +541,15 @@ class TessellationCache:
 
     def get(self, key: str) -> StepAssembly | None:
         """The assembly stored for ``key``, or None when missing or unusable."""
-        from ..cache import _sizes_agree
+        from ..cache import _sizes_agree, read_entry
 
+        raw = read_entry(self.path(key), MAX_TESSELLATION_BYTES)  # a FIFO or link: a miss
+        if raw is None:
+            return None
         try:
-            if not _sizes_agree(self.path(key)):
+            if not _sizes_agree(io.BytesIO(raw)):
                 return None
-            with np.load(self.path(key), allow_pickle=False) as data:
+            with np.load(io.BytesIO(raw), allow_pickle=False) as data:
                 if sorted(data.files) != _ARRAYS:
                     return None
                 arrays = {name: data[name] for name in _ARRAYS}

@@ -8,6 +8,7 @@ place they are made safe to show; every format that prints a name as text goes t
 from __future__ import annotations
 
 import math
+import re
 
 from ..errors import ExitStatus
 from ..results import FINDING_STATUSES, CheckResult, Finding, Verdict
@@ -32,10 +33,23 @@ def printable(text: str) -> str:
     'caf\\\\xe9.stl'
     >>> printable("plain name (1).stl")
     'plain name (1).stl'
+
+    A CI runner's command syntax in a name (``##[error]``, Azure's ``##vso[``) is escaped too, so
+    a part name can never issue a runner command from a log line:
+
+    >>> printable("##[error]FORGED.stl")
+    '#\\\\x23[error]FORGED.stl'
     """
+    if "##" in text:
+        text = _RUNNER_COMMAND.sub("#\\\\x23", text)
     if text.isprintable():
         return text
     return "".join(ch if ch.isprintable() else _escape(ch) for ch in text)
+
+
+#: The start of a runner command in a log line: GitHub's old ``##[error]`` syntax, Azure's
+#: ``##vso[``.
+_RUNNER_COMMAND = re.compile(r"##(?=\[|vso\[)", re.IGNORECASE)
 
 
 def _escape(ch: str) -> str:
@@ -63,7 +77,7 @@ def exit_status(result: CheckResult) -> ExitStatus:
 
 _TOLERANCE_RULE = (
     "per pair: max(1e-5 x the smaller part's bounding-box diagonal, "
-    "8 float32 ulps of the pair's largest coordinate)"
+    "8 x 2^-23 x the largest coordinate of its parts stored in float32)"
 )
 
 

@@ -26,8 +26,14 @@ def escape(text: str) -> str:
     --------
     >>> escape("a|b_<script>.stl")
     'a\\\\|b\\\\_\\\\<script\\\\>\\\\.stl'
+
+    An ``@`` gets a zero-width space after it, so ``@user`` in a name pings nobody when the
+    summary is posted as a pull-request comment:
+
+    >>> escape("@octocat.stl")
+    '@&#8203;octocat\\\\.stl'
     """
-    return _MARKUP.sub(r"\\\1", printable(text))
+    return _MARKUP.sub(r"\\\1", printable(text)).replace("@", "@&#8203;")
 
 
 def render(result: CheckResult, *, inputs: Sequence[str] = ()) -> str:

@@ -212,5 +212,7 @@ def _finding(a: Body, b: Body, verdict: PairVerdict, tolerance: float) -> Findin
     """The finding of a pair that is not clear, its parts (and the verdict's) in name order."""
     if (a.name, a.digest) > (b.name, b.digest):
         a, b, verdict = b, a, verdict.swapped()
-    pair_id = finding_id(a.name, a.digest, b.name, b.digest)
+    pair_id = finding_id(
+        a.name, a.digest, b.name, b.digest, placement_a=a.transform, placement_b=b.transform
+    )
     return Finding(a.name, b.name, verdict, id=pair_id, tolerance=tolerance)
