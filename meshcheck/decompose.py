@@ -317,13 +317,16 @@ class CostModel:
         return self.verify_base + self.verify_per_triangle * (triangles_a + triangles_b)
 
 
-#: Calibrated with ``python bench/coacd_settings.py --calibrate`` (README, "When CoACD runs").
+#: Calibrated with ``python bench/cost_model.py`` (README, "When CoACD runs"). CoACD's time per
+#: triangle is erratic (3e-5 s on plates with holes to 2e-3 s on a pocketed housing): the
+#: median part's, plus a worker's start. Verify: the least-squares line through the five parts'
+#: savings. Filter share: the largest measured (0.39), so the model leans towards decomposing.
 COST_MODEL = CostModel(
-    coacd_base=0.3,
-    coacd_per_triangle=2.0e-4,
-    verify_base=1.0e-3,
-    verify_per_triangle=1.0e-6,
-    filter_share=0.5,
+    coacd_base=0.5,
+    coacd_per_triangle=3.0e-4,
+    verify_base=5.0e-4,
+    verify_per_triangle=1.2e-6,
+    filter_share=0.4,
 )
 
 
@@ -445,18 +448,15 @@ def decompose_bodies(
     options : dict, optional
         Other CoACD options, overriding ``DEFAULT_OPTIONS``.
     progress : progress.Progress, optional
-        Told how many distinct meshes are done, what CoACD is working on, and (``note``) which
-        decompositions were cut short.
+        Told the distinct meshes done, what CoACD works on, and (``note``) time-outs.
     time_limit : float or dict, optional
-        Seconds CoACD may spend on a mesh: one figure for all, or one per digest of frame-local
-        geometry (``coacd_budgets``), where 0 means "not worth it": the hull stands in without
-        CoACD and nothing is cached. A mesh that overruns is represented by its convex hull (a
-        valid, coarser cover), and cached so. None: no limit, and a single mesh is decomposed in
-        this process.
+        Seconds CoACD may spend on a mesh: one for all, or per digest of frame-local geometry
+        (``coacd_budgets``), 0 meaning "not worth it": the hull stands in, not cached. A mesh
+        that overruns gets its convex hull (a valid, coarser cover), cached so. None: no limit,
+        and a single mesh is decomposed in this process.
     executor : execute.Executor, optional
-        Where CoACD runs (a run's shared pool or Dask cluster); default a pool of ``jobs``
-        processes started for this call. A one-process ``Executor`` with a time limit is replaced
-        by one worker process, so an overrun can still be killed.
+        Where CoACD runs (a run's pool or Dask cluster); default ``jobs`` processes started for
+        this call. A one-process ``Executor`` with a time limit is replaced by one worker.
     geometry : dict, optional
         ``load.local_geometries`` of the bodies, when the caller has it already.
     secret : bytes, optional
@@ -466,8 +466,7 @@ def decompose_bodies(
     Returns
     -------
     pieces : list of list of (n_i, 3) float64
-        For each body, the vertices of its convex pieces, world coordinates, model units. None of
-        them depends on timing except through a time-out, which only makes pieces coarser.
+        For each body, its convex pieces' vertices, world coordinates, model units.
     """
     settings = coacd_options(threshold, **(options or {}))
     shapes, placed = _shapes(bodies, local_geometries(bodies) if geometry is None else geometry)
@@ -497,13 +496,17 @@ def decompose_bodies(
         )
     _report(progress, done + len(concave) + len(leaders))
     if cache is not None:
-        # A hull that stood in because CoACD would not pay is not a decomposition: not cached,
-        # so a run where the part has more neighbours still decomposes it.
-        unpaid = {d for d, limit in limits.items() if limit == 0.0}
-        for digest in misses:
-            if leaders.get(digest, digest) not in unpaid:
-                cache.put(keys[digest], pieces_of[digest])
+        _store(cache, keys, pieces_of, misses, leaders, limits)
     return [_world_pieces(pieces_of[p.digest], p) for p in placed]
+
+
+def _store(cache, keys: dict, pieces_of: dict, misses: list, leaders: dict, limits: dict) -> None:
+    """Cache the misses' pieces. A hull that stood in because CoACD would not pay is not a
+    decomposition: not cached, so a run where the part has more neighbours decomposes it."""
+    unpaid = {d for d, limit in limits.items() if limit == 0.0}
+    for digest in misses:
+        if leaders.get(digest, digest) not in unpaid:
+            cache.put(keys[digest], pieces_of[digest])
 
 
 def _report(progress: Progress | None, done: int) -> None:

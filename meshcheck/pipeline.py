@@ -121,14 +121,7 @@ def check(
                 )
             result = check_bodies(bodies, settings, executor=executor)
     finally:
-        # Re-issue outside the recorder, so callers' filters (and the CLI) see them as usual;
-        # a message said twice (the same file's problem met by two stages) is said once.
-        first: dict = {}
-        for w in caught:
-            first.setdefault((w.category, str(w.message)), w)
-        caught = list(first.values())
-        for w in caught:
-            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
+        caught = _reissue(caught)
     messages = [str(w.message) for w in caught if issubclass(w.category, MeshcheckWarning)]
     return dataclasses.replace(result, warnings=[*result.warnings, *messages])
 
@@ -353,6 +346,17 @@ def approve(
 
 # ---------------------------------------------------------------------------------------------
 # Helpers
+
+
+def _reissue(caught: list) -> list:
+    """Re-issue recorded warnings outside the recorder, so callers' filters (and the CLI) see
+    them as usual; a message said twice (one file's problem met by two stages) is said once."""
+    first: dict = {}
+    for w in caught:
+        first.setdefault((w.category, str(w.message)), w)
+    for w in first.values():
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
+    return list(first.values())
 
 
 def _names(body: Body) -> tuple[str, ...]:

@@ -68,27 +68,10 @@ def verify_pairs(
         hulls_penetrate = np.zeros(len(pairs), dtype=bool)
     cost = expected_seconds(bodies, pairs, near_surfaces, hulls_penetrate)
     pairs = _oriented(bodies, pairs)
-    verdicts: list[PairVerdict | None] = [None] * len(pairs)
     cache = None
     if settings.cache_dir is not None and secret is not None:
         cache = PairCache(settings.cache_dir, secret=secret)
-    keys: list[str] = []
-    if cache is not None:
-        for k, ((i, j), tol, is_near) in enumerate(
-            zip(pairs, tolerance, near_surfaces, strict=True)
-        ):
-            keys.append(
-                pair_key(
-                    (bodies[i].digest, bodies[i].transform),
-                    (bodies[j].digest, bodies[j].transform),
-                    tolerance=float(tol),
-                    clearance=settings.clearance,
-                    surfaces_apart=not is_near,
-                )
-            )
-            hit = cache.get(keys[k])
-            if hit is not None:
-                verdicts[k] = _verdict(hit)
+    keys, verdicts = _cached(bodies, pairs, tolerance, near_surfaces, settings.clearance, cache)
     todo = np.array([k for k, v in enumerate(verdicts) if v is None], dtype=np.int64)
     hits = len(pairs) - len(todo)
     with Progress("checking", len(pairs)) as bar:
@@ -110,7 +93,33 @@ def verify_pairs(
             cache.put(keys[k], _fields(verdict))
     if cache is not None and len(todo):
         cache.remove_stale_temporaries()
+    return _findings(bodies, pairs, tolerance, verdicts)
 
+
+def _cached(bodies, pairs, tolerance, near_surfaces, clearance, cache) -> tuple[list, list]:
+    """Each pair's cache key (none without a cache), and its cached verdict or None."""
+    verdicts: list[PairVerdict | None] = [None] * len(pairs)
+    keys: list[str] = []
+    if cache is None:
+        return keys, verdicts
+    for k, ((i, j), tol, is_near) in enumerate(zip(pairs, tolerance, near_surfaces, strict=True)):
+        keys.append(
+            pair_key(
+                (bodies[i].digest, bodies[i].transform),
+                (bodies[j].digest, bodies[j].transform),
+                tolerance=float(tol),
+                clearance=clearance,
+                surfaces_apart=not is_near,
+            )
+        )
+        hit = cache.get(keys[k])
+        if hit is not None:
+            verdicts[k] = _verdict(hit)
+    return keys, verdicts
+
+
+def _findings(bodies, pairs, tolerance, verdicts) -> list[Finding]:
+    """A finding for each verdict that is not clear, sorted by part names."""
     findings = []
     for (i, j), tol, verdict in zip(pairs, tolerance, verdicts, strict=True):
         if verdict.status == Verdict.CLEAR:
