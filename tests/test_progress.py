@@ -61,3 +61,22 @@ def test_a_stage_of_unknown_size_says_what_it_does():
     with Progress("starting", 0, stream=tty):
         assert tty.getvalue() == "\rstarting...\033[K"
     assert tty.getvalue().endswith("\r\033[K")
+
+
+def test_a_busy_stage_says_how_long_and_what_it_waits_on_in_logs_and_on_a_terminal():
+    pipe, tty = io.StringIO(), _Terminal()
+    for stream in (pipe, tty):
+        with Progress(
+            "decomposing", 2, stream=stream, quiet_seconds=0.1, detail=lambda: "base_link"
+        ) as bar:
+            time.sleep(1.3)
+            bar.note("base_link: convex decomposition took over 0.5 s; its hull stands in")
+    logged = pipe.getvalue().splitlines()
+    assert logged[0].startswith("meshcheck: decomposing 0/2 ... 0 s, waiting on base_link")
+    assert (
+        "meshcheck: base_link: convex decomposition took over 0.5 s; its hull stands in" in logged
+    )
+    drawn = tty.getvalue()
+    assert "\rdecomposing 0/2, 1 s, waiting on base_link\033[K" in drawn
+    assert "\r\033[Kmeshcheck: base_link: convex decomposition took over 0.5 s" in drawn
+    assert drawn.endswith("\r\033[K")
