@@ -352,7 +352,8 @@ def coacd_budgets(
         ``load.local_geometries(bodies)``, when the caller has it.
     model : CostModel
     forced : float, optional
-        For tests and benchmarks: every closed geometry gets this budget, whatever it saves.
+        For tests and benchmarks: every geometry gets this budget, whatever it saves, open or
+        closed (the trust tests of the decomposition cache use open meshes).
 
     Returns
     -------
@@ -375,7 +376,7 @@ def coacd_budgets(
             pays = body.is_closed and saving[digest] > model.coacd_seconds(int(n))
             budgets[digest] = saving[digest] if pays else 0.0
             if forced is not None:
-                budgets[digest] = float(forced) if body.is_closed else 0.0
+                budgets[digest] = float(forced)
     return budgets
 
 

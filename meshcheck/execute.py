@@ -406,6 +406,11 @@ class DaskExecutor(Executor):
         cannot be killed per task): a CoACD overrun only takes longer there."""
         from distributed import wait
 
+        try:
+            from distributed.client import FuturesCancelledError
+        except ImportError:  # older distributed: wait raises the plain CancelledError
+            from concurrent.futures import CancelledError as FuturesCancelledError
+
         shared = shared or {}
         results: list = [None] * len(tasks)
         if not tasks:
@@ -439,6 +444,10 @@ class DaskExecutor(Executor):
                         done, _ = wait(list(running), timeout=1.0, return_when="FIRST_COMPLETED")
                 except TimeoutError:
                     done = set()
+                except FuturesCancelledError:
+                    # The scheduler forgot a task whose input died with a killed worker: sent
+                    # again below (``again``), as any lost task.
+                    done = {f for f in running if f.cancelled()}
                 for future in done:
                     index = running.pop(future)
                     if future.status == "finished":

@@ -236,8 +236,9 @@ def within(result, reach: np.ndarray) -> np.ndarray:
     return (result.status != Status.SEPARATED) | (result.distance <= reach)
 
 
-#: Environment variable for tests and benchmarks: CoACD on every closed part that meets another,
-#: each with at most this many seconds, whatever the cost model says (``decompose.coacd_budgets``).
+#: Environment variable for tests and benchmarks: CoACD on every part that meets another, open
+#: or closed, each with at most this many seconds, whatever the cost model says
+#: (``decompose.coacd_budgets``).
 BUDGET_VARIABLE = "MESHCHECK_COACD_BUDGET"
 
 

@@ -2,7 +2,7 @@
 CoACD finished or cut short, the JSON is the same bytes.
 
 The decompositions here really time out: ``MESHCHECK_COACD_BUDGET`` (a hook for tests and
-benchmarks) sends every closed part to CoACD with a 1 ms limit, and the worker running it is
+benchmarks) sends every part to CoACD with a 1 ms limit, and the worker running it is
 killed. The runs are whole ``meshcheck`` processes with their own cache directories and key.
 """
 
