@@ -341,7 +341,8 @@ def coacd_budgets(
     """Seconds CoACD may spend on each distinct geometry; 0 where its pieces cannot pay.
 
     A function of the inputs only (triangle counts, closedness, the hull-near ``pairs``), so the
-    choice, and with it which pairs reach the exact stage, is the same on every run.
+    choice is the same on every run. (Pieces a cache already holds are used whatever it says:
+    which pairs the pieces clear changes the exact stage's work, never a verdict.)
 
     Parameters
     ----------
