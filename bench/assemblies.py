@@ -187,7 +187,6 @@ def run_size(size: int, jobs: int | None) -> dict:
         found = {tuple(sorted((r["a"], r["b"]))): r["status"] for r in report["results"]}
         interference = {p for p, s in found.items() if s == "interference"}
         fcl_pairs = {tuple(p) for p in json.loads(fcl[3])}
-        decomposed = sum(1 for p in report["parts"] if p["pieces"] > 1)
         return {
             "size": len(paths),
             "cold": cold,
@@ -202,7 +201,6 @@ def run_size(size: int, jobs: int | None) -> dict:
             "fcl_missed": sorted(clashes - fcl_pairs),
             "fcl_pairs": len(fcl_pairs),
             "fcl_false": sorted(fcl_pairs - set(found)),
-            "decomposed_parts": decomposed,
         }
 
 

@@ -24,8 +24,6 @@ import sys
 import tempfile
 import time
 
-import numpy as np
-
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 
@@ -49,7 +47,7 @@ def verify_stage_input(paths: list[str], cache_dir: str):
     query = query_pairs(hulls, pairs, tolerance=tolerance, depth=False, max_distance=tolerance)
     near = pipeline.within(query, tolerance)
     pairs, tolerance = pairs[near], tolerance[near]
-    pieces, owner, _ = pipeline.decompose_parts(bodies, np.unique(pairs), settings)
+    pieces, owner, _ = pipeline.decompose_parts(bodies, pairs, settings)
     surfaces = pipeline.surfaces_near(pieces, owner, pairs, tolerance, tolerance)
     return bodies, pairs, tolerance, surfaces
 

@@ -12,21 +12,26 @@ lowest corner to the origin, so instances of one mesh (a GLB node placed many ti
 STL part at several positions share an entry; copies that differ only by float32 rounding reuse one
 decomposition (then re-covered against their own triangles). Misses are decomposed as ``execute``
 tasks (local worker processes with one OpenMP thread each, or a Dask cluster), and stored in the
-cache by this process alone. A mesh that CoACD has not
-finished within ``DEFAULT_TIME_LIMIT`` seconds is represented by its convex hull instead.
+cache by this process alone.
+
+CoACD runs only where its pieces pay (``coacd_budgets``, the ``CostModel``): on a closed part
+whose hull-near pairs would cost the exact stage more than CoACD is expected to take, and for no
+longer than that saving. Elsewhere the part's convex hull stands in, as it does for a mesh CoACD
+does not finish in time. Which pairs the pieces clear changes only how much work the exact stage
+does, never a verdict, so none of this reaches a report.
 """
 
 from __future__ import annotations
 
 import hashlib
-import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import MeshcheckWarning
 from .execute import Executor, LocalPool, Task, default_jobs
 from .load import Body, is_closed, local_geometries
+from .progress import Progress
 from .settings import DEFAULT_THRESHOLD
 
 # CoACD settings chosen with bench/coacd_settings.py (its figures are in README, "CoACD settings").
@@ -48,9 +53,10 @@ DEFAULT_OPTIONS = {
 }
 
 # CoACD's time is erratic (bench/coacd_settings.py --slow shows a small settings change taking a
-# gear a hundred times longer: bad early cuts split it into hundreds of pieces). Past this many
-# seconds per mesh the worker is killed and the part's hull stands in for its pieces: the check
-# stays exact, only slower for that part.
+# gear a hundred times longer: bad early cuts split it into hundreds of pieces). Past its limit
+# the worker is killed and the part's hull stands in for its pieces: the check stays exact, only
+# slower for that part. The check gives each part the limit the cost model derives
+# (``coacd_budgets``); this one is for callers of ``decompose_bodies`` that give none.
 DEFAULT_TIME_LIMIT = 20.0
 
 # A vertex counts as inside a piece when it is at most this fraction of the mesh's bounding-box
@@ -269,6 +275,151 @@ def decompose_task(store: dict, vertices, faces, options) -> list[np.ndarray]:
     return decompose_mesh(vertices, faces, options)
 
 
+# ---------------------------------------------------------------------------------------------
+# Where decomposing pays: the cost model
+
+
+@dataclass(frozen=True)
+class CostModel:
+    """Expected seconds of CoACD on a mesh and of the exact verify stage on a pair.
+
+    The pieces are only a filter in front of the exact stage: a hull-near pair whose pieces stay
+    apart skips the triangle search (``verify.pair._near_pairs``) and keeps only the buried-shell
+    test, which runs either way. A part's pieces can therefore save at most
+    ``filter_share * sum(verify_seconds(pair))`` over its hull-near pairs; CoACD runs on it only
+    when that exceeds ``coacd_seconds(triangles)``, and for no longer than that saving.
+
+    Attributes
+    ----------
+    coacd_base, coacd_per_triangle : float
+        ``coacd_seconds(n) = coacd_base + coacd_per_triangle * n``, one core, meshcheck's
+        CoACD settings.
+    verify_base, verify_per_triangle : float
+        ``verify_seconds(n_a, n_b) = verify_base + verify_per_triangle * (n_a + n_b)``: the
+        triangle search of one hull-near pair that the pieces would clear.
+    filter_share : float
+        Share of a part's hull-near pairs its pieces clear: the upper end measured, so the model
+        leans towards decomposing.
+    """
+
+    coacd_base: float
+    coacd_per_triangle: float
+    verify_base: float
+    verify_per_triangle: float
+    filter_share: float
+
+    def coacd_seconds(self, triangles: int) -> float:
+        """Expected seconds of CoACD on a closed mesh of ``triangles`` triangles."""
+        return self.coacd_base + self.coacd_per_triangle * triangles
+
+    def verify_seconds(self, triangles_a: int, triangles_b: int) -> float:
+        """Expected seconds of the triangle search of a pair the pieces would clear."""
+        return self.verify_base + self.verify_per_triangle * (triangles_a + triangles_b)
+
+
+#: Calibrated with ``python bench/cost_model.py`` (README, "When CoACD runs"). CoACD's time per
+#: triangle is erratic (3e-5 s on plates with holes to 2e-3 s on a pocketed housing): the
+#: median part's, plus a worker's start. Verify: the least-squares line through the five parts'
+#: savings. Filter share: the largest measured (0.39), so the model leans towards decomposing.
+COST_MODEL = CostModel(
+    coacd_base=0.5,
+    coacd_per_triangle=3.0e-4,
+    verify_base=5.0e-4,
+    verify_per_triangle=1.2e-6,
+    filter_share=0.4,
+)
+
+
+def coacd_budgets(
+    bodies: Sequence[Body],
+    pairs: np.ndarray,
+    *,
+    geometry: dict | None = None,
+    model: CostModel = COST_MODEL,
+    forced: float | None = None,
+) -> dict[str, float]:
+    """Seconds CoACD may spend on each distinct geometry; 0 where its pieces cannot pay.
+
+    A function of the inputs only (triangle counts, closedness, the hull-near ``pairs``), so the
+    choice is the same on every run. (Pieces a cache already holds are used whatever it says:
+    which pairs the pieces clear changes the exact stage's work, never a verdict.)
+
+    Parameters
+    ----------
+    bodies : sequence of Body
+    pairs : (k, 2) int64
+        The hull-near part pairs, indices into ``bodies``.
+    geometry : dict, optional
+        ``load.local_geometries(bodies)``, when the caller has it.
+    model : CostModel
+    forced : float, optional
+        For tests and benchmarks: every geometry gets this budget, whatever it saves, open or
+        closed (the trust tests of the decomposition cache use open meshes).
+
+    Returns
+    -------
+    budgets : dict
+        Digest of each distinct frame-local geometry (``load.local_geometry``) -> seconds: the
+        verify work its pieces could save when that exceeds CoACD's expected time, else 0.
+        Open meshes always get 0 (CoACD remeshes them into a different surface, slowly).
+    """
+    geometry = local_geometries(bodies) if geometry is None else geometry
+    digests = [geometry[id(b.mesh)][3] for b in bodies]
+    triangles = np.array([len(b.mesh.faces) for b in bodies], dtype=np.int64)
+    saving = dict.fromkeys(digests, 0.0)
+    for i, j in np.asarray(pairs, dtype=np.int64).reshape(-1, 2):
+        seconds = model.filter_share * model.verify_seconds(triangles[i], triangles[j])
+        saving[digests[i]] += seconds
+        saving[digests[j]] += seconds
+    budgets = {}
+    for body, digest, n in zip(bodies, digests, triangles, strict=True):
+        if digest not in budgets:
+            pays = body.is_closed and saving[digest] > model.coacd_seconds(int(n))
+            budgets[digest] = saving[digest] if pays else 0.0
+            if forced is not None:
+                budgets[digest] = float(forced)
+    return budgets
+
+
+# ---------------------------------------------------------------------------------------------
+# Decomposing bodies
+
+
+@dataclass(frozen=True)
+class Shape:
+    """One distinct frame-local geometry among the bodies (``load.local_geometry``).
+
+    Attributes
+    ----------
+    digest : str
+        Hex SHA-256 of ``local`` and ``faces``.
+    local : (n, 3) float64
+        Vertices with their lowest corner at the origin.
+    faces : (m, 3) int64
+    name : str
+        The first body with this geometry, for progress lines.
+    """
+
+    digest: str
+    local: np.ndarray
+    faces: np.ndarray
+    name: str
+
+    @property
+    def topology(self) -> tuple:
+        """Equal for copies that differ only by rounding of their vertices."""
+        return (self.local.shape, hashlib.sha256(self.faces.tobytes()).hexdigest())
+
+
+@dataclass(frozen=True)
+class Placed:
+    """Where a body's geometry sits: world = (local + corner) placed by ``transform``."""
+
+    digest: str
+    corner: np.ndarray  # (3,) float64
+    transform: np.ndarray  # (4, 4) float64
+
+
 def decompose_bodies(
     bodies: Sequence[Body],
     *,
@@ -276,8 +427,8 @@ def decompose_bodies(
     cache_dir: str | None = None,
     jobs: int | None = None,
     options: dict | None = None,
-    progress: Callable[[int], None] | None = None,
-    time_limit: float | None = DEFAULT_TIME_LIMIT,
+    progress: Progress | None = None,
+    time_limit: float | dict[str, float] | None = DEFAULT_TIME_LIMIT,
     executor: Executor | None = None,
     geometry: dict | None = None,
     secret: bytes | None = None,
@@ -298,16 +449,16 @@ def decompose_bodies(
         and the main process never loads CoACD.
     options : dict, optional
         Other CoACD options, overriding ``DEFAULT_OPTIONS``.
-    progress : callable, optional
-        Called with the number of meshes done each time some finish.
-    time_limit : float, optional
-        Seconds CoACD may spend on one mesh; a mesh that takes longer is represented by its
-        convex hull (a valid, coarser cover) with a ``MeshcheckWarning``. None: no limit, and a
-        single mesh is decomposed in this process.
+    progress : progress.Progress, optional
+        Told the distinct meshes done, what CoACD works on, and (``note``) time-outs.
+    time_limit : float or dict, optional
+        Seconds CoACD may spend on a mesh: one for all, or per digest of frame-local geometry
+        (``coacd_budgets``), 0 meaning "not worth it": the hull stands in, not cached. A mesh
+        that overruns gets its convex hull (a valid, coarser cover), cached so. None: no limit,
+        and a single mesh is decomposed in this process.
     executor : execute.Executor, optional
-        Where CoACD runs (a run's shared pool or Dask cluster); default a pool of ``jobs``
-        processes started for this call. A one-process ``Executor`` with a time limit is replaced
-        by one worker process, so an overrun can still be killed.
+        Where CoACD runs (a run's pool or Dask cluster); default ``jobs`` processes started for
+        this call. A one-process ``Executor`` with a time limit is replaced by one worker.
     geometry : dict, optional
         ``load.local_geometries`` of the bodies, when the caller has it already.
     secret : bytes, optional
@@ -317,152 +468,208 @@ def decompose_bodies(
     Returns
     -------
     pieces : list of list of (n_i, 3) float64
-        For each body, the vertices of its convex pieces, world coordinates, model units.
+        For each body, its convex pieces' vertices, world coordinates, model units.
     """
     settings = coacd_options(threshold, **(options or {}))
+    shapes, placed = _shapes(bodies, local_geometries(bodies) if geometry is None else geometry)
     cache = None
     if cache_dir is not None:
         from .cache import DecompositionCache
 
         cache = DecompositionCache(cache_dir, secret=secret)
-
-    # One entry per distinct frame-local geometry, in order of first appearance.
-    if geometry is None:
-        geometry = local_geometries(bodies)
-    names: dict[str, str] = {}  # digest -> name of the first body with that geometry
-    for body in bodies:
-        names.setdefault(geometry[id(body.mesh)][3], body.name)
-    distinct: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-    for body in bodies:
-        local, faces, _, digest = geometry[id(body.mesh)]
-        distinct.setdefault(digest, (local, faces))
-
-    pieces_of: dict[str, list[np.ndarray]] = {}
-    keys: dict[str, str] = {}
-    if cache is not None:
-        from .cache import cache_key
-
-        for digest in distinct:
-            keys[digest] = cache_key(digest, settings)
-            hit = cache.lookup(keys[digest])
-            # The cache is input from outside: an entry is used only when its pieces cover every
-            # triangle of the mesh, which is all the filter's exactness rests on, or when it is
-            # signed with the run's key (written by a run that held it, from covering pieces).
-            if hit is not None and (hit[1] or covers(*distinct[digest], hit[0])):
-                pieces_of[digest] = hit[0]
+    keys, pieces_of = _from_cache(shapes, cache, settings)
+    misses = [d for d in shapes if d not in pieces_of]
+    leaders = _near_copies(shapes, pieces_of, misses)
     done = len(pieces_of)
-    if progress is not None and done:
-        progress(done)
+    _report(progress, done)
 
-    # Misses: copies differing only by float32 rounding share the first one's decomposition.
-    # Cached entries and earlier misses lead; a miss that matches one reuses its pieces.
-    misses = [d for d in distinct if d not in pieces_of]
-    leaders: dict[str, str] = {}
-    by_topology: dict[tuple, list[str]] = {}
-    for digest, (local, faces) in distinct.items():
-        topo = (local.shape, hashlib.sha256(faces.tobytes()).hexdigest())
-        if digest in pieces_of:
-            by_topology.setdefault(topo, []).append(digest)
+    limits = _limits(time_limit, [d for d in misses if d not in leaders])
+    skipped, concave = _plan(shapes, limits)
+    for digest in skipped:
+        pieces_of[digest] = [_hull_vertices(shapes[digest].local)]
+    done += len(skipped)
+    _report(progress, done)
+    fresh = _run_concave(shapes, concave, limits, settings, jobs, executor, progress, done)
+    pieces_of.update(fresh)
+    for digest, leader in leaders.items():
+        shape = shapes[digest]
+        pieces_of[digest] = cover_triangles(
+            shape.local, shape.faces, [p.copy() for p in pieces_of[leader]]
+        )
+    _report(progress, done + len(concave) + len(leaders))
+    if cache is not None:
+        _store(cache, keys, pieces_of, misses, leaders, limits)
+    return [_world_pieces(pieces_of[p.digest], p) for p in placed]
+
+
+def _store(cache, keys: dict, pieces_of: dict, misses: list, leaders: dict, limits: dict) -> None:
+    """Cache the misses' pieces. A hull that stood in because CoACD would not pay is not a
+    decomposition: not cached, so a run where the part has more neighbours decomposes it."""
+    unpaid = {d for d, limit in limits.items() if limit == 0.0}
     for digest in misses:
-        local, faces = distinct[digest]
-        topo = (local.shape, hashlib.sha256(faces.tobytes()).hexdigest())
-        span = float(np.linalg.norm(np.ptp(local, axis=0))) if len(local) else 0.0
-        for leader in by_topology.get(topo, []):
-            if np.max(np.abs(distinct[leader][0] - local), initial=0.0) <= (
-                NEAR_COPY_TOLERANCE * span
-            ):
+        if leaders.get(digest, digest) not in unpaid:
+            cache.put(keys[digest], pieces_of[digest])
+
+
+def _report(progress: Progress | None, done: int) -> None:
+    if progress is not None:
+        progress.update(done)
+
+
+def _shapes(bodies: Sequence[Body], geometry: dict) -> tuple[dict[str, Shape], list[Placed]]:
+    """The distinct geometries in order of first appearance, and each body's placement."""
+    shapes: dict[str, Shape] = {}
+    placed = []
+    for body in bodies:
+        local, faces, corner, digest = geometry[id(body.mesh)]
+        if digest not in shapes:
+            shapes[digest] = Shape(digest, local, faces, body.name)
+        transform = np.asarray(body.transform, dtype=np.float64)
+        placed.append(Placed(digest, corner, transform))
+    return shapes, placed
+
+
+def _from_cache(shapes: dict[str, Shape], cache, settings: dict) -> tuple[dict, dict]:
+    """Cache keys of the shapes, and the pieces of those the cache holds and may be trusted.
+
+    The cache is input from outside: an entry is used only when its pieces cover every triangle
+    of the mesh, which is all the filter's exactness rests on, or when it is signed with the
+    run's key (written by a run that held it, from covering pieces).
+    """
+    keys: dict[str, str] = {}
+    pieces_of: dict[str, list[np.ndarray]] = {}
+    if cache is None:
+        return keys, pieces_of
+    from .cache import cache_key
+
+    for digest, shape in shapes.items():
+        keys[digest] = cache_key(digest, settings)
+        hit = cache.lookup(keys[digest])
+        if hit is not None and (hit[1] or covers(shape.local, shape.faces, hit[0])):
+            pieces_of[digest] = hit[0]
+    return keys, pieces_of
+
+
+def _near_copies(shapes: dict[str, Shape], pieces_of: dict, misses: list[str]) -> dict[str, str]:
+    """Misses that are copies (within ``NEAR_COPY_TOLERANCE``) of a cached shape or of an
+    earlier miss: digest -> the digest whose pieces it reuses (re-covered)."""
+    by_topology: dict[tuple, list[str]] = {}
+    for digest in pieces_of:
+        by_topology.setdefault(shapes[digest].topology, []).append(digest)
+    leaders: dict[str, str] = {}
+    for digest in misses:
+        shape = shapes[digest]
+        span = float(np.linalg.norm(np.ptp(shape.local, axis=0))) if len(shape.local) else 0.0
+        for leader in by_topology.get(shape.topology, []):
+            gap = np.max(np.abs(shapes[leader].local - shape.local), initial=0.0)
+            if gap <= NEAR_COPY_TOLERANCE * span:
                 leaders[digest] = leader
                 break
         else:
-            by_topology.setdefault(topo, []).append(digest)
-    todo = [d for d in misses if d not in leaders]
+            by_topology.setdefault(shape.topology, []).append(digest)
+    return leaders
 
-    # Convex meshes are their own hull: decided here, so a pool starts only for CoACD work.
+
+def _limits(time_limit, digests: list[str]) -> dict[str, float | None]:
+    """Each digest's CoACD time limit: 0 for "not worth it", None for no limit."""
+    if isinstance(time_limit, dict):
+        return {d: float(time_limit.get(d, 0.0)) for d in digests}
+    return dict.fromkeys(digests, time_limit)
+
+
+def _plan(shapes: dict[str, Shape], limits: dict) -> tuple[list[str], list[str]]:
+    """Split the shapes to decompose into those whose hull stands in (no budget, or convex:
+    a convex mesh is its own hull) and the concave ones CoACD runs on."""
     import trimesh
 
-    concave = []
-    for digest in todo:
-        local, faces = distinct[digest]
-        if is_convex(trimesh.Trimesh(local, faces, process=False)):
-            pieces_of[digest] = [_hull_vertices(local)]
+    skipped, concave = [], []
+    for digest, limit in limits.items():
+        shape = shapes[digest]
+        if limit == 0.0 or is_convex(trimesh.Trimesh(shape.local, shape.faces, process=False)):
+            skipped.append(digest)
         else:
             concave.append(digest)
-    done += len(todo) - len(concave)
-    if progress is not None and len(todo) > len(concave):
-        progress(done)
-    results = _decompose_concave(
-        [distinct[d] for d in concave], settings, jobs, executor, progress, done, time_limit
-    )
-    for digest, pieces in zip(concave, results, strict=True):
-        if pieces is None:  # overran the time limit or crashed: the hull covers every triangle
-            local = distinct[digest][0]
-            pieces = [_hull_vertices(local)]
-            limit = f"took over {time_limit:g} s or " if time_limit is not None else ""
-            warnings.warn(
-                f"{names[digest]}: convex decomposition {limit}crashed; "
-                "the part's convex hull stands in for its pieces (the check stays exact)",
-                MeshcheckWarning,
-                stacklevel=2,
-            )
-        pieces_of[digest] = pieces
-    for digest, leader in leaders.items():
-        local, faces = distinct[digest]
-        pieces_of[digest] = cover_triangles(local, faces, [p.copy() for p in pieces_of[leader]])
-    if progress is not None and leaders:
-        progress(done + len(concave) + len(leaders))
-    if cache is not None:
-        for digest in misses:
-            cache.put(keys[digest], pieces_of[digest])
+    return skipped, concave
 
+
+def _run_concave(shapes, concave, limits, settings, jobs, executor, progress, done) -> dict:
+    """CoACD's covering pieces of each concave shape; the hull where it overran or crashed,
+    said on ``progress`` as a note (how the run went belongs to no report)."""
+    results = _decompose_concave(
+        [shapes[d] for d in concave],
+        [limits[d] for d in concave],
+        settings,
+        jobs=jobs,
+        executor=executor,
+        progress=progress,
+        done=done,
+    )
+    out = {}
+    for digest, pieces in zip(concave, results, strict=True):
+        if pieces is None:
+            limit = limits[digest]
+            why = f"took over {limit:.3g} s" if limit is not None else "crashed"
+            if progress is not None:
+                progress.note(
+                    f"{shapes[digest].name}: convex decomposition {why}; its hull stands in "
+                    "(the check stays exact, this part's pairs are verified on the real meshes)"
+                )
+            pieces = [_hull_vertices(shapes[digest].local)]
+        out[digest] = pieces
+    return out
+
+
+def _world_pieces(pieces: list[np.ndarray], placed: Placed) -> list[np.ndarray]:
+    """Frame-local pieces moved to the body's place in the world."""
     out = []
-    for body in bodies:
-        _, _, corner, digest = geometry[id(body.mesh)]
-        transform = np.asarray(body.transform, dtype=np.float64)
-        world = []
-        for piece in pieces_of[digest]:
-            p = piece + corner
-            if not np.array_equal(transform, np.eye(4)):
-                p = p @ transform[:3, :3].T + transform[:3, 3]
-            world.append(p)
-        out.append(world)
+    is_moved = not np.array_equal(placed.transform, np.eye(4))
+    for piece in pieces:
+        p = piece + placed.corner
+        if is_moved:
+            p = p @ placed.transform[:3, :3].T + placed.transform[:3, 3]
+        out.append(p)
     return out
 
 
 def _decompose_concave(
-    meshes: list[tuple[np.ndarray, np.ndarray]],
+    shapes: list[Shape],
+    limits: list[float | None],
     options: dict,
+    *,
     jobs: int | None,
     executor: Executor | None,
-    progress: Callable[[int], None] | None,
+    progress: Progress | None,
     done: int,
-    time_limit: float | None,
 ) -> list[list[np.ndarray] | None]:
-    """CoACD on each mesh; None for a mesh that overran ``time_limit`` or crashed its worker.
+    """CoACD on each shape; None for a shape that overran its limit or crashed its worker.
 
-    Without a time limit and with one job, meshes are decomposed in this process. Otherwise they
+    Without any limit and with one job, shapes are decomposed in this process. Otherwise they
     run in worker processes (or on the given executor), largest mesh first.
     """
-    if not meshes:
+    if not shapes:
         return []
-    tasks = [Task((v, f, options), size=len(f)) for v, f in meshes]
-
-    def report(finished: int) -> None:
-        if progress is not None:
-            progress(done + finished)
-
+    tasks = [
+        Task((s.local, s.faces, options), size=len(s.faces), time_limit=limit)
+        for s, limit in zip(shapes, limits, strict=True)
+    ]
+    has_limit = any(limit is not None for limit in limits)
     own = None
     if executor is None or (not isinstance(executor, LocalPool) and not executor.is_distributed):
-        workers = min(jobs or default_jobs(), len(tasks))
-        if executor is not None:
-            workers = 1
-        if workers <= 1 and time_limit is None:
+        workers = 1 if executor is not None else min(jobs or default_jobs(), len(tasks))
+        if workers <= 1 and not has_limit:
             executor = Executor()
         else:
             executor = own = LocalPool(workers)
+    if progress is not None:
+        progress.detail = lambda: ", ".join(shapes[i].name for i in executor.running)
     try:
         return executor.map(
-            "meshcheck.decompose:decompose_task", tasks, progress=report, time_limit=time_limit
+            "meshcheck.decompose:decompose_task",
+            tasks,
+            progress=None if progress is None else (lambda k: progress.update(done + k)),
         )
     finally:
+        if progress is not None:
+            progress.detail = None
         if own is not None:
             own.close()

@@ -22,6 +22,7 @@ keep per-process memos under keys of its own).
 from __future__ import annotations
 
 import importlib
+import math
 import os
 import sys
 import time
@@ -48,11 +49,14 @@ class Task:
         Keys of the shared values the call reads from its store.
     size : int
         Rough cost, for ordering: the largest tasks start first.
+    time_limit : float, optional
+        Seconds this task may run, instead of the map's ``time_limit`` (local pools only).
     """
 
     args: tuple
     needs: tuple[Hashable, ...] = ()
     size: int = 0
+    time_limit: float | None = None
 
 
 def default_jobs() -> int:
@@ -96,6 +100,8 @@ class Executor:
 
     jobs = 1
     is_distributed = False
+    #: Indices (into the current map's tasks) of the tasks running now, for progress lines.
+    running: tuple[int, ...] = ()
 
     @property
     def is_started(self) -> bool:
@@ -129,7 +135,9 @@ class Executor:
         store = dict(shared or {})
         out = []
         for done, task in enumerate(tasks, start=1):
+            self.running = (done - 1,)
             out.append(call(function, store, task.needs, task.args))
+            self.running = ()
             if progress is not None:
                 progress(done)
         return out
@@ -250,6 +258,10 @@ class LocalPool(Executor):
     def is_started(self) -> bool:
         return bool(self.workers)
 
+    @property
+    def running(self) -> tuple[int, ...]:
+        return tuple(sorted(w.task for w in list(self.workers) if w.task is not None))
+
     def map(self, function, tasks, *, shared=None, progress=None, time_limit=None) -> list:
         from multiprocessing.connection import wait
 
@@ -262,6 +274,10 @@ class LocalPool(Executor):
         while len(self.workers) < wanted:
             self.workers.append(_Worker())
         finished = 0
+
+        def limit_of(index: int) -> float:
+            limit = tasks[index].time_limit if tasks[index].time_limit is not None else time_limit
+            return math.inf if limit is None else limit
 
         def lost(worker: _Worker) -> None:
             nonlocal finished
@@ -304,9 +320,10 @@ class LocalPool(Executor):
                     start(worker)
             while finished < len(tasks):
                 timeout = None
-                busy = [w.started for w in self.workers if w.task is not None]
-                if time_limit is not None and busy:
-                    timeout = max(0.0, min(busy) + time_limit - time.monotonic())
+                ends = [w.started + limit_of(w.task) for w in self.workers if w.task is not None]
+                ends = [end for end in ends if end < math.inf]
+                if ends:
+                    timeout = max(0.0, min(ends) - time.monotonic())
                 for worker in wait(list(self.workers), timeout=timeout):
                     try:
                         message = worker.receive_end.recv()
@@ -323,11 +340,10 @@ class LocalPool(Executor):
                     worker.task, worker.is_ready = None, True
                     if pending:
                         start(worker)
-                if time_limit is not None:
-                    now = time.monotonic()
-                    for worker in list(self.workers):
-                        if worker.task is not None and now - worker.started > time_limit:
-                            lost(worker)
+                now = time.monotonic()
+                for worker in list(self.workers):
+                    if worker.task is not None and now - worker.started > limit_of(worker.task):
+                        lost(worker)
                 if not self.workers and pending:
                     self.workers.append(_Worker())
         except BaseException:
@@ -391,6 +407,11 @@ class DaskExecutor(Executor):
         cannot be killed per task): a CoACD overrun only takes longer there."""
         from distributed import wait
 
+        try:
+            from distributed.client import FuturesCancelledError
+        except ImportError:  # older distributed: wait raises the plain CancelledError
+            from concurrent.futures import CancelledError as FuturesCancelledError
+
         shared = shared or {}
         results: list = [None] * len(tasks)
         if not tasks:
@@ -424,6 +445,10 @@ class DaskExecutor(Executor):
                         done, _ = wait(list(running), timeout=1.0, return_when="FIRST_COMPLETED")
                 except TimeoutError:
                     done = set()
+                except FuturesCancelledError:
+                    # The scheduler forgot a task whose input died with a killed worker: sent
+                    # again below (``again``), as any lost task.
+                    done = {f for f in running if f.cancelled()}
                 for future in done:
                     index = running.pop(future)
                     if future.status == "finished":

@@ -29,7 +29,7 @@ import numpy as np
 
 from .cache import pair_secret
 from .config import Approval, approval_reason
-from .decompose import decompose_bodies
+from .decompose import coacd_budgets, decompose_bodies
 from .errors import MeshcheckWarning
 from .execute import Executor, executor_for
 from .geometry import ConvexPack, Status, pack_convex, query_pairs
@@ -123,14 +123,7 @@ def check(
                 )
             result = check_bodies(bodies, settings, executor=executor)
     finally:
-        # Re-issue outside the recorder, so callers' filters (and the CLI) see them as usual;
-        # a message said twice (the same file's problem met by two stages) is said once.
-        first: dict = {}
-        for w in caught:
-            first.setdefault((w.category, str(w.message)), w)
-        caught = list(first.values())
-        for w in caught:
-            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
+        caught = _reissue(caught)
     messages = [str(w.message) for w in caught if issubclass(w.category, MeshcheckWarning)]
     return dataclasses.replace(result, warnings=[*result.warnings, *messages])
 
@@ -177,7 +170,7 @@ def check_bodies(
     ) as executor:
         pieces, owner, piece_count = decompose_parts(
             bodies,
-            np.unique(pairs_near),
+            pairs_near,
             settings,
             executor=executor,
             geometry=geometry,
@@ -185,7 +178,14 @@ def check_bodies(
         )
         near_surfaces = surfaces_near(pieces, owner, pairs_near, tol_near, reach_near)
         findings = verify_pairs(
-            bodies, pairs_near, tol_near, near_surfaces, settings, executor=executor, secret=secret
+            bodies,
+            pairs_near,
+            tol_near,
+            near_surfaces,
+            settings,
+            executor=executor,
+            secret=secret,
+            hulls_penetrate=hull_query.status[near] == Status.PENETRATING,
         )
     findings = approve(
         findings, settings.approvals, dict(zip([b.name for b in bodies], names, strict=True))
@@ -242,18 +242,25 @@ def within(result, reach: np.ndarray) -> np.ndarray:
     return (result.status != Status.SEPARATED) | (result.distance <= reach)
 
 
+#: Environment variable for tests and benchmarks: CoACD on every part that meets another, open
+#: or closed, each with at most this many seconds, whatever the cost model says
+#: (``decompose.coacd_budgets``).
+BUDGET_VARIABLE = "MESHCHECK_COACD_BUDGET"
+
+
 def decompose_parts(
     bodies: Sequence[Body],
-    needed: np.ndarray,
+    pairs: np.ndarray,
     settings: Settings,
     *,
     executor: Executor | None = None,
     geometry: dict | None = None,
     secret: bytes | None = None,
 ) -> tuple[ConvexPack, np.ndarray, np.ndarray]:
-    """Convex pieces of the parts in ``needed`` (indices into ``bodies``), CoACD running on
-    ``executor`` (default: ``settings.jobs`` local processes); cached entries are signed with
-    ``secret`` (``decompose.decompose_bodies``).
+    """Convex pieces of the parts of the hull-near ``pairs`` (``(k, 2)``, indices into
+    ``bodies``): CoACD's where the cost model says they pay (``decompose.coacd_budgets``), the
+    hull elsewhere. CoACD runs on ``executor`` (default: ``settings.jobs`` local processes);
+    cached entries are signed with ``secret`` (``decompose.decompose_bodies``).
 
     Returns
     -------
@@ -264,13 +271,24 @@ def decompose_parts(
     count : (n,) int64
         Pieces per part; 0 for parts not needed.
     """
-    with Progress("decomposing", len({id(bodies[i].mesh) for i in needed})) as bar:
+    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    needed = np.unique(pairs)
+    chosen = [bodies[i] for i in needed]
+    geometry = local_geometries(chosen) if geometry is None else geometry
+    rank = np.full(len(bodies), -1, dtype=np.int64)
+    rank[needed] = np.arange(len(needed))
+    forced = os.environ.get(BUDGET_VARIABLE)
+    budgets = coacd_budgets(
+        chosen, rank[pairs], geometry=geometry, forced=float(forced) if forced else None
+    )
+    with Progress("decomposing", len({geometry[id(b.mesh)][3] for b in chosen})) as bar:
         piece_lists = decompose_bodies(
-            [bodies[i] for i in needed],
+            chosen,
             threshold=settings.threshold,
             cache_dir=settings.cache_dir,
             jobs=settings.jobs,
-            progress=bar.update,
+            progress=bar,
+            time_limit=budgets,
             executor=executor,
             geometry=geometry,
             secret=secret,
@@ -335,6 +353,17 @@ def approve(
 
 # ---------------------------------------------------------------------------------------------
 # Helpers
+
+
+def _reissue(caught: list) -> list:
+    """Re-issue recorded warnings outside the recorder, so callers' filters (and the CLI) see
+    them as usual; a message said twice (one file's problem met by two stages) is said once."""
+    first: dict = {}
+    for w in caught:
+        first.setdefault((w.category, str(w.message)), w)
+    for w in first.values():
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
+    return list(first.values())
 
 
 def _names(body: Body) -> tuple[str, ...]:

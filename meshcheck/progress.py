@@ -2,11 +2,15 @@
 without one.
 
 - On a terminal, each stage draws ``label done/total`` at once and redraws it as items finish (at
-  most every 0.1 s); a stage that completes shows its total before the line is cleared.
+  most every 0.1 s); a stage that completes shows its total before the line is cleared. A stage
+  still busy after ``QUIET_SECONDS`` also shows how long it has run and what it is waiting on
+  (``decomposing 0/2, 14 s, waiting on base_link``), redrawn every second.
 - Without a terminal (CI logs, pipes), a stage that is still running after ``QUIET_SECONDS`` gets
-  one line, ``meshcheck: label done/total ...``, then at most one more every ``LOG_INTERVAL``
-  seconds, and a closing ``... done in N s`` line. Quick stages print nothing, so a quick run's
-  stderr stays empty; a slow first run (compiling kernels, CoACD) is never silent for long.
+  one line, ``meshcheck: label done/total ... N s, waiting on PART``, then at most one more every
+  ``LOG_INTERVAL`` seconds, and a closing ``... done in N s`` line. Quick stages print nothing, so
+  a quick run's stderr stays empty; a slow first run (CoACD, a hard pair) is never silent for long.
+- ``note`` prints a performance note (a decomposition cut short) as its own line. Notes are about
+  how the run went, so they go here and never into a report.
 
 Never on stdout, which carries the report.
 """
@@ -16,12 +20,15 @@ from __future__ import annotations
 import sys
 import threading
 import time
+from collections.abc import Callable
 from typing import TextIO
 
 #: A stage busy this long without a terminal gets a line saying what it is doing.
 QUIET_SECONDS = 2.0
 #: ... and at most one more line every this many seconds while it keeps running.
 LOG_INTERVAL = 15.0
+#: On a terminal, a busy stage's line is redrawn this often (its elapsed time moves).
+REDRAW_SECONDS = 1.0
 
 
 class Progress:
@@ -37,6 +44,10 @@ class Progress:
         Where to write; default ``sys.stderr``.
     quiet_seconds, log_interval : float
         Without a terminal: the first line after this long, further lines at most this often.
+        On a terminal: elapsed time and ``detail`` are shown after ``quiet_seconds``.
+    detail : callable, optional
+        Returns what the stage is waiting on now (part names), or ``""``; called from a
+        background thread, so it must only read.
 
     Examples
     --------
@@ -55,8 +66,11 @@ class Progress:
         stream: TextIO | None = None,
         quiet_seconds: float = QUIET_SECONDS,
         log_interval: float = LOG_INTERVAL,
+        detail: Callable[[], str] | None = None,
     ):
         self.label = label
+        self.detail = detail
+        self._quiet_seconds = quiet_seconds
         self.total = int(total)
         self.done = 0
         self.stream = sys.stderr if stream is None else stream
@@ -71,17 +85,15 @@ class Progress:
         self._logged = False
         self._lock = threading.Lock()
         self._closed = threading.Event()
-        self._ticker = None
         if self.is_terminal:
             self._draw()
+            target, args = self._redraw_while_running, (quiet_seconds,)
         else:
-            self._ticker = threading.Thread(
-                target=self._log_while_running,
-                args=(quiet_seconds, log_interval),
-                name=f"meshcheck-progress-{label}",
-                daemon=True,
-            )
-            self._ticker.start()
+            target, args = self._log_while_running, (quiet_seconds, log_interval)
+        self._ticker = threading.Thread(
+            target=target, args=args, name=f"meshcheck-progress-{label}", daemon=True
+        )
+        self._ticker.start()
 
     def update(self, done: int) -> None:
         """Show ``done`` of ``total`` items finished."""
@@ -119,16 +131,43 @@ class Progress:
                     self.done = max(self.done, self.total)
                 self._write(f"meshcheck: {self._status()} {state} in {seconds:.0f} s\n")
 
+    def note(self, text: str) -> None:
+        """Print ``text`` as its own line (``meshcheck: text``), above a terminal's bar."""
+        with self._lock:
+            if self.is_terminal and self._drawn:
+                self._write(f"\r\033[Kmeshcheck: {text}\n\r{self._status()}\033[K")
+            else:
+                self._write(f"meshcheck: {text}\n")
+
     def _status(self) -> str:
         return f"{self.label} {self.done}/{self.total}" if self.total else f"{self.label}..."
+
+    def _busy(self) -> str:
+        """Elapsed seconds and what the stage waits on, for a stage running a while."""
+        seconds = time.monotonic() - self._started
+        text = f"{seconds:.0f} s"
+        try:
+            waiting = self.detail() if self.detail is not None else ""
+        except Exception:  # a progress line is not worth failing the run for
+            waiting = ""
+        return f"{text}, waiting on {waiting}" if waiting else text
 
     def _draw(self) -> None:
         with self._lock:
             if self._closed.is_set():
                 return
             self._last = time.monotonic()
-            self._write(f"\r{self._status()}\033[K")
+            status = self._status()
+            if self._last - self._started >= self._quiet_seconds:
+                status = f"{status}, {self._busy()}"
+            self._write(f"\r{status}\033[K")
             self._drawn = True
+
+    def _redraw_while_running(self, quiet_seconds: float) -> None:
+        wait = quiet_seconds
+        while not self._closed.wait(wait):
+            self._draw()
+            wait = REDRAW_SECONDS
 
     def _log_while_running(self, quiet_seconds: float, log_interval: float) -> None:
         wait = quiet_seconds
@@ -137,7 +176,8 @@ class Progress:
                 if self._closed.is_set():
                     return
                 status = self._status()
-                self._write(f"meshcheck: {status}{'' if status.endswith('...') else ' ...'}\n")
+                dots = "" if status.endswith("...") else " ..."
+                self._write(f"meshcheck: {status}{dots} {self._busy()}\n")
                 self._logged = True
             wait = log_interval
 

@@ -221,7 +221,9 @@ class Part:
     path: str
     triangles: int
     is_closed: bool
-    pieces: int  # convex pieces used by the filter (0 when the part needed none)
+    # Convex pieces the filter used (0 when the part needed none). Run information, not part of
+    # any report: it depends on the cache and on whether CoACD finished in time.
+    pieces: int
 
     def to_dict(self) -> dict:
         return {
@@ -229,7 +231,6 @@ class Part:
             "path": self.path,
             "triangles": self.triangles,
             "closed": self.is_closed,
-            "pieces": self.pieces,
         }
 
 

@@ -87,8 +87,11 @@ def test_a_malformed_scheduler_address_is_a_usage_error():
 
 
 @pytest.mark.slow
-def test_a_local_cluster_gives_the_local_report(tmp_path):
+def test_a_local_cluster_gives_the_local_report(tmp_path, monkeypatch):
     distributed = pytest.importorskip("distributed")
+    # A couple of parts never repay CoACD, and open ones never go (decompose.coacd_budgets):
+    # force it, so there are decompositions to cache.
+    monkeypatch.setenv("MESHCHECK_COACD_BUDGET", "300")
     paths = assembly(tmp_path / "parts")
     expected = local_report(paths, tmp_path)
     cluster = distributed.LocalCluster(

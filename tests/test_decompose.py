@@ -298,26 +298,70 @@ def test_parallel_matches_serial(tmp_path):
         assert all(x.tobytes() == y.tobytes() for x, y in zip(a, c, strict=True))
 
 
-def test_overrunning_the_time_limit_falls_back_to_the_hull(tmp_path):
-    from meshcheck.errors import MeshcheckWarning
+def test_overrunning_the_time_limit_falls_back_to_the_hull_and_says_so_on_progress(tmp_path):
+    import warnings
+
+    from meshcheck.progress import Progress
 
     mesh = l_bracket()
-    with pytest.warns(MeshcheckWarning, match="bracket.stl: convex decomposition took over"):
-        (pieces,) = decompose_bodies(
-            [Body("bracket.stl", "bracket.stl", mesh)],
-            options={**FAST, "resolution": 5000, "mcts_iterations": 500},
-            cache_dir=str(tmp_path),
-            time_limit=1e-3,
-        )
+    stream = io.StringIO()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # how the run went is no warning (it would reach reports)
+        with Progress("decomposing", 1, stream=stream) as bar:
+            (pieces,) = decompose_bodies(
+                [Body("bracket.stl", "bracket.stl", mesh)],
+                options={**FAST, "resolution": 5000, "mcts_iterations": 500},
+                cache_dir=str(tmp_path),
+                time_limit=1e-3,
+                progress=bar,
+            )
     assert len(pieces) == 1
     assert uncovered(mesh.vertices, mesh.faces, pieces) == []
+    assert "meshcheck: bracket.stl: convex decomposition took over 0.001 s" in stream.getvalue()
+
+
+def test_a_part_whose_pieces_do_not_pay_gets_its_hull_without_coacd(tmp_path, counted):
+    mesh = l_bracket()
+    body = Body("a", "a", mesh)
+    digest = decompose.local_geometries([body])[id(mesh)][3]
+    (pieces,) = decompose_bodies(
+        [body], options=FAST, cache_dir=str(tmp_path), jobs=1, time_limit={digest: 0.0}
+    )
+    assert counted == [] and len(pieces) == 1
+    assert uncovered(mesh.vertices, mesh.faces, pieces) == []
+    assert not list(tmp_path.rglob("*.bin"))  # a hull that stood in is not a decomposition
+
+
+def test_budgets_follow_the_work_the_pieces_would_save():
+    """Few neighbours: CoACD does not pay. Many: it does, for at most the time it saves. Open
+    meshes never go to CoACD."""
+    plate = l_bracket()
+    n = len(plate.faces)
+    box = trimesh.creation.box()
+    model = decompose.COST_MODEL
+    per_pair = model.filter_share * model.verify_seconds(n, len(box.faces))
+    enough = int(model.coacd_seconds(n) / per_pair) + 2
+    for neighbours, pays in ((1, False), (enough, True)):
+        bodies = [Body("plate", "plate", plate)]
+        bodies += [Body(f"b{k}", f"b{k}", box.copy()) for k in range(neighbours)]
+        pairs = np.array([[0, k + 1] for k in range(neighbours)])
+        budgets = decompose.coacd_budgets(bodies, pairs)
+        digest = decompose.local_geometries(bodies)[id(plate)][3]
+        assert (budgets[digest] > 0) == pays
+        if pays:
+            assert budgets[digest] == pytest.approx(neighbours * per_pair)
+        opened = Body("open", "open", trimesh.Trimesh(plate.vertices, plate.faces[1:]))
+        budgets = decompose.coacd_budgets([opened, *bodies[1:]], pairs)
+        assert budgets[decompose.local_geometries([opened])[id(opened.mesh)][3]] == 0.0
 
 
 def test_progress_reports_every_mesh():
-    seen = []
+    from meshcheck.progress import Progress
+
     bodies = [Body("a", "a", l_bracket()), Body("b", "b", trimesh.creation.box())]
-    decompose_bodies(bodies, options=FAST, cache_dir=None, jobs=1, progress=seen.append)
-    assert seen and seen[-1] == 2 and seen == sorted(seen)
+    with Progress("decomposing", 2, stream=io.StringIO()) as bar:
+        decompose_bodies(bodies, options=FAST, cache_dir=None, jobs=1, progress=bar)
+        assert bar.done == 2
 
 
 class _Terminal(io.StringIO):

@@ -31,6 +31,8 @@ def _env(tmp_path) -> dict:
     env["XDG_CACHE_HOME"] = str(tmp_path / "cache")
     env["XDG_CONFIG_HOME"] = str(tmp_path / "config")
     env.pop("MESHCHECK_SCHEDULER", None)
+    # Two parts never repay CoACD (decompose.coacd_budgets): force it, so workers really run.
+    env["MESHCHECK_COACD_BUDGET"] = "300"
     return env
 
 

@@ -181,9 +181,12 @@ FAR_PIECE = np.array(
 
 
 @pytest.mark.parametrize("signed_with", [None, b"guessed" * 5])
-def test_a_forged_cache_entry_cannot_turn_a_fail_into_a_pass(tmp_path, signed_with):
+def test_a_forged_cache_entry_cannot_turn_a_fail_into_a_pass(tmp_path, signed_with, monkeypatch):
     """One tiny piece a million units away, with a valid checksum (anyone can compute one),
     unsigned or signed with a key that is not the run's: checked, found not to cover, redone."""
+    # A couple of parts never repay CoACD, and open ones never go (decompose.coacd_budgets):
+    # force it, so there are decompositions to cache.
+    monkeypatch.setenv("MESHCHECK_COACD_BUDGET", "300")
     from meshcheck.cache import DecompositionCache
 
     ell_a, ell_b = crossing_bars()
@@ -199,10 +202,13 @@ def test_a_forged_cache_entry_cannot_turn_a_fail_into_a_pass(tmp_path, signed_wi
     assert run(args).exit_code == 1
 
 
-def test_the_run_key_is_the_decomposition_cache_trust_boundary(tmp_path):
+def test_the_run_key_is_the_decomposition_cache_trust_boundary(tmp_path, monkeypatch):
     """The same forged entry signed with the run's own key is used as it is (so the test above
     would fail if signatures were not checked): whoever holds the key is trusted, as for pair
     verdicts; the key never lives in the cache directory."""
+    # A couple of parts never repay CoACD, and open ones never go (decompose.coacd_budgets):
+    # force it, so there are decompositions to cache.
+    monkeypatch.setenv("MESHCHECK_COACD_BUDGET", "300")
     from meshcheck.cache import DecompositionCache, pair_secret
 
     ell_a, ell_b = crossing_bars()

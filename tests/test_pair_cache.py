@@ -102,7 +102,7 @@ def test_argument_order_changes_neither_verdicts_nor_cache_hits(tmp_path, counte
 
 
 def test_parallel_verify_is_byte_identical_to_serial(tmp_path, monkeypatch, counted):
-    monkeypatch.setattr(batch, "PARALLEL_MIN_PAIRS", 0)
+    monkeypatch.setattr(batch, "POOL_SECONDS", 0.0)
     monkeypatch.setattr(batch, "PAIRS_PER_TASK", 2)
     paths = write_row(tmp_path / "row")
     _, serial = run(paths, None, use_cache=False, jobs=1)

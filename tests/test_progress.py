@@ -28,7 +28,7 @@ def test_a_busy_stage_without_a_terminal_says_so_without_spamming():
         time.sleep(1.0)  # silent work, e.g. compiling: lines at ~0.1 s, ~0.5 s, ~0.9 s
         bar.update(3)
     lines = pipe.getvalue().splitlines()
-    assert lines[0] == "meshcheck: decomposing 1/4 ..."
+    assert lines[0].startswith("meshcheck: decomposing 1/4 ... 0 s")
     assert 2 <= len(lines) - 1 <= 4  # at most one line per interval while busy
     assert lines[-1].startswith("meshcheck: decomposing 4/4 done in ")
     assert all(line.startswith("meshcheck: ") for line in lines)
@@ -61,3 +61,22 @@ def test_a_stage_of_unknown_size_says_what_it_does():
     with Progress("starting", 0, stream=tty):
         assert tty.getvalue() == "\rstarting...\033[K"
     assert tty.getvalue().endswith("\r\033[K")
+
+
+def test_a_busy_stage_says_how_long_and_what_it_waits_on_in_logs_and_on_a_terminal():
+    pipe, tty = io.StringIO(), _Terminal()
+    for stream in (pipe, tty):
+        with Progress(
+            "decomposing", 2, stream=stream, quiet_seconds=0.1, detail=lambda: "base_link"
+        ) as bar:
+            time.sleep(1.3)
+            bar.note("base_link: convex decomposition took over 0.5 s; its hull stands in")
+    logged = pipe.getvalue().splitlines()
+    assert logged[0].startswith("meshcheck: decomposing 0/2 ... 0 s, waiting on base_link")
+    assert (
+        "meshcheck: base_link: convex decomposition took over 0.5 s; its hull stands in" in logged
+    )
+    drawn = tty.getvalue()
+    assert "\rdecomposing 0/2, 1 s, waiting on base_link\033[K" in drawn
+    assert "\r\033[Kmeshcheck: base_link: convex decomposition took over 0.5 s" in drawn
+    assert drawn.endswith("\r\033[K")

@@ -19,14 +19,27 @@ from ..results import Finding, PairVerdict, Verdict, finding_id
 from ..settings import Settings
 from .pair import verify_pair
 
-#: Fewer pairs than this to verify are verified in this process: starting worker processes
-#: (imports, loading the compiled kernels) costs more than the pairs take.
-#: ``python bench/verify_parallel.py --size 800`` on a quiet 2-core machine: a fresh 2-process
-#: pool took 1.63x the serial time at 100 pairs, 1.12x at 200, 0.87x at 400, 0.74x at 720 (on
-#: the same machine shared with other jobs the crossover moved to ~1,000 pairs).
-PARALLEL_MIN_PAIRS = 300
-#: Pairs per task sent to a worker: enough to amortise a message, few enough to balance.
+# Where verifying in workers pays is decided from the expected serial seconds of the pairs, a
+# function of the inputs only (the verdicts are the same either way, in the same order).
+#
+#: Expected seconds of a pair whose surfaces may come near: the triangle search and exact
+#: distances. ``python bench/verify_parallel.py --size 800``: 720 such pairs in 5.2 s on a
+#: quiet 2-core machine.
+PAIR_SECONDS = 0.007
+#: Expected extra seconds of a pair that may interfere (both meshes closed, hulls penetrating):
+#: the shared solid (manifold3d) and its certified depth (``verify.depth``). The cold PR2
+#: (``bench/real_assemblies.py``, cProfile) spent 25 s on 17 such pairs on a loaded machine.
+SOLID_SECONDS = 1.0
+#: Serial seconds a fresh pool must save to repay its start (imports, compiled kernels, shipping
+#: the meshes): ``bench/verify_parallel.py`` put the 2-process crossover at about 300 plain
+#: pairs (1.63x the serial time at 100 pairs, 1.12x at 200, 0.87x at 400, 0.74x at 720).
+POOL_SECONDS = 300 * PAIR_SECONDS / 2
+#: ... and workers already started (by loading or decomposition): a few messages.
+STARTED_POOL_SECONDS = 32 * PAIR_SECONDS / 2
+#: Pairs per task sent to a worker at most: enough to amortise a message, few enough to balance.
 PAIRS_PER_TASK = 16
+#: Expected seconds per task at most: expensive pairs travel alone, so two workers stay busy.
+TASK_SECONDS = 0.1
 
 
 def verify_pairs(
@@ -38,37 +51,26 @@ def verify_pairs(
     *,
     executor: Executor | None = None,
     secret: bytes | None = None,
+    hulls_penetrate: np.ndarray | None = None,
 ) -> list[Finding]:
     """Decide each pair on the real meshes; a finding for each pair that is not clear, sorted.
 
     With ``secret`` (the run's cache key) and a cache directory, verdicts cached from an earlier
     run (``cache.PairCache``: same meshes, placement, tolerance and clearance) are reused; the
-    rest are verified, on ``executor``'s processes when there are at least
-    ``PARALLEL_MIN_PAIRS`` of them, and then cached. The findings do not depend on where a
-    verdict came from.
+    rest are verified, on ``executor``'s processes when their expected serial time
+    (``expected_seconds``; ``hulls_penetrate``, ``(k,)`` bool, marks pairs whose hulls overlap)
+    repays the workers, and then cached. The findings do not depend on where a verdict came
+    from.
     """
-    pairs = _oriented(bodies, np.asarray(pairs, dtype=np.int64).reshape(-1, 2))
-    verdicts: list[PairVerdict | None] = [None] * len(pairs)
+    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    if hulls_penetrate is None:
+        hulls_penetrate = np.zeros(len(pairs), dtype=bool)
+    cost = expected_seconds(bodies, pairs, near_surfaces, hulls_penetrate)
+    pairs = _oriented(bodies, pairs)
     cache = None
     if settings.cache_dir is not None and secret is not None:
         cache = PairCache(settings.cache_dir, secret=secret)
-    keys: list[str] = []
-    if cache is not None:
-        for k, ((i, j), tol, is_near) in enumerate(
-            zip(pairs, tolerance, near_surfaces, strict=True)
-        ):
-            keys.append(
-                pair_key(
-                    (bodies[i].digest, bodies[i].transform),
-                    (bodies[j].digest, bodies[j].transform),
-                    tolerance=float(tol),
-                    clearance=settings.clearance,
-                    surfaces_apart=not is_near,
-                )
-            )
-            hit = cache.get(keys[k])
-            if hit is not None:
-                verdicts[k] = hit
+    keys, verdicts = _cached(bodies, pairs, tolerance, near_surfaces, settings.clearance, cache)
     todo = np.array([k for k, v in enumerate(verdicts) if v is None], dtype=np.int64)
     hits = len(pairs) - len(todo)
     with Progress("checking", len(pairs)) as bar:
@@ -81,6 +83,8 @@ def verify_pairs(
             settings.clearance,
             executor,
             lambda done: bar.update(hits + done),
+            cost=cost[todo],
+            bar=bar,
         )
     for k, verdict in zip(todo, computed, strict=True):
         verdicts[k] = verdict
@@ -88,7 +92,33 @@ def verify_pairs(
             cache.put(keys[k], verdict)
     if cache is not None and len(todo):
         cache.remove_stale_temporaries()
+    return _findings(bodies, pairs, tolerance, verdicts)
 
+
+def _cached(bodies, pairs, tolerance, near_surfaces, clearance, cache) -> tuple[list, list]:
+    """Each pair's cache key (none without a cache), and its cached verdict or None."""
+    verdicts: list[PairVerdict | None] = [None] * len(pairs)
+    keys: list[str] = []
+    if cache is None:
+        return keys, verdicts
+    for k, ((i, j), tol, is_near) in enumerate(zip(pairs, tolerance, near_surfaces, strict=True)):
+        keys.append(
+            pair_key(
+                (bodies[i].digest, bodies[i].transform),
+                (bodies[j].digest, bodies[j].transform),
+                tolerance=float(tol),
+                clearance=clearance,
+                surfaces_apart=not is_near,
+            )
+        )
+        hit = cache.get(keys[k])
+        if hit is not None:
+            verdicts[k] = hit
+    return keys, verdicts
+
+
+def _findings(bodies, pairs, tolerance, verdicts) -> list[Finding]:
+    """A finding for each verdict that is not clear, sorted by part names."""
     findings = [
         _finding(bodies[i], bodies[j], verdict, float(tol))
         for (i, j), tol, verdict in zip(pairs, tolerance, verdicts, strict=True)
@@ -144,34 +174,98 @@ def verify_task(store: dict, items: list, clearance: float | None) -> list[PairV
     return out
 
 
-def _verify(bodies, pairs, tolerance, near_surfaces, clearance, executor, progress) -> list:
-    """Verdicts of ``pairs`` in order: here, or as tasks of ``PAIRS_PER_TASK`` pairs."""
-    # Workers already started (by loading or decomposition) cost nothing more to use.
-    started = executor is not None and executor.is_started
-    least = 2 * PAIRS_PER_TASK if started else PARALLEL_MIN_PAIRS
-    parallel = executor is not None and (
-        executor.is_distributed or (executor.jobs > 1 and len(pairs) >= least)
+def expected_seconds(
+    bodies: Sequence[Body],
+    pairs: np.ndarray,
+    near_surfaces: np.ndarray,
+    hulls_penetrate: np.ndarray,
+) -> np.ndarray:
+    """Expected serial seconds of verifying each pair, ``(k,)`` float64 (a function of the inputs
+    only): ``PAIR_SECONDS`` where the surfaces may come near, plus ``SOLID_SECONDS`` where
+    the pair may interfere (both meshes closed, hulls penetrating); a pair whose surfaces are
+    proven apart only has its shells tested, a fraction of that."""
+    closed = np.array([b.is_closed for b in bodies], dtype=bool)
+    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    near = np.asarray(near_surfaces, dtype=bool)
+    solid = (
+        near & np.asarray(hulls_penetrate, dtype=bool) & closed[pairs[:, 0]] & closed[pairs[:, 1]]
     )
-    if not parallel:
-        memo: dict = {}  # per-mesh data verify reuses across pairs; the bodies outlive the loop
-        out = []
-        for count, ((i, j), tol, is_near) in enumerate(
-            zip(pairs, tolerance, near_surfaces, strict=True), start=1
-        ):
-            out.append(
-                verify_pair(
-                    bodies[i].world,
-                    bodies[j].world,
-                    tolerance=float(tol),
-                    clearance=clearance,
-                    surfaces_apart=not is_near,
-                    memo=memo,
-                )
-            )
-            progress(count)
-        return out
+    return np.where(near, PAIR_SECONDS, 0.1 * PAIR_SECONDS) + np.where(solid, SOLID_SECONDS, 0.0)
 
-    # One shared value per distinct world mesh, named by the first body that has it.
+
+def pays_in_workers(executor: Executor | None, cost: np.ndarray) -> bool:
+    """True when verifying pairs of expected serial seconds ``cost`` on ``executor``'s workers
+    saves more than starting them (or messaging started ones) costs."""
+    if executor is None or not len(cost):
+        return False
+    if executor.is_distributed:
+        return True
+    if executor.jobs <= 1:
+        return False
+    start = STARTED_POOL_SECONDS if executor.is_started else POOL_SECONDS
+    total = float(np.sum(cost))
+    return total - total / executor.jobs > start
+
+
+def _verify(
+    bodies, pairs, tolerance, near_surfaces, clearance, executor, progress, *, cost=None, bar=None
+) -> list:
+    """Verdicts of ``pairs`` in order: here, or as tasks on ``executor`` when that pays."""
+    if cost is None:
+        cost = np.full(len(pairs), PAIR_SECONDS)
+    if not pays_in_workers(executor, cost):
+        return _verify_here(bodies, pairs, tolerance, near_surfaces, clearance, progress, bar)
+    return _verify_in_workers(
+        bodies, pairs, tolerance, near_surfaces, clearance, executor, progress, cost, bar
+    )
+
+
+def _verify_here(bodies, pairs, tolerance, near_surfaces, clearance, progress, bar) -> list:
+    """Verdicts of ``pairs`` in this process, one after another."""
+    memo: dict = {}  # per-mesh data verify reuses across pairs; the bodies outlive the loop
+    out = []
+    current = [""]
+    if bar is not None:
+        bar.detail = lambda: current[0]
+    for count, ((i, j), tol, is_near) in enumerate(
+        zip(pairs, tolerance, near_surfaces, strict=True), start=1
+    ):
+        current[0] = f"{bodies[i].name} x {bodies[j].name}"
+        out.append(
+            verify_pair(
+                bodies[i].world,
+                bodies[j].world,
+                tolerance=float(tol),
+                clearance=clearance,
+                surfaces_apart=not is_near,
+                memo=memo,
+            )
+        )
+        progress(count)
+    if bar is not None:
+        bar.detail = None
+    return out
+
+
+def _chunks(cost: np.ndarray) -> list[slice]:
+    """Consecutive runs of pairs, each at most ``PAIRS_PER_TASK`` pairs and, past its first
+    pair, at most ``TASK_SECONDS`` of expected work."""
+    out, start, total = [], 0, 0.0
+    for k, seconds in enumerate(cost):
+        if k > start and (k - start >= PAIRS_PER_TASK or total + seconds > TASK_SECONDS):
+            out.append(slice(start, k))
+            start, total = k, 0.0
+        total += float(seconds)
+    if start < len(cost):
+        out.append(slice(start, len(cost)))
+    return out
+
+
+def _verify_in_workers(
+    bodies, pairs, tolerance, near_surfaces, clearance, executor, progress, cost, bar
+) -> list:
+    """Verdicts of ``pairs`` as tasks on ``executor``, in order; each distinct world mesh is
+    shared once, named by the first body that has it."""
     key_of: dict[int, int] = {}
     shared: dict = {}
     for i in np.unique(pairs):
@@ -186,19 +280,31 @@ def _verify(bodies, pairs, tolerance, near_surfaces, clearance, executor, progre
         (key_of[id(bodies[i].world)], key_of[id(bodies[j].world)], float(tol), not bool(near))
         for (i, j), tol, near in zip(pairs, tolerance, near_surfaces, strict=True)
     ]
+    chunks = _chunks(cost)
     tasks = [
         Task(
-            (items[a : a + PAIRS_PER_TASK], clearance),
-            needs=tuple(sorted({k for it in items[a : a + PAIRS_PER_TASK] for k in it[:2]})),
+            (items[c], clearance),
+            needs=tuple(sorted({k for it in items[c] for k in it[:2]})),
+            size=int(1e6 * float(np.sum(cost[c]))),
         )
-        for a in range(0, len(items), PAIRS_PER_TASK)
+        for c in chunks
     ]
-    results = executor.map(
-        "meshcheck.verify.batch:verify_task",
-        tasks,
-        shared=shared,
-        progress=lambda done: progress(min(len(items), done * PAIRS_PER_TASK)),
-    )
+    ends = np.cumsum([c.stop - c.start for c in chunks])
+    if bar is not None:
+        bar.detail = lambda: ", ".join(
+            f"{bodies[pairs[chunks[t].start][0]].name} x {bodies[pairs[chunks[t].start][1]].name}"
+            for t in executor.running
+        )
+    try:
+        results = executor.map(
+            "meshcheck.verify.batch:verify_task",
+            tasks,
+            shared=shared,
+            progress=lambda done: progress(int(ends[done - 1]) if done else 0),
+        )
+    finally:
+        if bar is not None:
+            bar.detail = None
     out = []
     for task, result in zip(tasks, results, strict=True):
         if result is None:  # its worker died: verify here (a bug then shows its traceback)

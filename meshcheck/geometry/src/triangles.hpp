@@ -288,6 +288,26 @@ inline double point_mesh_distance(V3 p, const double* v, const int64_t* f, int64
     return std::sqrt(best);
 }
 
+// The distance from p to the mesh when it exceeds r, else -1 (as soon as one triangle is within
+// r, trying triangle `hint` first and leaving there the one found). The value returned is
+// point_mesh_distance's, bit for bit: sqrt is monotonic, so sqrt(min d2) > r exactly when every
+// sqrt(d2) > r, and a minimum does not depend on the order it is taken in.
+inline double distance_beyond(V3 p, const double* v, const int64_t* f, int64_t m, double r,
+                              int64_t& hint) {
+    if (hint >= 0 && hint < m && std::sqrt(dist2(p, closest_on_tri(p, triangle(v, f, hint)))) <= r)
+        return -1.0;
+    double best = INF;
+    for (int64_t k = 0; k < m; ++k) {
+        double d2 = dist2(p, closest_on_tri(p, triangle(v, f, k)));
+        if (std::sqrt(d2) <= r) {
+            hint = k;
+            return -1.0;
+        }
+        best = std::min(best, d2);
+    }
+    return std::sqrt(best);
+}
+
 // Smallest t > 0 where the ray o + t d meets a triangle other than `skip`.
 inline double ray_first_hit(V3 o, V3 d, const double* v, const int64_t* f, int64_t m,
                             int64_t skip) {
@@ -359,12 +379,13 @@ inline double inscribed_ball(const double* v, const int64_t* f, int64_t m, int64
         if (r <= 0.0) break;
         V3 x = centres[s];
         double step = 0.5 * r;
+        int64_t hint = -1;  // a triangle near the last point tried: most steps fail on it
         for (int it = 0; it < 200; ++it) {
             if (step <= 1e-6 * r) break;
             bool moved = false;
             for (const V3& d : dirs) {
                 V3 y = x + d * step;
-                double ry = point_mesh_distance(y, v, f, m);
+                double ry = distance_beyond(y, v, f, m, r, hint);
                 if (ry > r) {
                     x = y, r = ry, moved = true;
                     break;
