@@ -7,6 +7,7 @@ in the file's unit: the document is given that unit, so nothing is scaled on the
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 
 # metres per unit, and the name OpenCASCADE writes in the file
@@ -95,6 +96,7 @@ def write_step(
     *,
     unit: str = "MM",
     assembly: str = "assembly",
+    external: bool = False,
 ) -> str:
     """Write an assembly of named products placed by (4, 4) rigid transforms to a STEP file.
 
@@ -110,6 +112,9 @@ def write_step(
         A key of ``UNITS``: the length unit the file declares and its coordinates are in.
     assembly : str
         Product name of the top assembly.
+    external : bool
+        Write each product to a sibling file (``PATH`` without its extension, then ``_NAME``...)
+        that the assembly file references (AP214 external references), as some CAD systems do.
     """
     import numpy as np
     from OCP.gp import gp_Trsf
@@ -142,7 +147,8 @@ def write_step(
     Interface_Static.SetCVal_s("write.step.unit", unit)
     Interface_Static.SetCVal_s("write.step.product.name", assembly)
     writer = STEPCAFControl_Writer()
-    writer.Transfer(doc, STEPControl_AsIs)
+    prefix = os.path.splitext(str(path))[0] if external else None
+    writer.Transfer(doc, STEPControl_AsIs, prefix)
     if writer.Write(str(path)) != IFSelect_ReturnStatus.IFSelect_RetDone:
         raise OSError(f"{path}: OpenCASCADE could not write the STEP file")
     return str(path)

@@ -150,7 +150,7 @@ def _read(path: str, budget: Budget, step: StepOptions, *, overlaps: bool) -> Fi
         # A reader takes (path, bytes, budget) and returns (node, mesh, placement) items and the
         # unit the file declares (None: undeclared). A STEP reader plugs in here the same way.
         if ext in STEP_EXTENSIONS:
-            items, declared, deflection = _read_step(path, step)
+            items, declared, deflection = _read_step(path, step, budget)
         elif ext == ".3mf":
             items, declared = read_3mf(path, data, budget)
         elif ext in (".glb", ".gltf"):
@@ -189,7 +189,7 @@ def _overlap(v: np.ndarray, f: np.ndarray, closed: bool) -> tuple[int, int] | No
     return overlapping_shells(as_mesh(v, f, closed=closed))
 
 
-def _read_step(path: str, options: StepOptions):
+def _read_step(path: str, options: StepOptions, budget: Budget):
     """(items, declared unit, deflection in that unit) of a STEP file."""
     from .step import TessellationCache, read_step
 
@@ -207,6 +207,7 @@ def _read_step(path: str, options: StepOptions):
             if options.deflection is not None
             else None,
             cache=cache,
+            max_triangles=budget.limits.max_triangles - budget.triangles,
         )
     except ValueError as exc:
         raise InputError(path, str(exc)) from None
