@@ -46,6 +46,7 @@ from .settings import (
 )
 from .units import DEFAULT_UNIT
 from .verify import verify_pairs
+from .verify.brep import confirm_on_brep
 
 _EPS32 = float(np.finfo(np.float32).eps)
 
@@ -181,6 +182,7 @@ def check_bodies(
         findings = verify_pairs(
             bodies, pairs_near, tol_near, near_surfaces, settings, executor=executor, secret=secret
         )
+        findings = confirm_on_brep(bodies, findings, settings, secret=secret)
     findings = approve(
         findings, settings.approvals, dict(zip([b.name for b in bodies], names, strict=True))
     )

@@ -506,7 +506,7 @@ def _tessellate(
     from OCP.BRepTools import BRepTools
 
     products = list({i.product_key: i.product for i in instances}.values())
-    diagonal = max(_diagonal(shape) for shape in products)
+    diagonal = max(shape_diagonal(shape) for shape in products)
     floor = max(MIN_DEFLECTION_MM, MIN_RELATIVE_DEFLECTION * diagonal)
     to_unit = 1e-3 / UNIT_METRES[unit]
     if deflection_mm < floor:
@@ -540,7 +540,8 @@ def _tessellate(
                 BRepMesh_IncrementalMesh(shape, deflection_mm, False, angular, False)
 
 
-def _diagonal(shape) -> float:
+def shape_diagonal(shape) -> float:
+    """Diagonal of an OpenCASCADE shape's bounding box, its unit (0 for an empty shape)."""
     from OCP.Bnd import Bnd_Box
     from OCP.BRepBndLib import BRepBndLib
 
