@@ -75,6 +75,35 @@ def volume(shape) -> float:
     return props.Mass()
 
 
+def common_volume(a, b) -> float:
+    """Volume shared by two solids: OpenCASCADE's boolean common (the tests' oracle)."""
+    from OCP.BRepAlgoAPI import BRepAlgoAPI_Common
+
+    return volume(BRepAlgoAPI_Common(a, b).Shape())
+
+
+def moved(shape, dx: float, dy: float, dz: float):
+    """``shape`` translated by (dx, dy, dz)."""
+    return transformed(shape, placement((dx, dy, dz)))
+
+
+def rotated(shape, angle_deg: float, axis=(0.0, 0.0, 1.0)):
+    """``shape`` rotated by ``angle_deg`` about ``axis`` through the origin."""
+    return transformed(shape, placement(angle_deg=angle_deg, axis=axis))
+
+
+def transformed(shape, transform):
+    """``shape`` moved by a (4, 4) rigid transform."""
+    import numpy as np
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_Transform
+    from OCP.gp import gp_Trsf
+
+    m = np.asarray(transform, dtype=np.float64)
+    trsf = gp_Trsf()
+    trsf.SetValues(*m[0], *m[1], *m[2])
+    return BRepBuilderAPI_Transform(shape, trsf, True).Shape()
+
+
 def placement(translation=(0.0, 0.0, 0.0), angle_deg: float = 0.0, axis=(0.0, 0.0, 1.0)):
     """(4, 4) transform: rotate by ``angle_deg`` about ``axis`` through the origin, then move."""
     import numpy as np

@@ -81,6 +81,9 @@ STEP_EXTENSIONS = (".step", ".stp")
 # both faceted: the gap can widen by the hole's sag) and a 0.2 mm depth within 0.03 mm; see
 # bench/step.py for what it costs.
 DEFAULT_DEFLECTION_MM = 0.005
+# ... or this fraction of the largest solid's diagonal when that is more (parts of metres or
+# kilometres: 0.005 mm across a 20 km part would be more triangles than any budget).
+DEFAULT_RELATIVE_DEFLECTION = 1e-5
 # Angular deflection, radians: the largest angle between neighbouring facets' normals. OpenCASCADE's
 # usual; it only refines small radii, where the linear deflection already holds.
 DEFAULT_ANGULAR_DEFLECTION = 0.5
@@ -144,7 +147,8 @@ def read_step(
         A STEP (ISO 10303-21) file.
     deflection : float, optional
         Largest distance between a curved face and its triangles, in ``deflection_unit``.
-        Default ``DEFAULT_DEFLECTION_MM`` millimetres.
+        Default ``DEFAULT_DEFLECTION_MM`` millimetres, or ``DEFAULT_RELATIVE_DEFLECTION`` of
+        the largest solid's diagonal when that is more.
     deflection_unit : str, optional
         Unit of ``deflection``, a key of ``meshcheck.units.METRES``; default the file's own unit.
     angular_deflection : float, optional
@@ -189,7 +193,7 @@ def read_step(
     unit = declared or "mm"
     scale = UNIT_METRES[unit]  # metres per file unit
     if deflection is None:
-        deflection_mm = DEFAULT_DEFLECTION_MM
+        deflection_mm = None  # the default, at least DEFAULT_RELATIVE_DEFLECTION of the parts
     else:
         given_unit = unit if deflection_unit is None else deflection_unit
         deflection_mm = float(deflection) * UNIT_METRES[given_unit] / 1e-3
@@ -199,9 +203,9 @@ def read_step(
     assembly = cache.get(key) if cache is not None else None
     if assembly is None or assembly.unit != unit:
         instances = _document(data, path).instances
-        _tessellate(instances, path, deflection_mm, angular, budget, unit)
-        items = _items(instances, path, 1e-3 / scale, deflection_mm * 1e-3 / scale)
-        assembly = StepAssembly(items, unit, deflection_mm * 1e-3 / scale, angular)
+        used_mm = _tessellate(instances, path, deflection_mm, angular, budget, unit)
+        items = _items(instances, path, 1e-3 / scale, used_mm * 1e-3 / scale)
+        assembly = StepAssembly(items, unit, used_mm * 1e-3 / scale, angular)
         if cache is not None:
             cache.put(key, assembly)
     if declared is None:
@@ -496,18 +500,21 @@ def _order_key(instance: _Instance) -> tuple[str, bytes]:
 def _tessellate(
     instances: list[_Instance],
     path: str,
-    deflection_mm: float,
+    deflection_mm: float | None,
     angular: float,
     budget: int,
     unit: str,
-) -> None:
-    """Mesh every distinct product at ``deflection_mm``, once its cost is known to fit."""
+) -> float:
+    """Mesh every distinct product at ``deflection_mm`` (None: the default for their size) once
+    its cost is known to fit; return the deflection used, mm."""
     from OCP.BRepMesh import BRepMesh_IncrementalMesh
     from OCP.BRepTools import BRepTools
 
     products = list({i.product_key: i.product for i in instances}.values())
     diagonal = max(shape_diagonal(shape) for shape in products)
     floor = max(MIN_DEFLECTION_MM, MIN_RELATIVE_DEFLECTION * diagonal)
+    if deflection_mm is None:
+        deflection_mm = max(DEFAULT_DEFLECTION_MM, DEFAULT_RELATIVE_DEFLECTION * diagonal)
     to_unit = 1e-3 / UNIT_METRES[unit]
     if deflection_mm < floor:
         raise InputError(
@@ -538,6 +545,7 @@ def _tessellate(
             for shape in products:
                 BRepTools.Clean_s(shape)
                 BRepMesh_IncrementalMesh(shape, deflection_mm, False, angular, False)
+    return deflection_mm
 
 
 def shape_diagonal(shape) -> float:
@@ -820,14 +828,14 @@ def _one_line(text) -> str:
 FORMAT_VERSION = 2  # 2: read through OCP's XCAF reader (double-precision placements)
 
 
-def tessellation_key(data: bytes, deflection_mm: float, angular: float) -> str:
+def tessellation_key(data: bytes, deflection_mm: float | None, angular: float) -> str:
     """Key of a tessellation: hex SHA-256 of the file's content, settings and library versions."""
     payload = {
         "format": FORMAT_VERSION,
         "ocp": _version("cadquery-ocp-novtk"),
         "trimesh": _version("trimesh"),
         "content": hashlib.sha256(data).hexdigest(),
-        "deflection_mm": float(deflection_mm).hex(),
+        "deflection_mm": None if deflection_mm is None else float(deflection_mm).hex(),
         "angular": float(angular).hex(),
     }
     text = json.dumps(payload, sort_keys=True, separators=(",", ":"))
