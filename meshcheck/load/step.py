@@ -651,7 +651,8 @@ def close_mesh(vertices: np.ndarray, faces: np.ndarray, deflection: float) -> tr
         Triangles.
     deflection : float
         The tessellation's linear deflection, same unit: vertices closer than a hundredth of it
-        (or than the float32 resolution of the coordinates, if larger) are one point.
+        (but never a thousandth of the mesh's size: a deflection coarser than a part must not
+        merge it to a point; and at least 2**-40 of the coordinates) are one point.
 
     Returns
     -------
@@ -670,7 +671,8 @@ def close_mesh(vertices: np.ndarray, faces: np.ndarray, deflection: float) -> tr
     vertices = np.asarray(vertices, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64)
     extent = float(np.abs(vertices).max()) if len(vertices) else 0.0
-    tol = max(0.01 * deflection, 2.0**-20 * extent)
+    size = float(np.ptp(vertices, axis=0).max()) if len(vertices) else 0.0
+    tol = max(min(0.01 * deflection, 1e-3 * size), 2.0**-40 * extent)
     rep = np.arange(len(vertices))
     for group in trimesh.grouping.clusters(vertices, tol):
         group = np.asarray(group, dtype=np.int64)
