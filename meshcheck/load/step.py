@@ -275,6 +275,7 @@ def _document(data: bytes, path: str) -> _Document:
     from OCP.TCollection import TCollection_ExtendedString
     from OCP.TDocStd import TDocStd_Document
 
+    doc = TDocStd_Document(TCollection_ExtendedString("XmlOcaf"))
     with tempfile.TemporaryDirectory() as tmp, _captured_output() as messages:
         # Read the bytes hashed (a file changing under us cannot give another file's parts).
         copy = os.path.join(tmp, "input.step")
@@ -282,13 +283,12 @@ def _document(data: bytes, path: str) -> _Document:
             f.write(data)
         reader = STEPCAFControl_Reader()
         reader.SetNameMode(True)
-        status = reader.ReadFile(copy)
-        if status != IFSelect_ReturnStatus.IFSelect_RetDone:
-            raise InputError(path, f"cannot be read as STEP: {_first_error(messages())}")
-        counts = check_structure(reader.Reader().StepModel(), path)
-        doc = TDocStd_Document(TCollection_ExtendedString("XmlOcaf"))
-        if not reader.Transfer(doc):
-            raise InputError(path, f"cannot be read as STEP: {_first_error(messages())}")
+        is_read = reader.ReadFile(copy) == IFSelect_ReturnStatus.IFSelect_RetDone
+        if is_read:
+            counts = check_structure(reader.Reader().StepModel(), path)
+            is_read = reader.Transfer(doc)
+    if not is_read:  # the messages are read back once the streams are restored
+        raise InputError(path, f"cannot be read as STEP: {_first_error(messages())}")
     instances = _walk(doc)
     _check_all_solids_placed(instances, counts, path)
     document = _Document(digest, instances)
