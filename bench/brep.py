@@ -1,4 +1,4 @@
-"""STEP fits decided on the tessellation alone and on the B-rep: what each gets right, what it costs.
+"""STEP fits decided on the tessellation alone and on the B-rep: what each settles, and its cost.
 
 Run from the repository root (needs the ``dev`` extra, for OpenCASCADE's STEP writer)::
 
