@@ -246,8 +246,11 @@ def _key(a: Body, b: Body, tolerance: float, clearance: float | None) -> str:
 
 def _identity(body: Body) -> list[str]:
     """What fixes a solid in the world: its file's content, its node, its placement, the unit."""
-    with open(body.path, "rb") as f:
-        content = hashlib.sha256(f.read()).hexdigest()
+    try:
+        with open(body.path, "rb") as f:
+            content = hashlib.sha256(f.read()).hexdigest()
+    except OSError as exc:
+        raise _Unconfirmed(f"its file cannot be read again ({exc.strerror})") from None
     matrix = np.ascontiguousarray(body.transform, dtype=np.float64).tobytes().hex()
     return [content, _node(body), matrix, body.units]
 
