@@ -47,6 +47,7 @@ from .settings import (
 )
 from .units import DEFAULT_UNIT
 from .verify import verify_pairs
+from .verify.brep import confirm_on_brep
 from .verify.shells import warn_overlapping_shells
 
 _EPS32 = float(np.finfo(np.float32).eps)
@@ -187,6 +188,7 @@ def check_bodies(
             secret=secret,
             hulls_penetrate=hull_query.status[near] == Status.PENETRATING,
         )
+        findings = confirm_on_brep(bodies, findings, settings, secret=secret)
     findings = approve(
         findings, settings.approvals, dict(zip([b.name for b in bodies], names, strict=True))
     )

@@ -25,17 +25,58 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
-#: Size of each unit in metres, by canonical name.
+#: Size of each unit in metres, by canonical name: every length unit a STEP file can declare
+#: (an SI metre with any prefix ISO 10303-41 allows, or a conversion-based inch, foot, yard,
+#: mile, mil or microinch), which includes every unit 3MF and glTF declare. Canonical names are
+#: case-sensitive where SI needs it (``Mm`` megametre, ``mm`` millimetre; ``Pm``, ``pm``).
 METRES = {
+    "am": 1e-18,
+    "fm": 1e-15,
+    "pm": 1e-12,
+    "nm": 1e-9,
     "um": 1e-6,
     "mm": 1e-3,
     "cm": 1e-2,
+    "dm": 1e-1,
     "m": 1.0,
+    "dam": 1e1,
+    "hm": 1e2,
+    "km": 1e3,
+    "Mm": 1e6,
+    "Gm": 1e9,
+    "Tm": 1e12,
+    "Pm": 1e15,
+    "Em": 1e18,
+    "uin": 2.54e-8,
+    "mil": 2.54e-5,
     "in": 0.0254,
     "ft": 0.3048,
+    "yd": 0.9144,
+    "mi": 1609.344,
 }
 
-#: Other spellings (lower case) of the canonical names, including the 3MF and STEP words.
+#: The SI prefixes of ISO 10303-41 (``SI_UNIT(.MILLI.,.METRE.)``): prefix -> canonical name.
+SI_PREFIXES = {
+    "EXA": "Em",
+    "PETA": "Pm",
+    "TERA": "Tm",
+    "GIGA": "Gm",
+    "MEGA": "Mm",
+    "KILO": "km",
+    "HECTO": "hm",
+    "DECA": "dam",
+    "DECI": "dm",
+    "CENTI": "cm",
+    "MILLI": "mm",
+    "MICRO": "um",
+    "NANO": "nm",
+    "PICO": "pm",
+    "FEMTO": "fm",
+    "ATTO": "am",
+}
+
+#: Other spellings (lower case) of the canonical names, including the 3MF and STEP words (a STEP
+#: ``CONVERSION_BASED_UNIT`` name is looked up here, upper case folded).
 ALIASES = {
     "micron": "um",
     "microns": "um",
@@ -44,6 +85,8 @@ ALIASES = {
     "micrometre": "um",
     "micrometres": "um",
     "µm": "um",
+    "nanometer": "nm",
+    "nanometre": "nm",
     "millimeter": "mm",
     "millimeters": "mm",
     "millimetre": "mm",
@@ -52,14 +95,26 @@ ALIASES = {
     "centimeters": "cm",
     "centimetre": "cm",
     "centimetres": "cm",
+    "decimeter": "dm",
+    "decimetre": "dm",
     "meter": "m",
     "meters": "m",
     "metre": "m",
     "metres": "m",
+    "kilometer": "km",
+    "kilometre": "km",
     "inch": "in",
     "inches": "in",
     "foot": "ft",
     "feet": "ft",
+    "yard": "yd",
+    "yards": "yd",
+    "mile": "mi",
+    "miles": "mi",
+    "thou": "mil",
+    "mils": "mil",
+    "microinch": "uin",
+    "micro inch": "uin",
 }
 
 #: Unit of files that declare none, when the caller names no unit.
@@ -67,14 +122,17 @@ DEFAULT_UNIT = "mm"
 
 
 def unit_name(name: str) -> str:
-    """Canonical name (``um``, ``mm``, ``cm``, ``m``, ``in``, ``ft``) of a unit name or alias.
+    """Canonical name (a key of ``METRES``: ``mm``, ``in``, ``km``...) of a unit name or alias.
 
     Raises
     ------
     ValueError
         The name is not a known length unit; the message lists the known ones.
     """
-    key = str(name).strip().lower()
+    text = str(name).strip()
+    if text in METRES:  # exact case first: Mm is a megametre, mm a millimetre
+        return text
+    key = text.lower()
     if key in METRES:
         return key
     if key in ALIASES:

@@ -7,6 +7,7 @@ in the file's unit: the document is given that unit, so nothing is scaled on the
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 
 # metres per unit, and the name OpenCASCADE writes in the file
@@ -74,6 +75,35 @@ def volume(shape) -> float:
     return props.Mass()
 
 
+def common_volume(a, b) -> float:
+    """Volume shared by two solids: OpenCASCADE's boolean common (the tests' oracle)."""
+    from OCP.BRepAlgoAPI import BRepAlgoAPI_Common
+
+    return volume(BRepAlgoAPI_Common(a, b).Shape())
+
+
+def moved(shape, dx: float, dy: float, dz: float):
+    """``shape`` translated by (dx, dy, dz)."""
+    return transformed(shape, placement((dx, dy, dz)))
+
+
+def rotated(shape, angle_deg: float, axis=(0.0, 0.0, 1.0)):
+    """``shape`` rotated by ``angle_deg`` about ``axis`` through the origin."""
+    return transformed(shape, placement(angle_deg=angle_deg, axis=axis))
+
+
+def transformed(shape, transform):
+    """``shape`` moved by a (4, 4) rigid transform."""
+    import numpy as np
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_Transform
+    from OCP.gp import gp_Trsf
+
+    m = np.asarray(transform, dtype=np.float64)
+    trsf = gp_Trsf()
+    trsf.SetValues(*m[0], *m[1], *m[2])
+    return BRepBuilderAPI_Transform(shape, trsf, True).Shape()
+
+
 def placement(translation=(0.0, 0.0, 0.0), angle_deg: float = 0.0, axis=(0.0, 0.0, 1.0)):
     """(4, 4) transform: rotate by ``angle_deg`` about ``axis`` through the origin, then move."""
     import numpy as np
@@ -95,6 +125,7 @@ def write_step(
     *,
     unit: str = "MM",
     assembly: str = "assembly",
+    external: bool = False,
 ) -> str:
     """Write an assembly of named products placed by (4, 4) rigid transforms to a STEP file.
 
@@ -110,6 +141,9 @@ def write_step(
         A key of ``UNITS``: the length unit the file declares and its coordinates are in.
     assembly : str
         Product name of the top assembly.
+    external : bool
+        Write each product to a sibling file (``PATH`` without its extension, then ``_NAME``...)
+        that the assembly file references (AP214 external references), as some CAD systems do.
     """
     import numpy as np
     from OCP.gp import gp_Trsf
@@ -142,7 +176,8 @@ def write_step(
     Interface_Static.SetCVal_s("write.step.unit", unit)
     Interface_Static.SetCVal_s("write.step.product.name", assembly)
     writer = STEPCAFControl_Writer()
-    writer.Transfer(doc, STEPControl_AsIs)
+    prefix = os.path.splitext(str(path))[0] if external else None
+    writer.Transfer(doc, STEPControl_AsIs, prefix)
     if writer.Write(str(path)) != IFSelect_ReturnStatus.IFSelect_RetDone:
         raise OSError(f"{path}: OpenCASCADE could not write the STEP file")
     return str(path)

@@ -427,7 +427,7 @@ def test_part_buried_far_from_the_origin_in_ascii_stl_is_interference(tmp_path):
 @pytest.mark.parametrize(
     ("name", "expected"),
     [("binary.stl", True), ("ascii.stl", False), ("part.obj", False), ("part.glb", True),
-     ("float.ply", True), ("double.ply", False), ("part.3mf", False)],
+     ("float.ply", True), ("double.ply", False), ("part.3mf", False), ("part.step", False)],
 )  # fmt: skip
 def test_each_reader_says_whether_its_coordinates_went_through_float32(tmp_path, name, expected):
     from meshcheck.load import load_bodies
@@ -437,6 +437,10 @@ def test_each_reader_says_whether_its_coordinates_went_through_float32(tmp_path,
         _ascii_stl(path, mesh)
     elif name == "part.3mf":
         write_3mf(path, '<item objectid="1"/>')
+    elif name == "part.step":  # OpenCASCADE meshes and places in double
+        step_writer = pytest.importorskip("step_writer")
+        products = {"a": step_writer.box((0, 0, 0), (1, 1, 1))}
+        step_writer.write_step(str(path), products, [("a", np.eye(4))])
     elif name.endswith(".ply"):
         kind = "float" if name == "float.ply" else "double"
         head = f"ply\nformat ascii 1.0\nelement vertex {len(mesh.vertices)}\n"

@@ -23,11 +23,14 @@ pytest.importorskip("OCP")  # cadquery-ocp, the dev extra: writes the STEP files
 
 from step_writer import (
     box,
+    common_volume,
     cut,
     cylinder,
     fillet,
     fuse,
+    moved,
     placement,
+    rotated,
     volume,
     write_step,
 )
@@ -82,8 +85,11 @@ def pin_in_housing(
 
 
 def bodies_of(path, **kwargs) -> list[Body]:
+    """The parts of a STEP file, as ``load_bodies`` makes them (in the file's unit)."""
+    asm = read_step(str(path), **kwargs)
     return [
-        Body(f"{path}#{n}", str(path), m, t) for n, m, t in read_step(str(path), **kwargs).items
+        Body(f"{path}#{n}", str(path), m, t, units=asm.unit, deflection=asm.deflection)
+        for n, m, t in asm.items
     ]
 
 
@@ -379,7 +385,7 @@ def test_cache_returns_the_same_assembly_and_misses_on_garbage(files, tmp_path):
     cache = TessellationCache(str(tmp_path / "cache"), secret=b"k" * 32)
     first = read_step(files["bolts"], cache=cache)
     data = open(files["bolts"], "rb").read()
-    key = tessellation_key(data, DEFAULT_DEFLECTION_MM, 0.5)
+    key = tessellation_key(data, None, 0.5)
     assert os.path.exists(cache.path(key))
     again = read_step(files["bolts"], cache=cache)
     assert [n for n, _, _ in again.items] == [n for n, _, _ in first.items]
@@ -405,6 +411,229 @@ def test_a_tessellation_entry_signed_with_another_key_is_a_miss(files, tmp_path)
     forger = TessellationCache(str(tmp_path / "cache"), secret=b"f" * 32)
     ours = TessellationCache(str(tmp_path / "cache"), secret=b"k" * 32)
     read_step(files["bolts"], cache=forger)
-    key = tessellation_key(open(files["bolts"], "rb").read(), DEFAULT_DEFLECTION_MM, 0.5)
+    key = tessellation_key(open(files["bolts"], "rb").read(), None, 0.5)
     assert forger.get(key) is not None
     assert ours.get(key) is None
+
+
+# --------------------------------------------------------------------------------------------
+# Line-to-line fits are touching, press fits interference: decided on the B-rep (verify/brep.py)
+#
+# The oracle is OpenCASCADE's boolean common of the solids as written (step_writer.common_volume):
+# 0 for a coincident fit, the press fit's annulus otherwise, whose thickness is the radial
+# interference. Without the B-rep confirmation the coincident fits below are interference (the
+# chords overlap) or pass a press fit thinner than the tessellation's tolerance as touching.
+
+
+def fit(path, *, hole: float, pin: float, deflection=None, angle: float = 7.0):
+    """A pin of radius ``pin`` through a hole of radius ``hole`` (short, to keep meshes small):
+    the finding, and the common volume of the two solids as written."""
+    half = 1.4 * hole + 1.0
+    housing = cut(box((-half, -half, 0), (half, half, 4)), cylinder(hole, -1, 5))
+    pin_solid = cylinder(pin, -1, 5)
+    write_step(path, {"housing": housing, "pin": pin_solid}, [("housing", EYE), ("pin", EYE)])
+    placed = rotated(pin_solid, angle)  # facets out of phase with the hole's
+    path = write_step(
+        path,
+        {"housing": housing, "pin": pin_solid},
+        [("housing", EYE), ("pin", placement(angle_deg=angle))],
+    )
+    bodies = bodies_of(path, deflection=deflection)
+    findings = check_bodies(bodies, jobs=1).findings
+    return findings, common_volume(housing, placed)
+
+
+@pytest.mark.parametrize(
+    "radius, deflection",
+    [(1.5, None), (3.0, None), (3.0, 0.02), (6.0, 0.002), (12.5, 0.05)],
+)
+def test_coincident_pin_in_hole_is_touching(tmp_path, radius, deflection):
+    (finding,), oracle = fit(tmp_path / "fit.step", hole=radius, pin=radius, deflection=deflection)
+    assert oracle == pytest.approx(0.0, abs=1e-9)
+    assert finding.status == "touching", finding
+    assert finding.depth is None and finding.volume is None
+    # decided by the exact solids: the pair's own tolerance, not the tessellation's
+    assert finding.tolerance < 1e-3
+
+
+def test_coincident_bolts_in_plate_are_touching(tmp_path):
+    # the issue's real assembly: bolt shanks line to line with their holes, heads on the plate
+    plate = cut(box((-20, -10, 0), (20, 10, 6)), *[cylinder(2.5, -1, 7, x, 0) for x in (-10, 10)])
+    bolt = fuse(cylinder(4.0, 6.0, 9.0), cylinder(2.5, -3.0, 6.0))
+    path = write_step(
+        tmp_path / "bolts.step",
+        {"plate": plate, "bolt": bolt},
+        [("plate", EYE), ("bolt", placement((-10, 0, 0))), ("bolt", placement((10, 0, 0), 30))],
+    )
+    findings = check_bodies(bodies_of(path), jobs=1).findings
+    assert [f.status for f in findings] == ["touching", "touching"]
+    assert common_volume(plate, moved(bolt, 10, 0, 0)) == pytest.approx(0.0, abs=1e-9)
+
+
+@pytest.mark.parametrize("interference", [0.01, 0.02, 0.05])  # on the diameter, mm
+def test_press_fit_is_interference_with_its_cad_depth_and_volume(tmp_path, interference):
+    (finding,), oracle = fit(tmp_path / "press.step", hole=3.0, pin=3.0 + interference / 2)
+    assert finding.status == "interference"
+    assert finding.volume == pytest.approx(oracle, rel=1e-6)
+    assert finding.depth == pytest.approx(interference / 2, rel=1e-3)  # the annulus, radially
+
+
+def test_press_fit_thinner_than_a_coarse_tessellation_is_still_interference(tmp_path):
+    # 0.02 mm deflection: the meshes' tolerance is 0.04 mm, ten times this fit's 0.004 mm
+    (finding,), oracle = fit(tmp_path / "press.step", hole=3.0, pin=3.004, deflection=0.02)
+    assert oracle > 0
+    assert finding.status == "interference" and finding.depth == pytest.approx(0.004, rel=1e-3)
+
+
+def test_sample_at_a_coarse_deflection_still_reports_its_interference(tmp_path):
+    # --step-deflection 1 makes the meshes' tolerance 2 mm: the 0.7 mm clash is decided on the
+    # B-rep, never passed as touching
+    result = CliRunner().invoke(
+        main,
+        ["sample_meshes/assembly.step", "--step-deflection", "1", "--no-cache", "--format", "json"],
+    )
+    assert result.exit_code == 1, result.output
+    (clash,) = [r for r in json.loads(result.stdout)["results"] if r["status"] == "interference"]
+    assert clash["b"].endswith("#plate") and clash["depth"] == pytest.approx(0.7, rel=1e-6)
+
+
+def test_brep_verdicts_are_cached_and_a_warm_run_reports_the_same(tmp_path, monkeypatch):
+    monkeypatch.setenv("MESHCHECK_CACHE_SECRET", "test-secret")
+    path = str(tmp_path / "press.step")
+    fit(path, hole=3.0, pin=3.005)
+    args = [path, "--cache-dir", str(tmp_path / "cache"), "--format", "json", "--jobs", "1"]
+    cold = CliRunner().invoke(main, args)
+    from meshcheck.load import step
+
+    step._LAST.clear()
+    monkeypatch.setattr(step, "brep_solids", None)  # a warm run must not read the file again
+    warm = CliRunner().invoke(main, args)
+    assert cold.exit_code == warm.exit_code == 1, (cold.output, warm.output)
+    assert cold.stdout == warm.stdout
+    assert json.loads(cold.stdout)["results"][0]["depth"] == pytest.approx(0.005, rel=1e-3)
+
+
+# --------------------------------------------------------------------------------------------
+# Every solid read or refused: cycles, dangling and external references
+
+
+def edited_sample(tmp_path, old: str, new: str) -> str:
+    text = open("sample_meshes/assembly.step").read()
+    assert old in text
+    path = tmp_path / "edited.step"
+    path.write_text(text.replace(old, new))
+    return str(path)
+
+
+NAUO = "#1795 = NEXT_ASSEMBLY_USAGE_OCCURRENCE('6','=>[0:1:1:5]','',#5,#1156,$);"
+
+
+@pytest.mark.parametrize(
+    "edit, message",
+    [
+        (NAUO.replace("#1156", "#5"), "assembly cycle: 'sample_assembly' -> 'sample_assembly'"),
+        (NAUO.replace("#1156", "#99999"), "(NEXT_ASSEMBLY_USAGE_OCCURRENCE) refers to an entity"),
+    ],
+    ids=["cycle", "dangling"],
+)
+def test_cyclic_or_dangling_assembly_is_one_line_exit_3(tmp_path, edit, message):
+    # today's README sample with one occurrence edited: read 1 part of 6 and passed before
+    path = edited_sample(tmp_path, NAUO, edit)
+    result = CliRunner().invoke(main, [path, "--no-cache"])
+    assert result.exit_code == 3, result.output
+    assert result.output.startswith(f"error: {path}: ") and message in result.output
+    assert result.output.count("\n") == 1 and "Traceback" not in result.output
+
+
+def test_external_reference_assembly_is_one_line_exit_3(tmp_path):
+    path = write_step(
+        tmp_path / "asm.step",
+        {"plate": box((0, 0, 0), (10, 10, 1)), "block": box((0, 0, 0), (1, 1, 1))},
+        [("plate", EYE), ("block", placement((0, 0, 1)))],
+        external=True,
+    )
+    assert len(list(tmp_path.glob("*.stp"))) == 2  # the parts live in sibling files
+    result = CliRunner().invoke(main, [path, "--no-cache"])
+    assert result.exit_code == 3, result.output
+    assert result.output.startswith(f"error: {path}: keeps its parts in other files (")
+    assert "asmblock.stp" in result.output and "asmplate.stp" in result.output
+
+
+def test_a_solid_outside_the_placed_products_refuses_the_file(tmp_path):
+    # a second solid in the file that no placed product reaches (its representation dangling
+    # from nothing): counted against the solids placed
+    path = write_step(tmp_path / "one.step", {"a": box((0, 0, 0), (1, 1, 1))}, [("a", EYE)])
+    text = open(path).read()
+    brep = next(line for line in text.splitlines() if "MANIFOLD_SOLID_BREP" in line)
+    number = brep.split("=")[0].strip()
+    open(path, "w").write(text.replace(brep, f"{brep}\n#999999 = {brep.split('=', 1)[1]}"))
+    assert number != "#999999"
+    with pytest.raises(InputError, match=r"only 1 of its 2 solids are in a placed product"):
+        read_step(path)
+
+
+# --------------------------------------------------------------------------------------------
+# Every unit a STEP file can declare
+
+
+SI_UNITS = {"KILO": "km", "DECI": "dm", "CENTI": "cm", "MICRO": "um", "NANO": "nm", "$": "m"}
+CONVERSION_UNITS = {"YARD": ("yd", 914.4), "MILE": ("mi", 1609344.0), "MIL": ("mil", 0.0254)}
+
+
+def relabelled(tmp_path, unit: str) -> str:
+    """A 2 x 1 x 1 box and a cube resting on it, in a file declaring ``unit`` (by editing the
+    millimetre or inch unit OpenCASCADE wrote: the numbers stay, their unit changes)."""
+    products = {"base": box((0, 0, 0), (2, 1, 1)), "cube": box((0, 0, 0), (1, 1, 1))}
+    instances = [("base", EYE), ("cube", placement((0.5, 0, 1)))]
+    if unit in CONVERSION_UNITS:
+        text = open(write_step(tmp_path / "u.step", products, instances, unit="INCH")).read()
+        text = text.replace("'INCH'", f"'{unit}'").replace(
+            "(25.4,", f"({CONVERSION_UNITS[unit][1]!r},"
+        )
+    else:
+        text = open(write_step(tmp_path / "u.step", products, instances)).read()
+        prefix = "$" if unit == "$" else f".{unit}."
+        text = text.replace("SI_UNIT(.MILLI.,.METRE.)", f"SI_UNIT({prefix},.METRE.)")
+    path = tmp_path / f"{unit.strip('$') or 'm'}.step"
+    path.write_text(text)
+    return str(path)
+
+
+@pytest.mark.parametrize("unit", [*SI_UNITS, *CONVERSION_UNITS])
+def test_every_declared_unit_is_read(tmp_path, unit):
+    name = SI_UNITS.get(unit) or CONVERSION_UNITS[unit][0]
+    asm = read_step(relabelled(tmp_path, unit))
+    assert asm.unit == name
+    base = dict((n, m) for n, m, _ in asm.items)["base"]
+    assert np.allclose(base.bounds, [[0, 0, 0], [2, 1, 1]], atol=1e-9)
+
+
+def test_files_in_km_dm_nm_yd_mi_and_mil_are_checked(tmp_path):
+    # each reached report_unit and exited 4 before units.py had them
+    for unit in ("KILO", "DECI", "NANO", "YARD", "MILE", "MIL"):
+        path = relabelled(tmp_path, unit)
+        result = CliRunner().invoke(main, [path, "--no-cache", "--format", "json"])
+        assert result.exit_code == 0, (unit, result.output)
+        doc = json.loads(result.stdout)
+        assert doc["summary"]["units"] == (SI_UNITS.get(unit) or CONVERSION_UNITS[unit][0])
+        assert [r["status"] for r in doc["results"]] == ["touching"]
+
+
+# --------------------------------------------------------------------------------------------
+# Deflection: a range that can be honoured
+
+
+@pytest.mark.parametrize("deflection", ["1e-6", "1e-9"])
+def test_a_deflection_too_fine_is_refused_before_meshing(deflection):
+    # 1e-6 ran 51 s to a SIGSEGV at 1.7 GB; 1e-9 exited 4
+    result = CliRunner().invoke(
+        main, ["sample_meshes/assembly.step", "--step-deflection", deflection, "--no-cache"]
+    )
+    assert result.exit_code == 3, result.output
+    assert "is finer than meshcheck can honour" in result.output and "or more" in result.output
+
+
+def test_a_deflection_over_the_triangle_budget_is_refused_with_one_that_fits(tmp_path):
+    path = pin_in_housing(tmp_path / "pin.step", hole=3.1, pin=3.0)
+    with pytest.raises(InputError, match=r"would make about .* triangles \(budget 2000\)"):
+        read_step(path, deflection=1e-4, max_triangles=2000)

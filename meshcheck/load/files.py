@@ -146,15 +146,16 @@ def _read(path: str, budget: Budget, step: StepOptions) -> FileRead:
         max_line=MAX_TEXT_LINE if ext in (".obj", ".off") else None,
     )
     declared, deflection = None, 0.0
-    # Which coordinates went through float32, per reader: STEP through cascadio's GLB, glTF
-    # (POSITION accessors are float32), binary STL and float PLY; 3MF and text meshes are double.
-    is_float32 = ext in (*STEP_EXTENSIONS, ".glb", ".gltf") or stores_float32(ext, data)
+    # Which coordinates went through float32, per reader: glTF (POSITION accessors are float32),
+    # binary STL and float PLY; 3MF, text meshes and STEP (OpenCASCADE's mesher, double
+    # placements, a float64 tessellation cache) are double.
+    is_float32 = ext in (".glb", ".gltf") or stores_float32(ext, data)
     with np.errstate(all="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # refused below with the real reason
         # A reader takes (path, bytes, budget) and returns (node, mesh, placement) items and the
         # unit the file declares (None: undeclared). A STEP reader plugs in here the same way.
         if ext in STEP_EXTENSIONS:
-            items, declared, deflection = _read_step(path, step)
+            items, declared, deflection = _read_step(path, step, budget)
         elif ext == ".3mf":
             items, declared = read_3mf(path, data, budget)
         elif ext in (".glb", ".gltf"):
@@ -195,7 +196,7 @@ def _stl_head_check(path: str, budget: Budget):
     return check
 
 
-def _read_step(path: str, options: StepOptions):
+def _read_step(path: str, options: StepOptions, budget: Budget):
     """(items, declared unit, deflection in that unit) of a STEP file."""
     from .step import TessellationCache, read_step
 
@@ -213,6 +214,7 @@ def _read_step(path: str, options: StepOptions):
             if options.deflection is not None
             else None,
             cache=cache,
+            max_triangles=budget.limits.max_triangles - budget.triangles,
         )
     except ValueError as exc:
         raise InputError(path, str(exc)) from None
