@@ -373,7 +373,7 @@ class DaskExecutor(Executor):
             from distributed import Client
         except ImportError:
             raise ExecutionError(
-                address, 'running on a cluster needs Dask: pip install "meshcheck[dask]"'
+                address, 'running on a cluster needs Dask: pip install "meshcheck-assembly[dask]"'
             ) from None
         try:
             self.client = Client(address, timeout=connect_timeout, set_as_default=False)

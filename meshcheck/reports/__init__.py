@@ -41,10 +41,11 @@ def render(result: CheckResult, fmt: str = "text", *, inputs: Sequence[str] = ()
 def _render_html(result: CheckResult, *, inputs: Sequence[str]) -> str:
     from importlib import metadata
 
+    from .. import DISTRIBUTION
     from .html import render_html
 
     try:
-        version = metadata.version("meshcheck")
+        version = metadata.version(DISTRIBUTION)
     except metadata.PackageNotFoundError:  # pragma: no cover
         version = "0"
     return render_html(

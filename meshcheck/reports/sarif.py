@@ -113,7 +113,7 @@ def document(result: CheckResult) -> dict:
             "driver": {
                 "name": "meshcheck",
                 "version": _version(),
-                "informationUri": "https://pypi.org/project/meshcheck/",
+                "informationUri": "https://pypi.org/project/meshcheck-assembly/",
                 "rules": rules,
             }
         },
