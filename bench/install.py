@@ -1,0 +1,123 @@
+"""Installing the built wheel against installing from source, each into a fresh venv.
+
+Command::
+
+    python bench/install.py             # (options: --rounds R)
+
+Times, in one run:
+
+* ``pip wheel . --no-deps -w DIR``: building the wheel from this checkout (compiles the kernels);
+* ``pip install WHEEL`` into a fresh virtual environment, with ``CC``, ``CXX`` and ``PATH`` set
+  so that any attempt to compile fails: the wheel installs without a compiler;
+* the peer, ``pip install .`` into another fresh virtual environment (README's first command:
+  compiles the kernels during the install);
+* ``meshcheck sample_meshes/*.stl`` with each environment's console script (must exit 1: the
+  oversized bolt) and with the reports compared byte for byte.
+
+Dependencies come from pip's cache, as on a machine that has installed Python packages before:
+both installs pay the same for them, so the difference is the compile. Each round uses new
+environments; figures are medians over rounds (wall seconds) and the ratio of the wheel install
+to the source install.
+"""
+
+from __future__ import annotations
+
+import argparse
+import glob
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+BIN = "Scripts" if sys.platform == "win32" else "bin"
+
+
+def timed(cmd: list[str], **kwargs) -> tuple[float, subprocess.CompletedProcess]:
+    start = time.perf_counter()
+    done = subprocess.run(cmd, capture_output=True, text=True, **kwargs)
+    return time.perf_counter() - start, done
+
+
+def fresh_venv(where: str) -> str:
+    """A new virtual environment; returns its bin directory."""
+    subprocess.run([sys.executable, "-m", "venv", where], check=True)
+    return os.path.join(where, BIN)
+
+
+def no_compiler_env(tmp: str) -> dict[str, str]:
+    """The environment with every way to a C/C++ compiler failing (a machine without g++)."""
+    fake = os.path.join(tmp, "no-compiler")
+    os.makedirs(fake, exist_ok=True)
+    for name in ("cc", "c++", "gcc", "g++", "clang", "clang++"):
+        path = os.path.join(fake, name)
+        with open(path, "w") as f:
+            f.write("#!/bin/sh\necho 'no compiler here' >&2\nexit 1\n")
+        os.chmod(path, 0o755)
+    return {
+        **os.environ,
+        "CC": "false",
+        "CXX": "false",
+        "PATH": fake + os.pathsep + os.environ["PATH"],
+    }
+
+
+def sample(bin_dir: str) -> tuple[float, str]:
+    """The sample through this environment's meshcheck (must exit 1): seconds, text report."""
+    files = sorted(glob.glob(os.path.join(ROOT, "sample_meshes", "*.stl")))
+    seconds, done = timed([os.path.join(bin_dir, "meshcheck"), *files, "--no-cache"], cwd=ROOT)
+    if done.returncode != 1:
+        sys.exit(f"error: the sample exited {done.returncode}, not 1:\n{done.stderr}")
+    return seconds, done.stdout
+
+
+def one_round(tmp: str) -> dict[str, float]:
+    wheels = os.path.join(tmp, "wheels")
+    build, done = timed([sys.executable, "-m", "pip", "wheel", ROOT, "--no-deps", "-w", wheels])
+    if done.returncode:
+        sys.exit(f"error: pip wheel failed:\n{done.stderr}")
+    (wheel,) = glob.glob(os.path.join(wheels, "*.whl"))
+    wheel_bin = fresh_venv(os.path.join(tmp, "wheel-venv"))
+    install, done = timed(
+        [os.path.join(wheel_bin, "pip"), "install", wheel], env=no_compiler_env(tmp)
+    )
+    if done.returncode:
+        sys.exit(f"error: installing the wheel failed (without a compiler):\n{done.stderr}")
+    source_bin = fresh_venv(os.path.join(tmp, "source-venv"))
+    source, done = timed([os.path.join(source_bin, "pip"), "install", ROOT])
+    if done.returncode:
+        sys.exit(f"error: pip install . failed:\n{done.stderr}")
+    run, report = sample(wheel_bin)
+    if report != sample(source_bin)[1]:
+        sys.exit("error: the wheel's and the source install's reports differ")
+    print(
+        f"  {os.path.basename(wheel)}: build {build:.1f} s, install {install:.1f} s; "
+        f"sample {run:.1f} s; pip install . {source:.1f} s",
+        flush=True,
+    )
+    return {"build": build, "wheel": install, "run": run, "source": source}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--rounds", type=int, default=3)
+    args = parser.parse_args()
+    rounds = []
+    for _ in range(args.rounds):
+        with tempfile.TemporaryDirectory() as tmp:
+            rounds.append(one_round(tmp))
+        shutil.rmtree(os.path.join(ROOT, "build"), ignore_errors=True)
+    med = {k: statistics.median(r[k] for r in rounds) for k in rounds[0]}
+    print(f"\nmedians of {args.rounds} rounds, wall seconds (the sample's reports were identical)")
+    print(f"pip wheel . --no-deps (compiles)         {med['build']:6.1f}")
+    print(f"pip install WHEEL, fresh venv, no compiler {med['wheel']:6.1f}")
+    print(f"meshcheck sample_meshes/*.stl, first run {med['run']:6.1f}")
+    print(f"pip install ., fresh venv (compiles)     {med['source']:6.1f}")
+    print(f"wheel install / source install           {med['wheel'] / med['source']:6.2f}x")
+
+
+if __name__ == "__main__":
+    main()
