@@ -61,3 +61,9 @@ def test_the_hook_checks_the_whole_assembly_once(hook):
     assert hook["entry"] == "meshcheck"
     assert hook["pass_filenames"] is False and hook["require_serial"] is True
     assert hook["language"] == "python"
+
+
+def test_readmes_local_hook_filters_like_the_hook(hook):
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    (files,) = re.findall(r"^ +files: (\(\?i\).+)$", readme, flags=re.MULTILINE)
+    assert files == hook["files"]
