@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy
 from setuptools import Extension, setup
+from setuptools.command.build_ext import build_ext
 
 SRC = Path("meshcheck/geometry/src")
 
@@ -36,7 +37,27 @@ if sys.platform == "win32":
 else:
     COMPILE, LINK = ["-O2", "-std=c++17", "-ffp-contract=off", "-pthread"], ["-pthread"]
 
+
+class BuildExt(build_ext):
+    """build_ext that also deletes the kernels' other builds beside an in-place (editable) one.
+
+    Python imports ``_kernels.cpython-311-*.so`` before ``_kernels.abi3.so``, so a per-version
+    module left by an earlier build would shadow the fresh one and run stale kernels.
+    """
+
+    def run(self):
+        super().run()
+        if not (self.inplace or getattr(self, "editable_mode", False)):
+            return
+        for ext in self.extensions:
+            built = Path(self.get_ext_filename(ext.name))
+            for other in built.parent.glob(built.name.split(".")[0] + ".*"):
+                if other.name != built.name and other.suffix in (".so", ".pyd"):
+                    other.unlink()
+
+
 setup(
+    cmdclass={"build_ext": BuildExt},
     ext_modules=[
         Extension(
             "meshcheck.geometry._kernels",
