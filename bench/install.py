@@ -14,8 +14,10 @@ Times, in one run:
 * ``meshcheck sample_meshes/*.stl`` with each environment's console script (must exit 1: the
   oversized bolt) and with the reports compared byte for byte.
 
-Dependencies come from pip's cache, as on a machine that has installed Python packages before:
-both installs pay the same for them, so the difference is the compile. Each round uses new
+Each build starts from a clean copy of the checkout (pip builds in the source tree and would
+reuse an earlier build's objects). Dependencies come from pip's cache, as on a machine that has
+installed Python packages before: both installs pay the same for them, so the difference is the
+compile. Each round uses new
 environments; figures are medians over rounds (wall seconds) and the ratio of the wheel install
 to the source install.
 """
@@ -74,9 +76,17 @@ def sample(bin_dir: str) -> tuple[float, str]:
     return seconds, done.stdout
 
 
+def clean_copy(where: str) -> str:
+    """The checkout without build products: pip builds in the tree, and would reuse them."""
+    junk = (".git", ".venv", "build", "dist", "*.egg-info", "__pycache__", "*.so", "*.pyd")
+    shutil.copytree(ROOT, where, ignore=shutil.ignore_patterns(*junk))
+    return where
+
+
 def one_round(tmp: str) -> dict[str, float]:
     wheels = os.path.join(tmp, "wheels")
-    build, done = timed([sys.executable, "-m", "pip", "wheel", ROOT, "--no-deps", "-w", wheels])
+    tree = clean_copy(os.path.join(tmp, "tree-wheel"))
+    build, done = timed([sys.executable, "-m", "pip", "wheel", tree, "--no-deps", "-w", wheels])
     if done.returncode:
         sys.exit(f"error: pip wheel failed:\n{done.stderr}")
     (wheel,) = glob.glob(os.path.join(wheels, "*.whl"))
@@ -87,7 +97,8 @@ def one_round(tmp: str) -> dict[str, float]:
     if done.returncode:
         sys.exit(f"error: installing the wheel failed (without a compiler):\n{done.stderr}")
     source_bin = fresh_venv(os.path.join(tmp, "source-venv"))
-    source, done = timed([os.path.join(source_bin, "pip"), "install", ROOT])
+    tree = clean_copy(os.path.join(tmp, "tree-source"))
+    source, done = timed([os.path.join(source_bin, "pip"), "install", tree])
     if done.returncode:
         sys.exit(f"error: pip install . failed:\n{done.stderr}")
     run, report = sample(wheel_bin)
@@ -109,7 +120,6 @@ def main() -> None:
     for _ in range(args.rounds):
         with tempfile.TemporaryDirectory() as tmp:
             rounds.append(one_round(tmp))
-        shutil.rmtree(os.path.join(ROOT, "build"), ignore_errors=True)
     med = {k: statistics.median(r[k] for r in rounds) for k in rounds[0]}
     print(f"\nmedians of {args.rounds} rounds, wall seconds (the sample's reports were identical)")
     print(f"pip wheel . --no-deps (compiles)         {med['build']:6.1f}")
