@@ -68,3 +68,33 @@ def test_kernels_are_built_on_the_stable_abi():
     from meshcheck.geometry import _kernels
 
     assert ".abi3." in Path(_kernels.__file__).name, _kernels.__file__
+
+
+@pytest.mark.slow
+def test_wheel_tests_skip_only_tests_that_exist():
+    """Every test the wheels' test commands deselect or ignore (pyproject.toml,
+    [tool.cibuildwheel]) is still there under that name: a rename would silently run it where
+    it cannot pass, or deselect nothing while seeming to."""
+    import shlex
+    import subprocess
+
+    with open(ROOT / "pyproject.toml", "rb") as f:
+        cibw = tomllib.load(f)["tool"]["cibuildwheel"]
+    commands = [cibw["test-command"]] + [cibw[p]["test-command"] for p in ("macos", "windows")]
+    collected = subprocess.run(
+        [sys.executable, "-m", "pytest", "--collect-only", "-q", "-p", "no:cacheprovider", "tests"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    ).stdout.splitlines()
+    for command in commands:
+        args = shlex.split(command)
+        terms = re.findall(r"not (\w+)", args[args.index("-k") + 1])
+        assert "in_chromium" in terms
+        for term in terms:
+            assert any(term in node for node in collected), term
+        ignored = [args[i + 1] for i, a in enumerate(args) if a == "--ignore"]
+        assert all((ROOT / path).is_file() for path in ignored), ignored
+    chromium = [node for node in collected if "in_chromium" in node]
+    assert len(chromium) == 2 and all("test_html_report.py" in n for n in chromium), chromium
