@@ -18,8 +18,9 @@ Each build starts from a clean copy of the checkout (pip builds in the source tr
 reuse an earlier build's objects). Dependencies come from pip's cache, as on a machine that has
 installed Python packages before: both installs pay the same for them, so the difference is the
 compile. Each round uses new
-environments; figures are medians over rounds (wall seconds) and the ratio of the wheel install
-to the source install.
+environments; figures are medians over rounds of wall time and of CPU time (the process and its
+children: what a machine shared with other work disturbs least), and the median over rounds of
+the wheel install's time divided by the source install's.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from __future__ import annotations
 import argparse
 import glob
 import os
+import resource
 import shutil
 import statistics
 import subprocess
@@ -38,10 +40,16 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 BIN = "Scripts" if sys.platform == "win32" else "bin"
 
 
-def timed(cmd: list[str], **kwargs) -> tuple[float, subprocess.CompletedProcess]:
-    start = time.perf_counter()
+def children_cpu() -> float:
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def timed(cmd: list[str], **kwargs) -> tuple[tuple[float, float], subprocess.CompletedProcess]:
+    """Run ``cmd``: ((wall seconds, CPU seconds of it and its children), the result)."""
+    start, cpu = time.perf_counter(), children_cpu()
     done = subprocess.run(cmd, capture_output=True, text=True, **kwargs)
-    return time.perf_counter() - start, done
+    return (time.perf_counter() - start, children_cpu() - cpu), done
 
 
 def fresh_venv(where: str) -> str:
@@ -67,7 +75,7 @@ def no_compiler_env(tmp: str) -> dict[str, str]:
     }
 
 
-def sample(bin_dir: str) -> tuple[float, str]:
+def sample(bin_dir: str) -> tuple[tuple[float, float], str]:
     """The sample through this environment's meshcheck (must exit 1): seconds, text report."""
     files = sorted(glob.glob(os.path.join(ROOT, "sample_meshes", "*.stl")))
     seconds, done = timed([os.path.join(bin_dir, "meshcheck"), *files, "--no-cache"], cwd=ROOT)
@@ -104,12 +112,13 @@ def one_round(tmp: str) -> dict[str, float]:
     run, report = sample(wheel_bin)
     if report != sample(source_bin)[1]:
         sys.exit("error: the wheel's and the source install's reports differ")
+    times = {"build": build, "wheel": install, "run": run, "source": source}
     print(
-        f"  {os.path.basename(wheel)}: build {build:.1f} s, install {install:.1f} s; "
-        f"sample {run:.1f} s; pip install . {source:.1f} s",
+        f"  {os.path.basename(wheel)}: "
+        + ", ".join(f"{k} {w:.1f} s wall, {c:.1f} s CPU" for k, (w, c) in times.items()),
         flush=True,
     )
-    return {"build": build, "wheel": install, "run": run, "source": source}
+    return times
 
 
 def main() -> None:
@@ -120,13 +129,19 @@ def main() -> None:
     for _ in range(args.rounds):
         with tempfile.TemporaryDirectory() as tmp:
             rounds.append(one_round(tmp))
-    med = {k: statistics.median(r[k] for r in rounds) for k in rounds[0]}
-    print(f"\nmedians of {args.rounds} rounds, wall seconds (the sample's reports were identical)")
-    print(f"pip wheel . --no-deps (compiles)         {med['build']:6.1f}")
-    print(f"pip install WHEEL, fresh venv, no compiler {med['wheel']:6.1f}")
-    print(f"meshcheck sample_meshes/*.stl, first run {med['run']:6.1f}")
-    print(f"pip install ., fresh venv (compiles)     {med['source']:6.1f}")
-    print(f"wheel install / source install           {med['wheel'] / med['source']:6.2f}x")
+    rows = {
+        "pip wheel . --no-deps (compiles)": "build",
+        "pip install WHEEL, fresh venv, no compiler": "wheel",
+        "meshcheck sample_meshes/*.stl, first run": "run",
+        "pip install ., fresh venv (compiles)": "source",
+    }
+    print(f"\nmedians of {args.rounds} rounds (the sample's reports were identical)")
+    print(f"{'':<44}{'wall s':>8}{'CPU s':>8}")
+    for label, k in rows.items():
+        wall, cpu = (statistics.median(r[k][i] for r in rounds) for i in (0, 1))
+        print(f"{label:<44}{wall:>8.1f}{cpu:>8.1f}")
+    wall, cpu = (statistics.median(r["wheel"][i] / r["source"][i] for r in rounds) for i in (0, 1))
+    print(f"{'wheel install / source install, per round':<44}{wall:>7.2f}x{cpu:>7.2f}x")
 
 
 if __name__ == "__main__":
