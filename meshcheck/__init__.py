@@ -22,6 +22,10 @@ from typing import TYPE_CHECKING
 
 from .errors import ConfigError, ExitStatus, InputError, MeshcheckError, MeshcheckWarning
 
+# The name pip installs meshcheck by ("meshcheck" on PyPI is an unrelated project); the command
+# and the import are meshcheck. Installed versions are read under this name.
+DISTRIBUTION = "meshcheck-assembly"
+
 if TYPE_CHECKING:
     from .geometry import Contact, Status, intersects, query, signed_distance
     from .pipeline import check

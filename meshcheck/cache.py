@@ -393,10 +393,11 @@ def verify_code_version() -> str:
     stages, the compiled kernels' binary, and the versions of numpy, trimesh and manifold3d."""
     import importlib.metadata
 
+    from . import DISTRIBUTION
     from .geometry import _kernels
 
     h = hashlib.sha256()
-    for package in ("meshcheck", "numpy", "trimesh", "manifold3d"):
+    for package in (DISTRIBUTION, "numpy", "trimesh", "manifold3d"):
         try:
             h.update(f"{package}={importlib.metadata.version(package)};".encode())
         except importlib.metadata.PackageNotFoundError:

@@ -186,7 +186,7 @@ def _report_option(ctx, param, values):
     default=None,
     metavar="ADDRESS",
     help="Run decomposition and pair verification on this Dask cluster (tcp://HOST:8786; "
-    'needs pip install "meshcheck[dask]"). Default: $MESHCHECK_SCHEDULER, then the config '
+    'needs pip install "meshcheck-assembly[dask]"). Default: $MESHCHECK_SCHEDULER, then the config '
     "file's scheduler; none runs locally.",
 )
 @click.option(
@@ -196,7 +196,7 @@ def _report_option(ctx, param, values):
     default=None,
     help="Write the assembly with clashes marked in red to this .glb or .gltf file.",
 )
-@click.version_option(package_name="meshcheck")
+@click.version_option(package_name="meshcheck-assembly")
 def main(**options):
     """Check the parts in FILES for interference, contact and clearance.
 

@@ -389,7 +389,7 @@ class DaskExecutor(Executor):
             from distributed import Client
         except ImportError:
             raise ExecutionError(
-                address, 'running on a cluster needs Dask: pip install "meshcheck[dask]"'
+                address, 'running on a cluster needs Dask: pip install "meshcheck-assembly[dask]"'
             ) from None
         _identify(address, connect_timeout)
         try:

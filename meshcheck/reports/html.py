@@ -121,8 +121,10 @@ def render(result: CheckResult, *, inputs: Sequence[str] = ()) -> str:
 
 
 def _version() -> str:
+    from .. import DISTRIBUTION
+
     try:
-        return metadata.version("meshcheck")
+        return metadata.version(DISTRIBUTION)
     except metadata.PackageNotFoundError:  # pragma: no cover - running from a source tree
         return "0"
 

@@ -37,8 +37,10 @@ def uri(path: str) -> dict:
 
 
 def _version() -> str:
+    from .. import DISTRIBUTION
+
     try:
-        return metadata.version("meshcheck")
+        return metadata.version(DISTRIBUTION)
     except metadata.PackageNotFoundError:  # pragma: no cover - running from a source tree
         return "0"
 
@@ -114,7 +116,7 @@ def document(result: CheckResult) -> dict:
             "driver": {
                 "name": "meshcheck",
                 "version": _version(),
-                "informationUri": "https://pypi.org/project/meshcheck/",
+                "informationUri": "https://pypi.org/project/meshcheck-assembly/",
                 "rules": rules,
             }
         },

@@ -26,7 +26,7 @@ struct Array {
     Array() = default;
     Array(const Array&) = delete;
     Array& operator=(const Array&) = delete;
-    ~Array() { Py_XDECREF(a); }
+    ~Array() { Py_XDECREF(reinterpret_cast<PyObject*>(a)); }
     npy_intp len(int axis = 0) const { return PyArray_DIM(a, axis); }
     double* f8() const { return static_cast<double*>(PyArray_DATA(a)); }
     int64_t* i8() const { return static_cast<int64_t*>(PyArray_DATA(a)); }
