@@ -110,6 +110,7 @@ def approval_reason(
 
 CONFIG_NAMES = ("meshcheck.toml", "pyproject.toml")  # in one directory, meshcheck.toml wins
 _KEYS = ("tolerance", "clearance", "threshold", "units", "fail_on", "ignore", "groups", "scheduler")
+_KEYS += ("pose", "adjacent", "package_paths")  # mechanisms (meshcheck.motion)
 
 
 @dataclass(frozen=True)
@@ -144,6 +145,7 @@ class Config:
     groups: Groups | None = None
     units: str | None = None
     scheduler: str | None = None
+    motion: dict | None = None  # pose, adjacent, package_paths, validated (meshcheck.motion)
 
 
 def find_config(start: str | os.PathLike | None = None) -> str | None:
@@ -321,8 +323,14 @@ def load_config(path: str | os.PathLike) -> Config:
         except ConfigError as exc:
             fail(exc.reason)
 
+    motion = {k: doc[k] for k in ("pose", "adjacent", "package_paths") if k in doc}
+    if motion:
+        from .motion import checked_motion
+
+        motion = checked_motion(motion, path=path)
     return Config(
         path=path,
+        motion=motion or None,
         tolerance=number("tolerance"),
         clearance=number("clearance"),
         threshold=number("threshold"),
