@@ -196,6 +196,30 @@ def _report_option(ctx, param, values):
     default=None,
     help="Write the assembly with clashes marked in red to this .glb or .gltf file.",
 )
+@click.option(
+    "--pose",
+    "pose",
+    multiple=True,
+    metavar="JOINT=VALUE,...",
+    help="Joint values URDF robots are checked at: radians or metres, or degrees as 30deg "
+    "(default zero); repeatable. Mimic joints follow their leader.",
+)
+@click.option(
+    "--package-path",
+    "package_paths",
+    multiple=True,
+    type=click.Path(file_okay=False),
+    metavar="DIR",
+    help="Also look for package:// meshes of URDF files here (besides the URDF's folder and its "
+    "ancestors); repeatable.",
+)
+@click.option(
+    "--adjacent/--no-adjacent",
+    "adjacent",
+    default=None,
+    help="Approve findings between robot links joined by a joint (reason adjacent), as MoveIt "
+    "does. Default: on.",
+)
 @click.version_option(package_name="meshcheck")
 def main(**options):
     """Check the parts in FILES for interference, contact and clearance.
@@ -244,6 +268,9 @@ def _run(
     jobs,
     scheduler,
     export_path,
+    pose=(),
+    package_paths=(),
+    adjacent=None,
 ):
     from .settings import Settings
 
@@ -280,6 +307,7 @@ def _run(
             use_cache=not no_cache,
             jobs=jobs,
             scheduler=scheduler,
+            motion={"pose": pose or None, "package_paths": package_paths, "adjacent": adjacent},
         )
     except MeshcheckError as exc:
         _fail(exc)

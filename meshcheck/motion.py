@@ -184,5 +184,11 @@ def _is_values(pose) -> bool:
 
 
 __all__ = [
+    "DEFAULT_RESOLUTION",
+    "JointValue",
+    "Motion",
     "checked_motion",
-    "motion_from_options","DEFAULT_RESOLUTION", "JointValue", "Motion", "parse_pose", "parse_value"]
+    "motion_from_options",
+    "parse_pose",
+    "parse_value",
+]

@@ -44,6 +44,7 @@ from .settings import (
     pair_tolerances,
     part_sizes,
 )
+from .sweep import with_mechanisms
 from .units import DEFAULT_UNIT
 from .verify import verify_pairs
 
@@ -118,7 +119,9 @@ def check(
                     step_deflection=settings.step_deflection,
                     progress=bar.update_total,
                     executor=executor,
+                    motion=settings.motion,
                 )
+            settings = with_mechanisms(bodies, settings)  # robots: adjacent links approved
             result = check_bodies(bodies, settings, executor=executor)
     finally:
         # Re-issue outside the recorder, so callers' filters (and the CLI) see them as usual;

@@ -148,7 +148,7 @@ class Settings:
     fail_on_new: bool = False
     max_triangles: int | None = None
     step_deflection: float | None = None
-    motion: Motion = Motion()
+    motion: Motion = dataclasses.field(default_factory=Motion)
 
     def __post_init__(self):
         for name in NUMBER_RANGES:

@@ -358,7 +358,9 @@ def _joint(path: str, el: ElementTree.Element) -> Joint:
     kind = _attr(path, el, "type")
     what = f"joint {name!r}"
     if kind not in MOVABLE + HELD:
-        raise InputError(path, f"{what} has unknown type {kind!r} (known: {', '.join(MOVABLE + HELD)})")
+        raise InputError(
+            path, f"{what} has unknown type {kind!r} (known: {', '.join(MOVABLE + HELD)})"
+        )
     parent, child = el.find("parent"), el.find("child")
     if parent is None or child is None:
         raise InputError(path, f"{what} needs a <parent> and a <child>")
@@ -660,7 +662,9 @@ def _primitive(shape: tuple):
     if kind == "box":
         mesh = trimesh.creation.box(extents=shape[1])
     elif kind == "cylinder":
-        mesh = trimesh.creation.cylinder(radius=shape[1], height=shape[2], sections=CYLINDER_SECTIONS)
+        mesh = trimesh.creation.cylinder(
+            radius=shape[1], height=shape[2], sections=CYLINDER_SECTIONS
+        )
     else:
         mesh = trimesh.creation.icosphere(subdivisions=SPHERE_SUBDIVISIONS, radius=shape[1])
     return Soup(np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int64))
@@ -671,7 +675,8 @@ def _read_mesh(urdf_path: str, path: str, budget: Budget) -> Soup:
     ext = os.path.splitext(path)[1].lower()
     if ext not in MESH_EXTENSIONS:
         raise InputError(
-            urdf_path, f"mesh {path}: unsupported type {ext or '(none)'} ({', '.join(MESH_EXTENSIONS)})"
+            urdf_path,
+            f"mesh {path}: unsupported type {ext or '(none)'} ({', '.join(MESH_EXTENSIONS)})",
         )
     data = read_file(path, budget.limits)
     if ext == ".dae":
@@ -697,7 +702,9 @@ def _read_dae(path: str, data: bytes) -> list[Item]:
     try:
         import collada  # noqa: F401  (trimesh reads DAE through pycollada)
     except ImportError:
-        raise InputError(path, "reading COLLADA (.dae) needs pycollada: pip install pycollada") from None
+        raise InputError(
+            path, "reading COLLADA (.dae) needs pycollada: pip install pycollada"
+        ) from None
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
