@@ -167,7 +167,8 @@ def motion_from_options(
     file = file or {}
     merged = {v.joint: v for v in file.get("pose", ())}
     if pose is not None:
-        merged.update({v.joint: v for v in (parse_pose(pose) if not _is_values(pose) else pose)})
+        given = Motion(pose=tuple(pose) if _is_values(pose) else parse_pose(pose))  # refuses twice
+        merged.update({v.joint: v for v in given.pose})
     if isinstance(sweep, str):
         sweep = tuple(s.strip() for s in sweep.split(",") if s.strip())
     return Motion(
