@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import math
 import os
-import shutil
 import subprocess
 import sys
 import time
@@ -19,7 +18,7 @@ from meshes import box
 from meshcheck.cli import main
 from meshcheck.errors import ConfigError, ExitStatus, InputError
 from meshcheck.load import Limits, load_bodies
-from meshcheck.load.urdf import link_transforms, joint_values, parse_robot, rpy_matrix
+from meshcheck.load.urdf import joint_values, link_transforms, parse_robot, rpy_matrix
 from meshcheck.motion import Motion, parse_pose
 from meshcheck.pipeline import check_bodies
 from meshcheck.results import Verdict
@@ -97,7 +96,9 @@ def test_revolute_chain_places_links_by_origin_then_motion(tmp_path):
 
 
 def test_parts_are_named_by_link_and_collision_index(tmp_path):
-    second = '<collision><origin xyz="0 0 3"/><geometry><sphere radius="0.5"/></geometry></collision>'
+    second = (
+        '<collision><origin xyz="0 0 3"/><geometry><sphere radius="0.5"/></geometry></collision>'
+    )
     path = write(tmp_path, slide_robot(arm_extra=second))
     bodies = load_bodies([path])
     assert [b.name for b in bodies] == [f"{path}#{n}" for n in ("arm", "arm/1", "base", "tip")]
@@ -262,7 +263,8 @@ def joint_xml(name, parent, child, kind="fixed"):
 
 
 def link_xml(name):
-    return f'<link name="{name}"><collision><geometry><box size="1 1 1"/></geometry></collision></link>'
+    box_xml = '<geometry><box size="1 1 1"/></geometry>'
+    return f'<link name="{name}"><collision>{box_xml}</collision></link>'
 
 
 BAD = {
@@ -333,7 +335,7 @@ def test_billion_laughs_is_refused_quickly_in_little_memory(tmp_path):
     entities = ['<!ENTITY l0 "lol">'] + [
         f'<!ENTITY l{k} "{("&l" + str(k - 1) + ";") * 10}">' for k in range(1, 10)
     ]
-    text = f"<!DOCTYPE robot [{''.join(entities)}]><robot name=\"&l9;\"/>"
+    text = f'<!DOCTYPE robot [{"".join(entities)}]><robot name="&l9;"/>'
     path = write(tmp_path, text)
     start = time.perf_counter()
     proc = subprocess.run(
