@@ -220,6 +220,26 @@ def _report_option(ctx, param, values):
     help="Approve findings between robot links joined by a joint (reason adjacent), as MoveIt "
     "does. Default: on.",
 )
+@click.option(
+    "--sweep",
+    is_flag=True,
+    help="Classify every pair of robot links as never / sometimes / always in contact over the "
+    "joint ranges; never is proven, sometimes comes with a witness pose.",
+)
+@click.option(
+    "--sweep-joints",
+    default=None,
+    metavar="JOINT,...",
+    help="Sweep only these joints (the others stay at --pose). Implies --sweep.",
+)
+@click.option(
+    "--srdf",
+    "srdf_path",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="Write MoveIt disable_collisions entries (Adjacent, Never, Always) from the sweep to "
+    "this SRDF file. Implies --sweep.",
+)
 @click.version_option(package_name="meshcheck")
 def main(**options):
     """Check the parts in FILES for interference, contact and clearance.
@@ -271,6 +291,9 @@ def _run(
     pose=(),
     package_paths=(),
     adjacent=None,
+    sweep=False,
+    sweep_joints=None,
+    srdf_path=None,
 ):
     from .settings import Settings
 
@@ -283,7 +306,9 @@ def _run(
             from .reports.gltf import export_type
 
             export_type(export_path)
-        _refuse_inputs_as_outputs(files, [p for _, p in targets] + [export_path])
+        if srdf_path is not None:
+            check_output(srdf_path, what="SRDF")
+        _refuse_inputs_as_outputs(files, [p for _, p in targets] + [export_path, srdf_path])
         baseline = None
         if baseline_path is not None:
             from .baseline import load_baseline
@@ -307,7 +332,12 @@ def _run(
             use_cache=not no_cache,
             jobs=jobs,
             scheduler=scheduler,
-            motion={"pose": pose or None, "package_paths": package_paths, "adjacent": adjacent},
+            motion={
+                "pose": pose or None,
+                "package_paths": package_paths,
+                "adjacent": adjacent,
+                "sweep": sweep_joints or ("" if sweep or srdf_path else None),
+            },
         )
     except MeshcheckError as exc:
         _fail(exc)
@@ -347,6 +377,8 @@ def _run(
         except OutputError as exc:
             click.echo(f"error: {printable(str(exc))}", err=True)
             failed = True
+    if srdf_path is not None:
+        failed |= _write_srdf(srdf_path, result)
     files_written = [path for _, path in targets if path != STDOUT]
     if files_written and all(path != STDOUT for _, path in targets):
         noun = "report" if len(files_written) == 1 else "reports"
@@ -358,6 +390,21 @@ def _run(
     # over the ~135k objects numpy, scipy and trimesh created: 0.2 s of a 1.5 s warm run.
     gc.freeze()
     sys.exit(int(exit_status(result)))
+
+
+def _write_srdf(path: str, result) -> bool:
+    """Write the sweep's SRDF and say what the sweep found on stderr; True when it failed."""
+    from .reports.srdf import render as render_srdf
+    from .sweep import summary
+
+    for robot in result.sweeps:
+        click.echo(f"sweep: {printable(summary(robot))}", err=True)
+    try:
+        write_output(path, render_srdf(result), what="SRDF")
+    except MeshcheckError as exc:
+        click.echo(f"error: {printable(str(exc))}", err=True)
+        return True
+    return False
 
 
 def _targets(ctx, fmt, output, reports) -> list[tuple[str, str]]:

@@ -44,7 +44,7 @@ from .settings import (
     pair_tolerances,
     part_sizes,
 )
-from .sweep import with_mechanisms
+from .sweep import with_mechanisms, with_sweeps
 from .units import DEFAULT_UNIT
 from .verify import verify_pairs
 
@@ -123,6 +123,7 @@ def check(
                 )
             settings = with_mechanisms(bodies, settings)  # robots: adjacent links approved
             result = check_bodies(bodies, settings, executor=executor)
+            result = with_sweeps(result, bodies, settings, executor=executor)  # --sweep
     finally:
         # Re-issue outside the recorder, so callers' filters (and the CLI) see them as usual;
         # a message said twice (the same file's problem met by two stages) is said once.

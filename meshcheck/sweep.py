@@ -103,10 +103,15 @@ _NO_LIMITS = Limits(max_file_bytes=1 << 62)  # the URDF was read once already, w
 MAX_BOXES = 200_000
 #: Boxes evaluated in one compiled call.
 BATCH = 1024
+#: Poses drawn (fixed seed) to look for a witness before the proof starts, and how many of the
+#: closest are re-checked on the real meshes.
+SAMPLES = 256
+SAMPLE_CHECKS = 4
 #: Candidate witnesses re-checked on the real meshes per link pair, deepest piece overlap first.
 MAX_WITNESS_CHECKS = 24
 
 NEVER, SOMETIMES, ALWAYS, UNDECIDED = "never", "sometimes", "always", "undecided"
+STATUSES = (NEVER, SOMETIMES, ALWAYS, UNDECIDED)
 
 
 @dataclass(frozen=True)
@@ -384,8 +389,11 @@ def sweep_pair(pair: _Pair, lower: np.ndarray, upper: np.ndarray, resolution: fl
     the tolerance, so whether one link is buried in the other cannot change over the sweep: one
     exact check at the centre decides ``never`` (or ``always``, buried throughout).
     """
+    found = _sampled_witness(pair, lower, upper)
+    if found is not None:
+        return found
     lo, hi = lower[None, :].copy(), upper[None, :].copy()
-    evaluated, checks, unresolved = 0, 0, False
+    evaluated, checks, unresolved = SAMPLES, 0, False
     w = pair.weights
     while len(lo):
         blo, bhi, lo, hi = lo[:BATCH], hi[:BATCH], lo[BATCH:], hi[BATCH:]
@@ -407,6 +415,12 @@ def sweep_pair(pair: _Pair, lower: np.ndarray, upper: np.ndarray, resolution: fl
             continue
         blo, bhi, half = blo[open_], bhi[open_], half[open_]
         splittable = np.any(2.0 * half > resolution, axis=1)
+        for e in np.flatnonzero(~splittable)[: max(0, MAX_WITNESS_CHECKS - checks) // 2]:
+            unresolved = True  # at the resolution: its corners may still collide
+            checks += 2
+            found = _witness(pair, np.stack([blo[e], bhi[e]]), evaluated)
+            if found is not None:
+                return found
         unresolved |= bool(np.any(~splittable))
         blo, bhi, half = blo[splittable], bhi[splittable], half[splittable]
         axis = np.argmax(half * w, axis=1)
@@ -423,6 +437,32 @@ def sweep_pair(pair: _Pair, lower: np.ndarray, upper: np.ndarray, resolution: fl
     ta, tb, _ = pair.placements(0.5 * (lower + upper)[None, :])
     buried = pair.verdict(ta[0], tb[0], surfaces_apart=True) == "interference"
     return _result(pair, ALWAYS if buried else NEVER, evaluated)
+
+
+def _sampled_witness(pair: _Pair, lower: np.ndarray, upper: np.ndarray) -> PairSweep | None:
+    """A witness among ``SAMPLES`` poses drawn with a fixed seed (most pairs that collide do so
+    over a wide region, found here before any box is split), else None."""
+    rng = np.random.default_rng(0)
+    values = lower + (upper - lower) * rng.random((SAMPLES, len(lower)))
+    ta, tb, _ = pair.placements(values)
+    lowest = piece_distances(
+        pair.links[pair.a].pack, pair.links[pair.b].pack, ta, tb, np.full(SAMPLES, pair.tolerance)
+    )
+    order = np.argsort(lowest, kind="stable")[:SAMPLE_CHECKS]
+    return _witness(pair, values[order[lowest[order] <= pair.tolerance]], SAMPLES)
+
+
+def _witness(pair: _Pair, values: np.ndarray, boxes: int) -> PairSweep | None:
+    """The first of ``values`` (free joints' values, (k, n)) where the real meshes collide."""
+    if len(values) == 0:
+        return None
+    ta, tb, poses = pair.placements(values)
+    for e in range(len(values)):
+        status = pair.verdict(ta[e], tb[e])
+        if status in ("interference", "touching"):
+            witness = {n: float(poses[e][n]) for n in pair.names}
+            return _result(pair, SOMETIMES, boxes, witness, status)
+    return None
 
 
 def _result(pair: _Pair, status: str, boxes: int, witness=None, verdict=None) -> PairSweep:
@@ -543,11 +583,36 @@ def _links(robot, mech, bodies, pieces, base, scale) -> dict[str, _Link]:
     return out
 
 
-def sweep_bodies(bodies: Sequence[Body], settings, *, executor=None) -> tuple[PairSweep, ...]:
-    """``sweep_mechanism`` of every robot among ``bodies`` (``settings.motion.sweep`` set)."""
+@dataclass(frozen=True)
+class RobotSweep:
+    """One robot's sweep: its URDF, its name, and every link pair's ``PairSweep``."""
+
+    path: str
+    name: str
+    pairs: tuple[PairSweep, ...]
+
+
+def summary(robot: RobotSweep) -> str:
+    """One line: how many link pairs of a robot are never, sometimes, always in contact."""
+    counts = {s: sum(p.status == s for p in robot.pairs) for s in STATUSES}
+    shown = ", ".join(f"{n} {s}" for s, n in counts.items() if n or s != ALWAYS)
+    adjacent = sum(p.is_adjacent for p in robot.pairs)
+    return f"{robot.path}: {len(robot.pairs)} link pairs ({adjacent} adjacent): {shown}"
+
+
+def with_sweeps(result, bodies: Sequence[Body], settings, *, executor=None):
+    """``result`` with the sweep of every robot among ``bodies`` when ``settings.motion.sweep``
+    is set (``CheckResult.sweeps``)."""
+    if settings.motion.sweep is None:
+        return result
+    return dataclasses.replace(result, sweeps=sweep_bodies(bodies, settings, executor=executor))
+
+
+def sweep_bodies(bodies: Sequence[Body], settings, *, executor=None) -> tuple[RobotSweep, ...]:
+    """``sweep_mechanism`` of every robot among ``bodies``."""
     from .decompose import decompose_bodies
 
-    out: list[PairSweep] = []
+    out: list[RobotSweep] = []
     for mech in mechanisms(bodies):
         ks = sorted(k for ks in mech.parts.values() for k in ks)
         piece_lists = decompose_bodies(
@@ -558,7 +623,6 @@ def sweep_bodies(bodies: Sequence[Body], settings, *, executor=None) -> tuple[Pa
             executor=executor,
         )
         pieces = dict(zip(ks, piece_lists, strict=True))
-        out.extend(
-            sweep_mechanism(mech, bodies, pieces, settings.motion, tolerance=settings.tolerance)
-        )
+        pairs = sweep_mechanism(mech, bodies, pieces, settings.motion, tolerance=settings.tolerance)
+        out.append(RobotSweep(mech.robot.path, mech.robot.name, pairs))
     return tuple(out)
