@@ -16,7 +16,7 @@ from .config import Approval
 from .load import Body
 from .load.files import URDF_EXTENSIONS
 from .load.limits import Limits, read_file
-from .load.urdf import MOVABLE, Robot, adjacent_links, parse_robot, with_mimics
+from .load.urdf import MOVABLE, Robot, adjacent_links, parse_robot
 
 #: The reason adjacent links' findings are approved with (MoveIt's "Adjacent").
 ADJACENT = "adjacent"
@@ -237,39 +237,66 @@ def motion_weights(
     return out
 
 
-def _poses(robot: Robot, base: dict, names: list[str], values: np.ndarray) -> list[dict]:
-    """Every joint's value for each row of ``values`` (the free joints ``names``; the other
-    leading joints at ``base``; mimic joints following their leaders)."""
-    leading = {j.name for j in robot.movable}
-    held = {k: v for k, v in base.items() if k in leading}
-    out = []
-    for row in values:
-        pose = dict(held)
-        pose.update(zip(names, row.tolist(), strict=True))
-        out.append(with_mimics(robot, pose))
+def _poses(robot: Robot, base: dict, names: list[str], values: np.ndarray) -> dict:
+    """Every movable joint's values for the rows of ``values``, ``{name: (E,) float64}``: the
+    free joints ``names`` from ``values``, the other leading joints at ``base``, mimic joints
+    following their leaders."""
+    count = len(values)
+    out = {j.name: np.full(count, base[j.name]) for j in robot.movable}
+    for k, name in enumerate(names):
+        out[name] = values[:, k]
+    by_name = {j.name: j for j in robot.joints}
+
+    def value(name: str) -> np.ndarray:
+        if name not in out:
+            leader, multiplier, offset = by_name[name].mimic
+            out[name] = multiplier * value(leader) + offset
+        return out[name]
+
+    for joint in robot.joints:
+        if joint.type in MOVABLE:
+            value(joint.name)
     return out
 
 
-def _chain_transforms(chain: list, poses: list[dict], scale: float) -> np.ndarray:
-    """(E, 4, 4) placements of a chain's last link in the root frame, report units."""
-    out = np.empty((len(poses), 4, 4))
-    for e, pose in enumerate(poses):
-        placed = np.eye(4)
-        for joint in chain:
-            placed = placed @ joint.origin
-            if joint.type in MOVABLE:
-                placed = placed @ joint.motion(pose[joint.name])
-        out[e] = placed
-    out[:, :3, 3] *= scale
+def _motions(joint, values: np.ndarray) -> np.ndarray:
+    """(E, 4, 4) motions of one joint at E values (Rodrigues, vectorised)."""
+    out = np.zeros((len(values), 4, 4))
+    out[:, 3, 3] = 1.0
+    if joint.type == "prismatic":
+        out[:, 0, 0] = out[:, 1, 1] = out[:, 2, 2] = 1.0
+        out[:, :3, 3] = values[:, None] * joint.axis
+        return out
+    x, y, z = joint.axis
+    k = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    out[:, :3, :3] = (
+        np.eye(3)
+        + np.sin(values)[:, None, None] * k
+        + (1.0 - np.cos(values))[:, None, None] * (k @ k)
+    )
     return out
+
+
+def _chain_transforms(chain: list, poses: dict, scale: float, count: int) -> np.ndarray:
+    """(E, 4, 4) placements of a chain's last link in the root frame, report units, for
+    ``count`` poses."""
+    placed = np.broadcast_to(np.eye(4), (count, 4, 4))
+    fixed = np.eye(4)  # origins (and held joints) since the last motion, folded into one matrix
+    for joint in chain:
+        fixed = fixed @ joint.origin
+        if joint.type in MOVABLE:
+            placed = placed @ fixed @ _motions(joint, poses[joint.name])
+            fixed = np.eye(4)
+    placed = placed @ fixed
+    placed[:, :3, 3] *= scale
+    return placed
 
 
 def _posed(pack, transforms: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A local pack's points placed by each of E transforms: (E, N, 3) points and each piece's
     (E, m, 3) lower and upper corners."""
-    points = (
-        np.einsum("eij,nj->eni", transforms[:, :3, :3], pack.points) + transforms[:, None, :3, 3]
-    )
+    points = np.matmul(pack.points, transforms[:, :3, :3].transpose(0, 2, 1))
+    points += transforms[:, None, :3, 3]
     starts = pack.starts[:-1]
     lower = np.minimum.reduceat(points, starts, axis=1)
     upper = np.maximum.reduceat(points, starts, axis=1)
@@ -346,10 +373,10 @@ class _Pair:
     links: dict  # link -> _Link
     bodies: Sequence[Body]
 
-    def placements(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[dict]]:
+    def placements(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
         poses = _poses(self.robot, self.base, self.names, values)
-        ta = _chain_transforms(_chain(self.robot, self.a), poses, self.scale)
-        tb = _chain_transforms(_chain(self.robot, self.b), poses, self.scale)
+        ta = _chain_transforms(_chain(self.robot, self.a), poses, self.scale, len(values))
+        tb = _chain_transforms(_chain(self.robot, self.b), poses, self.scale, len(values))
         return ta, tb, poses
 
     def verdict(self, ta: np.ndarray, tb: np.ndarray, *, surfaces_apart: bool = False) -> str:
@@ -389,6 +416,12 @@ def sweep_pair(pair: _Pair, lower: np.ndarray, upper: np.ndarray, resolution: fl
     the tolerance, so whether one link is buried in the other cannot change over the sweep: one
     exact check at the centre decides ``never`` (or ``always``, buried throughout).
     """
+    if len(lower) == 0:  # nothing moves one link relative to the other
+        ta, tb, _ = pair.placements(np.zeros((1, 0)))
+        verdict = pair.verdict(ta[0], tb[0])
+        if verdict in ("interference", "touching"):
+            return _result(pair, ALWAYS, 1, {}, verdict)
+        return _result(pair, NEVER, 1)
     found = _sampled_witness(pair, lower, upper)
     if found is not None:
         return found
@@ -408,7 +441,7 @@ def sweep_pair(pair: _Pair, lower: np.ndarray, upper: np.ndarray, resolution: fl
             checks += 1
             status = pair.verdict(ta[e], tb[e])
             if status in ("interference", "touching"):
-                witness = {n: float(poses[e][n]) for n in pair.names}
+                witness = {n: float(poses[n][e]) for n in pair.names}
                 return _result(pair, SOMETIMES, evaluated, witness, status)
         open_ = lowest <= bound
         if not np.any(open_):
@@ -460,7 +493,7 @@ def _witness(pair: _Pair, values: np.ndarray, boxes: int) -> PairSweep | None:
     for e in range(len(values)):
         status = pair.verdict(ta[e], tb[e])
         if status in ("interference", "touching"):
-            witness = {n: float(poses[e][n]) for n in pair.names}
+            witness = {n: float(poses[n][e]) for n in pair.names}
             return _result(pair, SOMETIMES, boxes, witness, status)
     return None
 
