@@ -26,6 +26,7 @@ from meshcheck.results import Verdict
 ROBOTS = os.path.join(os.path.dirname(__file__), "data", "robots")
 PANDA = os.path.join(ROBOTS, "panda_description", "urdf", "panda.urdf")
 FANUC = os.path.join(ROBOTS, "fanuc_description", "urdf", "fanuc.urdf")
+PR2 = os.path.join(ROBOTS, "pr2_description", "urdf", "pr2.urdf")
 
 
 def slide_robot(*, joint="prismatic", limits='lower="-2" upper="2"', extra="", arm_extra="") -> str:
@@ -363,12 +364,19 @@ def contains_vertex(outer, inner) -> bool:
 def random_pose(path: str, seed: int) -> str:
     robot = parse_robot(path, open(path, "rb").read())
     rng = np.random.default_rng(seed)
-    return ",".join(f"{j.name}={rng.uniform(j.lower, j.upper):.6f}" for j in robot.movable)
+    values = (rng.uniform(max(j.lower, -math.pi), min(j.upper, math.pi)) for j in robot.movable)
+    return ",".join(f"{j.name}={v:.6f}" for j, v in zip(robot.movable, values, strict=True))
 
 
-@pytest.mark.parametrize("robot", [PANDA, FANUC], ids=["panda", "fanuc"])
-@pytest.mark.parametrize("seed", [None, 1, 2, 3])
+@pytest.mark.parametrize(
+    ("robot", "seed"),
+    [(r, s) for r in (PANDA, FANUC) for s in (None, 1, 2, 3)] + [(PR2, None)],
+    ids=lambda v: os.path.basename(v) if isinstance(v, str) else str(v),
+)
+@pytest.mark.filterwarnings("ignore::meshcheck.errors.MeshcheckWarning")
 def test_findings_agree_with_fcl_on_the_posed_meshes(robot, seed):
+    """Interference and touching as FCL sees the posed surfaces (some PR2 meshes are open, or
+    hold overlapping shells: warned about, and their findings rest on surfaces, as FCL's do)."""
     fcl = pytest.importorskip("fcl")
     from meshes import fcl_collide
 
