@@ -400,7 +400,11 @@ def _write_srdf(path: str, result) -> bool:
     for robot in result.sweeps:
         click.echo(f"sweep: {printable(summary(robot))}", err=True)
     try:
-        write_output(path, render_srdf(result), what="SRDF")
+        text = render_srdf(result)
+    except MeshcheckError as exc:  # no robot, or several: a usage error
+        _fail(exc)
+    try:
+        write_output(path, text, what="SRDF")
     except MeshcheckError as exc:
         click.echo(f"error: {printable(str(exc))}", err=True)
         return True

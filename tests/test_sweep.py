@@ -233,3 +233,15 @@ def test_panda_wrist_sweep_agrees_with_fcl_sampling():
                 or winding_inside(world[b], world[a].vertices[:50]).any()
             )
             assert fcl_collide(world[a], world[b]) or buried, (a, b)
+
+
+def test_srdf_without_a_robot_is_a_usage_error(tmp_path):
+    from meshes import box
+
+    box().export(tmp_path / "cube.stl")
+    run = CliRunner().invoke(
+        main,
+        [str(tmp_path / "cube.stl"), "--srdf", str(tmp_path / "x.srdf"), "--no-cache", "-j", "1"],
+    )
+    assert run.exit_code == ExitStatus.USAGE
+    assert "swept no robot" in run.stderr and not (tmp_path / "x.srdf").exists()
