@@ -455,14 +455,8 @@ def sweep_pair(pair: _Pair, lower: np.ndarray, upper: np.ndarray, resolution: fl
             if found is not None:
                 return found
         unresolved |= bool(np.any(~splittable))
-        blo, bhi, half = blo[splittable], bhi[splittable], half[splittable]
-        axis = np.argmax(half * w, axis=1)
-        rows = np.arange(len(axis))
-        mid = 0.5 * (blo[rows, axis] + bhi[rows, axis])
-        left_hi, right_lo = bhi.copy(), blo.copy()
-        left_hi[rows, axis], right_lo[rows, axis] = mid, mid
-        lo = np.concatenate([lo, blo, right_lo])
-        hi = np.concatenate([hi, left_hi, bhi])
+        new_lo, new_hi = _halve(blo[splittable], bhi[splittable], w)
+        lo, hi = np.concatenate([lo, new_lo]), np.concatenate([hi, new_hi])
         if evaluated + len(lo) > MAX_BOXES:
             return _result(pair, UNDECIDED, evaluated)
     if unresolved:
@@ -470,6 +464,16 @@ def sweep_pair(pair: _Pair, lower: np.ndarray, upper: np.ndarray, resolution: fl
     ta, tb, _ = pair.placements(0.5 * (lower + upper)[None, :])
     buried = pair.verdict(ta[0], tb[0], surfaces_apart=True) == "interference"
     return _result(pair, ALWAYS if buried else NEVER, evaluated)
+
+
+def _halve(lo: np.ndarray, hi: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each box ``lo..hi`` cut in two across the joint contributing most to its motion bound."""
+    axis = np.argmax(0.5 * (hi - lo) * w, axis=1)
+    rows = np.arange(len(axis))
+    mid = 0.5 * (lo[rows, axis] + hi[rows, axis])
+    left_hi, right_lo = hi.copy(), lo.copy()
+    left_hi[rows, axis], right_lo[rows, axis] = mid, mid
+    return np.concatenate([lo, right_lo]), np.concatenate([left_hi, hi])
 
 
 def _sampled_witness(pair: _Pair, lower: np.ndarray, upper: np.ndarray) -> PairSweep | None:
