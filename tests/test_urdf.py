@@ -318,6 +318,7 @@ def test_bad_urdf_is_one_line_exit_3(tmp_path, case):
         ('<!DOCTYPE r SYSTEM "file:///etc/passwd"><robot/>', "document type"),
         ('<robot xmlns:xacro="x"><xacro:macro name="m"/></robot>', "xacro"),
         ("<robot>" + "<a>" * 100 + "</a>" * 100 + "</robot>", "levels deep"),
+        ("<robot>" + "<link/>" * 200_001 + "</robot>", "more than 200000 elements"),
     ],
 )
 def test_hostile_or_foreign_xml_is_refused(tmp_path, text, reason):
