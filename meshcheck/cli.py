@@ -196,6 +196,50 @@ def _report_option(ctx, param, values):
     default=None,
     help="Write the assembly with clashes marked in red to this .glb or .gltf file.",
 )
+@click.option(
+    "--pose",
+    "pose",
+    multiple=True,
+    metavar="JOINT=VALUE,...",
+    help="Joint values URDF robots are checked at: radians or metres, or degrees as 30deg "
+    "(default zero); repeatable. Mimic joints follow their leader.",
+)
+@click.option(
+    "--package-path",
+    "package_paths",
+    multiple=True,
+    type=click.Path(file_okay=False),
+    metavar="DIR",
+    help="Also look for package:// meshes of URDF files here (besides the URDF's folder and its "
+    "ancestors); repeatable.",
+)
+@click.option(
+    "--adjacent/--no-adjacent",
+    "adjacent",
+    default=None,
+    help="Approve findings between robot links joined by a joint (reason adjacent), as MoveIt "
+    "does. Default: on.",
+)
+@click.option(
+    "--sweep",
+    is_flag=True,
+    help="Classify every pair of robot links as never / sometimes / always in contact over the "
+    "joint ranges; never is proven, sometimes comes with a witness pose.",
+)
+@click.option(
+    "--sweep-joints",
+    default=None,
+    metavar="JOINT,...",
+    help="Sweep only these joints (the others stay at --pose). Implies --sweep.",
+)
+@click.option(
+    "--srdf",
+    "srdf_path",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="Write MoveIt disable_collisions entries (Adjacent, Never, Always) from the sweep to "
+    "this SRDF file. Implies --sweep.",
+)
 @click.version_option(package_name="meshcheck-assembly")
 def main(**options):
     """Check the parts in FILES for interference, contact and clearance.
@@ -221,19 +265,44 @@ def main(**options):
         _internal_error(exc)
 
 
-def _run(ctx, *, files, fmt, output, reports, baseline_path, export_path, **options):
+def _run(
+    ctx,
+    *,
+    files,
+    fmt,
+    output,
+    reports,
+    baseline_path,
+    export_path,
+    srdf_path=None,
+    pose=(),
+    package_paths=(),
+    adjacent=None,
+    sweep=False,
+    sweep_joints=None,
+    **options,
+):
     """Refuse what can be refused, check, write the reports, exit with the run's status."""
     try:
         targets = _targets(ctx, fmt, output, reports)
         _check_outputs(targets, export_path)
-        settings = _settings(**options)
+        if srdf_path is not None:
+            check_output(srdf_path, what="SRDF")
+        motion = {
+            "pose": pose or None,
+            "package_paths": package_paths,
+            "adjacent": adjacent,
+            "sweep": sweep_joints or ("" if sweep or srdf_path else None),
+        }
+        settings = _settings(motion=motion, **options)
         inputs = [*files, baseline_path, settings.config_path]
-        _refuse_inputs_as_outputs(inputs, [p for _, p in targets] + [export_path])
+        outputs = [p for _, p in targets] + [export_path, srdf_path]
+        _refuse_inputs_as_outputs(inputs, outputs)
         baseline = _baseline(baseline_path)
     except MeshcheckError as exc:
         _fail(exc)
     result = _check(files, settings, baseline, export_path)
-    written = _write_reports(result, targets, files)
+    written = _write_reports(result, targets, files, srdf_path)
     if written:
         noun = "report" if len(written) == 1 else "reports"
         where = ", ".join(printable(p) for p in written)
@@ -305,7 +374,7 @@ def _check(files, settings, baseline, export_path):
     return result
 
 
-def _write_reports(result, targets, files) -> list[str]:
+def _write_reports(result, targets, files, srdf_path=None) -> list[str]:
     """Write every report; the files written when all of them went to files. A report that
     cannot be written is an error line and exit 5, after the others are written; then no summary
     line follows (stderr's last line is the error)."""
@@ -316,11 +385,32 @@ def _write_reports(result, targets, files) -> list[str]:
         except OutputError as exc:
             click.echo(f"error: {printable(str(exc))}", err=True)
             failed = exc
+    if srdf_path is not None and _write_srdf(srdf_path, result):
+        failed = True
     if failed is not None:
         sys.exit(int(ExitStatus.OUTPUT))
     if any(path == STDOUT for _, path in targets):
         return []
     return [path for _, path in targets]
+
+
+def _write_srdf(path: str, result) -> bool:
+    """Write the sweep's SRDF and say what the sweep found on stderr; True when it failed."""
+    from .reports.srdf import render as render_srdf
+    from .sweep import summary
+
+    for robot in result.sweeps:
+        click.echo(f"sweep: {printable(summary(robot))}", err=True)
+    try:
+        text = render_srdf(result)
+    except MeshcheckError as exc:  # no robot, or several: a usage error
+        _fail(exc)
+    try:
+        write_output(path, text, what="SRDF")
+    except MeshcheckError as exc:
+        click.echo(f"error: {printable(str(exc))}", err=True)
+        return True
+    return False
 
 
 def _targets(ctx, fmt, output, reports) -> list[tuple[str, str]]:

@@ -111,6 +111,7 @@ def approval_reason(
 
 CONFIG_NAMES = ("meshcheck.toml", "pyproject.toml")  # in one directory, meshcheck.toml wins
 _KEYS = ("tolerance", "clearance", "threshold", "units", "fail_on", "ignore", "groups", "scheduler")
+_KEYS += ("pose", "adjacent", "package_paths")  # mechanisms (meshcheck.motion)
 
 
 @dataclass(frozen=True)
@@ -145,6 +146,7 @@ class Config:
     groups: Groups | None = None
     units: str | None = None
     scheduler: str | None = None
+    motion: dict | None = None  # pose, adjacent, package_paths, validated (meshcheck.motion)
 
 
 def find_config(start: str | os.PathLike | None = None) -> str | None:
@@ -295,6 +297,7 @@ def load_config(path: str | os.PathLike) -> Config:
 
     return Config(
         path=path,
+        motion=_motion(doc, path),
         tolerance=number("tolerance"),
         clearance=number("clearance"),
         threshold=number("threshold"),
@@ -304,6 +307,16 @@ def load_config(path: str | os.PathLike) -> Config:
         scheduler=_scheduler(doc.get("scheduler"), fail),
         units=_unit(doc.get("units"), fail),
     )
+
+
+def _motion(doc: dict, path: str) -> dict | None:
+    """The mechanism keys (``pose``, ``adjacent``, ``package_paths``), checked, or None."""
+    motion = {k: doc[k] for k in ("pose", "adjacent", "package_paths") if k in doc}
+    if not motion:
+        return None
+    from .motion import checked_motion
+
+    return checked_motion(motion, path=path) or None
 
 
 def _settings_table(path: str) -> tuple[dict, str]:

@@ -45,6 +45,7 @@ from .settings import (
     pair_tolerances,
     part_sizes,
 )
+from .sweep import with_mechanisms, with_sweeps
 from .units import DEFAULT_UNIT
 from .verify import verify_pairs
 from .verify.brep import confirm_on_brep
@@ -121,8 +122,11 @@ def check(
                     step_deflection=settings.step_deflection,
                     progress=bar.update_total,
                     executor=executor,
+                    motion=settings.motion,
                 )
+            settings = with_mechanisms(bodies, settings)  # robots: adjacent links approved
             result = check_bodies(bodies, settings, executor=executor)
+            result = with_sweeps(result, bodies, settings, executor=executor)  # --sweep
     finally:
         caught = _reissue(caught)
     messages = [str(w.message) for w in caught if issubclass(w.category, MeshcheckWarning)]

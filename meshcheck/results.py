@@ -255,6 +255,8 @@ class CheckResult:
         The parts' geometry, for outputs that draw them (``--export``); not compared.
     baseline : baseline.Baseline or None
         The previous report the findings were compared with (``baseline.compare``), if any.
+    sweeps : tuple of sweep.RobotSweep
+        With ``--sweep``: each robot's link pairs classified over the joint ranges.
     """
 
     findings: list[Finding]
@@ -265,6 +267,7 @@ class CheckResult:
     bodies: tuple = field(default=(), repr=False, compare=False)
     units: str = "mm"
     baseline: Baseline | None = None
+    sweeps: tuple = ()
 
     @property
     def tolerance(self) -> float | None:

@@ -26,6 +26,7 @@ from .config import (
     parse_fail_on,
 )
 from .errors import ConfigError
+from .motion import Motion, motion_from_options
 from .results import FINDING_STATUSES, Verdict
 
 #: CoACD concavity threshold (CoACD's own default is 0.05); see decompose.DEFAULT_OPTIONS.
@@ -147,6 +148,8 @@ class Settings:
     fail_on_new : bool
         Only findings that are new against the baseline report fail the run (``--fail-on new``);
         without a baseline every finding is new.
+    motion : Motion
+        The pose of URDF robots, their package paths, adjacent-link approval, the sweep.
     """
 
     clearance: float | None = None
@@ -164,6 +167,7 @@ class Settings:
     fail_on_new: bool = False
     max_triangles: int | None = None
     step_deflection: float | None = None
+    motion: Motion = dataclasses.field(default_factory=Motion)
 
     def __post_init__(self):
         for name in NUMBER_RANGES:
@@ -209,6 +213,7 @@ class Settings:
         max_triangles: int | None = None,
         step_deflection: float | None = None,
         scheduler: str | None = None,
+        motion: dict | None = None,
     ) -> Settings:
         """Merge options (None: not given) with a configuration file, and validate.
 
@@ -228,6 +233,9 @@ class Settings:
         scheduler : str, optional
             Dask scheduler address; default ``MESHCHECK_SCHEDULER``, then the file's
             ``scheduler``. An empty string means none (run locally).
+        motion : dict, optional
+            Keyword options of ``motion.motion_from_options`` (``pose``, ``package_paths``,
+            ``adjacent``, ``sweep``, ``resolution``), merged with the file's.
 
         Raises
         ------
@@ -271,6 +279,7 @@ class Settings:
             fail_on_new=fail_on_new,
             max_triangles=max_triangles,
             step_deflection=step_deflection,
+            motion=motion_from_options(file.motion, **(motion or {})),
         )
 
     def replace(self, **changes) -> Settings:

@@ -42,3 +42,18 @@ def fcl_distance(a: trimesh.Trimesh, b: trimesh.Trimesh) -> float:
 
     request = fcl.DistanceRequest(enable_nearest_points=True)
     return float(fcl.distance(fcl_object(a), fcl_object(b), request, fcl.DistanceResult()))
+
+
+def winding_inside(mesh: trimesh.Trimesh, points) -> np.ndarray:
+    """Which ``points`` lie inside a closed mesh, by the generalized winding number (the sum of
+    the triangles' solid angles, Van Oosterom and Strackee): an oracle needing no ray library."""
+    tri = np.asarray(mesh.vertices, float)[np.asarray(mesh.faces)]
+    out = []
+    for p in np.atleast_2d(np.asarray(points, float)):
+        a, b, c = (tri[:, k] - p for k in range(3))
+        la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
+        det = np.einsum("ij,ij->i", a, np.cross(b, c))
+        den = la * lb * lc + np.einsum("ij,ij->i", a, b) * lc
+        den += np.einsum("ij,ij->i", b, c) * la + np.einsum("ij,ij->i", c, a) * lb
+        out.append(abs(np.arctan2(det, den).sum() / (2 * np.pi)) > 0.5)
+    return np.array(out)

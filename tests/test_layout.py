@@ -22,12 +22,23 @@ PACKAGE = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__)
 STAGES = [
     (
         "base",
-        ["errors", "units", "settings", "results", "config", "baseline", "output", "progress"],
+        [
+            "errors",
+            "units",
+            "motion",
+            "settings",
+            "results",
+            "config",
+            "baseline",
+            "output",
+            "progress",
+        ],
     ),
     ("kernels and shared tools", ["mesh", "geometry", "cache", "execute", "_worker", "progress"]),
     ("load", ["load"]),
     ("decompose", ["decompose"]),
     ("verify", ["verify"]),
+    ("sweep", ["sweep"]),  # asks the verify stage's kernels for distances along the joint ranges
     ("pipeline", ["pipeline"]),
     ("reports", ["reports"]),
     ("command line", ["cli", "__main__", ""]),  # "": the package itself (its lazy names)

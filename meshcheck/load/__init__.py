@@ -166,6 +166,7 @@ def load_bodies(
     progress: Callable[[int, int], None] | None = None,
     executor=None,
     parallel: bool | None = None,
+    motion=None,
 ) -> list[Body]:
     """Load every body of every file, in world coordinates and one report unit.
 
@@ -193,6 +194,8 @@ def load_bodies(
     parallel : bool, optional
         Read in the executor's processes: True always, False never, None (default) when it pays
         (``files.parallel_pays``).
+    motion : motion.Motion, optional
+        The pose URDF robots are placed at and where their packages are (``load.urdf``).
 
     Returns
     -------
@@ -217,7 +220,7 @@ def load_bodies(
     reads = read_files(
         [path for path, _ in files],
         budget,
-        StepOptions(cache_dir, step_deflection, units),
+        StepOptions(cache_dir, step_deflection, units, motion),
         executor=executor,
         progress=progress,
         parallel=parallel,

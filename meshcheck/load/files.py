@@ -37,7 +37,10 @@ from .scene import STL_HEADER, STL_RECORD, read_scene, stores_float32
 from .threemf import read_3mf
 
 STEP_EXTENSIONS = (".step", ".stp")
-SUPPORTED_EXTENSIONS = (".stl", ".obj", ".ply", ".off", ".glb", ".gltf", ".3mf", *STEP_EXTENSIONS)
+URDF_EXTENSIONS = (".urdf",)
+SUPPORTED_EXTENSIONS = (
+    ".stl", ".obj", ".ply", ".off", ".glb", ".gltf", ".3mf", *STEP_EXTENSIONS, *URDF_EXTENSIONS
+)  # fmt: skip
 #: Read in worker processes when reading in parallel. STEP stays here (its tessellation cache
 #: is written by this process only), and so does 3MF (its reader sizes its stream by what the
 #: run's budget has left, which only this process knows).
@@ -65,6 +68,7 @@ class StepOptions:
     cache_dir: str | None
     deflection: float | None
     units: str | None
+    motion: object = None  # motion.Motion: the pose and package paths of URDF files
 
 
 @dataclass(frozen=True)
@@ -103,7 +107,8 @@ class FileRead:
 
 def is_multi(path: str, items: Sequence) -> bool:
     """Whether a file's parts are named ``PATH#NODE`` (several parts, or any STEP solid)."""
-    return len(items) > 1 or os.path.splitext(path)[1].lower() in STEP_EXTENSIONS
+    ext = os.path.splitext(path)[1].lower()
+    return len(items) > 1 or ext in STEP_EXTENSIONS or ext in URDF_EXTENSIONS
 
 
 def read(path: str, budget: Budget, step: StepOptions) -> FileRead:
@@ -156,6 +161,10 @@ def _read(path: str, budget: Budget, step: StepOptions) -> FileRead:
         # unit the file declares (None: undeclared). A STEP reader plugs in here the same way.
         if ext in STEP_EXTENSIONS:
             items, declared, deflection = _read_step(path, step, budget)
+        elif ext in URDF_EXTENSIONS:
+            from .urdf import read_urdf
+
+            items, declared = read_urdf(path, data, budget, step.motion), "m"
         elif ext == ".3mf":
             items, declared = read_3mf(path, data, budget)
         elif ext in (".glb", ".gltf"):

@@ -1,0 +1,668 @@
+"""Mechanisms: which parts are links of a robot, which links are adjacent, and (``--sweep``)
+which link pairs collide never, sometimes or always over the joint ranges.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import glob
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from .config import Approval
+from .load import Body
+from .load.files import URDF_EXTENSIONS
+from .load.limits import Limits, read_file
+from .load.urdf import MOVABLE, Robot, adjacent_links, parse_robot
+
+#: The reason adjacent links' findings are approved with (MoveIt's "Adjacent").
+ADJACENT = "adjacent"
+
+
+@dataclass(frozen=True)
+class Mechanism:
+    """One robot and the parts that are its links.
+
+    Attributes
+    ----------
+    robot : Robot
+    parts : dict of str -> list of int
+        Each link's parts, as indices into the run's bodies.
+    """
+
+    robot: Robot
+    parts: dict[str, list[int]]
+
+    def link_of(self) -> dict[int, str]:
+        """The link of each of the robot's parts (index into the run's bodies)."""
+        return {k: link for link, ks in self.parts.items() for k in ks}
+
+
+def mechanisms(bodies: Sequence[Body]) -> list[Mechanism]:
+    """The robots among the bodies (every URDF file), in the order their parts come."""
+    out = []
+    by_path: dict[str, list[int]] = {}
+    for k, body in enumerate(bodies):
+        if os.path.splitext(body.path)[1].lower() in URDF_EXTENSIONS:
+            by_path.setdefault(body.path, []).append(k)
+    for path, ks in by_path.items():
+        robot = parse_robot(path, read_file(path, _NO_LIMITS))
+        node_link = {c.node: c.link for c in robot.collisions}
+        parts: dict[str, list[int]] = {}
+        for k in ks:
+            node = bodies[k].name.rpartition("#")[2]
+            parts.setdefault(node_link[node], []).append(k)
+        out.append(Mechanism(robot, parts))
+    return out
+
+
+def adjacent_approvals(bodies: Sequence[Body], found: Sequence[Mechanism]) -> list[Approval]:
+    """An approval (reason ``ADJACENT``) for each pair of parts on adjacent links.
+
+    Parameters
+    ----------
+    bodies : sequence of Body
+        The run's parts.
+    found : sequence of Mechanism
+        ``mechanisms(bodies)``.
+    """
+    out = []
+    for mech in found:
+        for pair in sorted(sorted(p) for p in adjacent_links(mech.robot)):
+            a, b = pair
+            for i in mech.parts.get(a, ()):
+                for j in mech.parts.get(b, ()):
+                    out.append(
+                        Approval(glob.escape(bodies[i].name), glob.escape(bodies[j].name), ADJACENT)
+                    )
+    return out
+
+
+def with_mechanisms(bodies: Sequence[Body], settings):
+    """``settings`` with the approvals the robots among ``bodies`` bring: adjacent links'
+    pairs (after the user's own rules, whose reasons win), unless ``settings.motion.adjacent``
+    is off."""
+    if not settings.motion.adjacent:
+        return settings
+    extra = adjacent_approvals(bodies, mechanisms(bodies))
+    if not extra:
+        return settings
+    return settings.replace(approvals=(*settings.approvals, *extra))
+
+
+_NO_LIMITS = Limits(max_file_bytes=1 << 62)  # the URDF was read once already, within the limits
+
+
+# --------------------------------------------------------------------------------------------
+# The sweep: never / sometimes / always over the joint ranges
+
+#: Boxes of joint values one link pair may evaluate before it is left undecided.
+MAX_BOXES = 200_000
+#: Boxes evaluated in one compiled call.
+BATCH = 1024
+#: Poses drawn (fixed seed) to look for a witness before the proof starts, and how many of the
+#: closest are re-checked on the real meshes.
+SAMPLES = 256
+SAMPLE_CHECKS = 4
+#: Candidate witnesses re-checked on the real meshes per link pair, deepest piece overlap first.
+MAX_WITNESS_CHECKS = 24
+
+NEVER, SOMETIMES, ALWAYS, UNDECIDED = "never", "sometimes", "always", "undecided"
+STATUSES = (NEVER, SOMETIMES, ALWAYS, UNDECIDED)
+
+
+@dataclass(frozen=True)
+class PairSweep:
+    """How one pair of links relates over the joint ranges.
+
+    Attributes
+    ----------
+    a, b : str
+        Link names, ``a < b``.
+    status : str
+        ``never`` (proven: every box of joint values certified apart by more than the touching
+        tolerance, see ``sweep_mechanism``), ``sometimes`` (a witness pose where the real meshes
+        interfere or touch), ``always`` (their relative placement does not move and they
+        collide), or ``undecided`` (neither proven within the resolution and ``MAX_BOXES``).
+    joints : tuple of str
+        The swept joints that move the pair relative to each other.
+    witness : dict of str -> float or None
+        For ``sometimes``: the leading joints' values of the witness pose (radians, metres).
+    verdict : str or None
+        The real meshes' status at the witness (``interference`` or ``touching``).
+    boxes : int
+        Boxes of joint values evaluated.
+    is_adjacent : bool
+        The links are joined by a joint (``load.urdf.adjacent_links``).
+    """
+
+    a: str
+    b: str
+    status: str
+    joints: tuple[str, ...] = ()
+    witness: dict | None = None
+    verdict: str | None = None
+    boxes: int = 0
+    is_adjacent: bool = False
+
+
+@dataclass(frozen=True)
+class _Link:
+    """A link's convex pieces in its own frame (report units) and its parts."""
+
+    pack: object  # ConvexPack
+    radius: float  # farthest piece point from the link frame's origin
+    parts: tuple[tuple[int, np.ndarray], ...]  # (body index, link frame -> body placement)
+
+
+def _chain(robot: Robot, link: str) -> list:
+    """Joints from the root down to ``link``."""
+    by_child = {j.child: j for j in robot.joints}
+    out = []
+    while link in by_child:
+        out.append(by_child[link])
+        link = by_child[link].parent
+    return out[::-1]
+
+
+def _leader(robot: Robot, joint) -> tuple[str, float]:
+    """(leading joint, multiplier): a mimic chain followed to the joint that leads it."""
+    by_name = {j.name: j for j in robot.joints}
+    multiplier = 1.0
+    while joint.mimic is not None:
+        multiplier *= joint.mimic[1]
+        joint = by_name[joint.mimic[0]]
+    return joint.name, multiplier
+
+
+def _extent(robot: Robot, joint, swept: set[str], base: dict[str, float]) -> float:
+    """Largest |value| a prismatic joint takes in the sweep, metres."""
+    name, multiplier = _leader(robot, joint)
+    offset = joint.mimic[2] if joint.mimic is not None else 0.0
+    if name not in swept:
+        return abs(base[joint.name])
+    lead = next(j for j in robot.joints if j.name == name)
+    return max(abs(multiplier * lead.lower + offset), abs(multiplier * lead.upper + offset))
+
+
+def motion_weights(
+    robot: Robot,
+    pair: tuple[str, str],
+    radius: dict[str, float],
+    swept: set[str],
+    base: dict[str, float],
+    scale: float = 1.0,
+) -> dict[str, float]:
+    """How far a unit change of each swept joint can move any point of either link of ``pair``.
+
+    Moving leading joint ``k`` by ``dq`` moves every point of the two links by at most
+    ``w[k] * |dq|`` (report units), in any configuration of the sweep: a revolute joint turns
+    the points below it about its axis, which passes through its origin ``o_k``, so a point ``p``
+    moves by at most ``|p - o_k| * |dq|``, and ``|p - o_k|`` is bounded by the joint offsets and
+    slide extents down to the link plus the link's ``radius``; a prismatic joint moves them by
+    ``|dq|``. Joints below the links' common ancestor move one link each; the distance between
+    the links therefore changes by at most ``sum_k w[k] * |dq_k|`` (summed along a straight path
+    in joint space).
+
+    Parameters
+    ----------
+    radius : dict of str -> float
+        Each link's farthest geometry point from its frame's origin, report units.
+    swept : set of str
+        Leading joints that move.
+    base : dict of str -> float
+        Every movable joint's value where it does not move (``joint_values``).
+    scale : float
+        Report units per metre.
+    """
+    a_chain, b_chain = _chain(robot, pair[0]), _chain(robot, pair[1])
+    common = 0
+    while common < min(len(a_chain), len(b_chain)) and a_chain[common] is b_chain[common]:
+        common += 1
+    out: dict[str, float] = {}
+    for chain, link in ((a_chain[common:], pair[0]), (b_chain[common:], pair[1])):
+        reach = radius[link]  # bound on |p - o_k| for the joint k being visited, walking up
+        for joint in reversed(chain):
+            if joint.type in MOVABLE:
+                name, multiplier = _leader(robot, joint)
+                if name in swept:
+                    weight = scale if joint.type == "prismatic" else reach
+                    out[name] = out.get(name, 0.0) + abs(multiplier) * weight
+            reach += float(np.linalg.norm(joint.origin[:3, 3])) * scale
+            if joint.type == "prismatic":
+                reach += _extent(robot, joint, swept, base) * scale
+    return out
+
+
+def _poses(robot: Robot, base: dict, names: list[str], values: np.ndarray) -> dict:
+    """Every movable joint's values for the rows of ``values``, ``{name: (E,) float64}``: the
+    free joints ``names`` from ``values``, the other leading joints at ``base``, mimic joints
+    following their leaders."""
+    count = len(values)
+    out = {j.name: np.full(count, base[j.name]) for j in robot.movable}
+    for k, name in enumerate(names):
+        out[name] = values[:, k]
+    by_name = {j.name: j for j in robot.joints}
+
+    def value(name: str) -> np.ndarray:
+        if name not in out:
+            leader, multiplier, offset = by_name[name].mimic
+            out[name] = multiplier * value(leader) + offset
+        return out[name]
+
+    for joint in robot.joints:
+        if joint.type in MOVABLE:
+            value(joint.name)
+    return out
+
+
+def _motions(joint, values: np.ndarray) -> np.ndarray:
+    """(E, 4, 4) motions of one joint at E values (Rodrigues, vectorised)."""
+    out = np.zeros((len(values), 4, 4))
+    out[:, 3, 3] = 1.0
+    if joint.type == "prismatic":
+        out[:, 0, 0] = out[:, 1, 1] = out[:, 2, 2] = 1.0
+        out[:, :3, 3] = values[:, None] * joint.axis
+        return out
+    x, y, z = joint.axis
+    k = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    out[:, :3, :3] = (
+        np.eye(3)
+        + np.sin(values)[:, None, None] * k
+        + (1.0 - np.cos(values))[:, None, None] * (k @ k)
+    )
+    return out
+
+
+def _chain_transforms(chain: list, poses: dict, scale: float, count: int) -> np.ndarray:
+    """(E, 4, 4) placements of a chain's last link in the root frame, report units, for
+    ``count`` poses."""
+    placed = np.broadcast_to(np.eye(4), (count, 4, 4))
+    fixed = np.eye(4)  # origins (and held joints) since the last motion, folded into one matrix
+    for joint in chain:
+        fixed = fixed @ joint.origin
+        if joint.type in MOVABLE:
+            placed = placed @ fixed @ _motions(joint, poses[joint.name])
+            fixed = np.eye(4)
+    placed = placed @ fixed
+    placed[:, :3, 3] *= scale
+    return placed
+
+
+def _posed(pack, transforms: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A local pack's points placed by each of E transforms: (E, N, 3) points and each piece's
+    (E, m, 3) lower and upper corners."""
+    points = np.matmul(pack.points, transforms[:, :3, :3].transpose(0, 2, 1))
+    points += transforms[:, None, :3, 3]
+    starts = pack.starts[:-1]
+    lower = np.minimum.reduceat(points, starts, axis=1)
+    upper = np.maximum.reduceat(points, starts, axis=1)
+    return points, lower, upper
+
+
+def piece_distances(pack_a, pack_b, ta: np.ndarray, tb: np.ndarray, reach: np.ndarray):
+    """Lower bounds on the distance between two links' pieces at E placements.
+
+    Parameters
+    ----------
+    pack_a, pack_b : ConvexPack
+        Each link's convex pieces in its own frame.
+    ta, tb : (E, 4, 4) float64
+        The links' placements.
+    reach : (E,) float64
+        Distances beyond which the exact value does not matter (answers above it are bounds).
+
+    Returns
+    -------
+    lowest : (E,) float64
+        For each placement, a lower bound on the distance between the two links' surfaces
+        (exact when at most ``reach``): the smallest piece-pair signed distance; ``inf`` when
+        every piece pair's boxes are farther apart than ``reach``.
+    """
+    from .geometry import ConvexPack, Status, query_pairs
+
+    e_count = len(ta)
+    pa, la, ua = _posed(pack_a, ta)
+    pb, lb, ub = _posed(pack_b, tb)
+    ma, mb = len(pack_a.starts) - 1, len(pack_b.starts) - 1
+    gap = np.maximum(la[:, :, None, :] - ub[:, None, :, :], lb[:, None, :, :] - ua[:, :, None, :])
+    box_gap = np.linalg.norm(np.maximum(gap, 0.0), axis=3)  # (E, ma, mb), a lower bound
+    e, i, j = np.nonzero(box_gap <= reach[:, None, None])
+    lowest = np.full(e_count, np.inf)
+    if len(e) == 0:
+        return lowest
+    na, nb = len(pack_a.points), len(pack_b.points)
+    n = na + nb
+    points = np.concatenate([pa, pb], axis=1).reshape(-1, 3)
+    one_starts = np.concatenate([pack_a.starts[:-1], na + pack_b.starts[:-1]])
+    starts = (one_starts[None, :] + n * np.arange(e_count)[:, None]).ravel()
+    starts = np.append(starts, n * e_count)
+    ea = len(pack_a.nbrs)
+    one_nbr_starts = np.concatenate([pack_a.nbr_starts[:-1], ea + pack_b.nbr_starts[:-1]])
+    edges = ea + len(pack_b.nbrs)
+    nbr_starts = (one_nbr_starts[None, :] + edges * np.arange(e_count)[:, None]).ravel()
+    nbr_starts = np.append(nbr_starts, edges * e_count)
+    one_nbrs = np.concatenate([pack_a.nbrs, pack_b.nbrs + na])
+    nbrs = (one_nbrs[None, :] + n * np.arange(e_count)[:, None]).ravel()
+    lower = np.concatenate([la, lb], axis=1).reshape(-1, 3)
+    upper = np.concatenate([ua, ub], axis=1).reshape(-1, 3)
+    pack = ConvexPack(points, starts, nbr_starts, nbrs, lower, upper)
+    m = ma + mb
+    pairs = np.stack([e * m + i, e * m + ma + j], axis=1)
+    res = query_pairs(pack, pairs, tolerance=0.0, depth=False, max_distance=reach[e])
+    distance = np.where(res.status == Status.UNDECIDED, np.minimum(res.distance, 0.0), res.distance)
+    np.minimum.at(lowest, e, distance)
+    return lowest
+
+
+@dataclass
+class _Pair:
+    """What one link pair's sweep needs."""
+
+    robot: Robot
+    a: str
+    b: str
+    names: list[str]  # the free joints
+    weights: np.ndarray  # (n,) motion bound per unit of each free joint
+    base: dict
+    scale: float
+    tolerance: float
+    links: dict  # link -> _Link
+    bodies: Sequence[Body]
+
+    def placements(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
+        poses = _poses(self.robot, self.base, self.names, values)
+        ta = _chain_transforms(_chain(self.robot, self.a), poses, self.scale, len(values))
+        tb = _chain_transforms(_chain(self.robot, self.b), poses, self.scale, len(values))
+        return ta, tb, poses
+
+    def verdict(self, ta: np.ndarray, tb: np.ndarray, *, surfaces_apart: bool = False) -> str:
+        """The real meshes' worst status at one placement of the two links."""
+        from .results import Verdict
+        from .verify.pair import verify_pair
+
+        worst = Verdict.CLEAR
+        for i, offset_i in self.links[self.a].parts:
+            mesh_a = self.bodies[i].mesh.copy().apply_transform(ta @ offset_i)
+            for j, offset_j in self.links[self.b].parts:
+                mesh_b = self.bodies[j].mesh.copy().apply_transform(tb @ offset_j)
+                status = verify_pair(
+                    mesh_a,
+                    mesh_b,
+                    tolerance=self.tolerance,
+                    clearance=None,
+                    surfaces_apart=surfaces_apart,
+                ).status
+                if status == Verdict.INTERFERENCE:
+                    return str(status)
+                if status == Verdict.TOUCHING:
+                    worst = Verdict.TOUCHING
+        return str(worst)
+
+
+def sweep_pair(pair: _Pair, lower: np.ndarray, upper: np.ndarray, resolution: float) -> PairSweep:
+    """Classify one link pair over the box ``lower..upper`` of its free joints.
+
+    Boxes of joint values are evaluated at their centre ``c`` with half-widths ``h``: the
+    pieces' distance there bounds the links' surface distance from below, and no point moves by
+    more than ``M = sum_k w_k h_k`` (``motion_weights``) within the box, so a box whose centre
+    distance exceeds ``M + tolerance`` is certified free of contact. Other boxes are halved
+    along the joint that contributes most to ``M``, down to ``resolution``. Centres where pieces
+    overlap are re-checked on the real meshes, deepest first: one that interferes or touches is
+    the witness of ``sometimes``. When every box is certified, the surfaces never come within
+    the tolerance, so whether one link is buried in the other cannot change over the sweep: one
+    exact check at the centre decides ``never`` (or ``always``, buried throughout).
+    """
+    if len(lower) == 0:  # nothing moves one link relative to the other
+        ta, tb, _ = pair.placements(np.zeros((1, 0)))
+        verdict = pair.verdict(ta[0], tb[0])
+        if verdict in ("interference", "touching"):
+            return _result(pair, ALWAYS, 1, {}, verdict)
+        return _result(pair, NEVER, 1)
+    found = _sampled_witness(pair, lower, upper)
+    if found is not None:
+        return found
+    lo, hi = lower[None, :].copy(), upper[None, :].copy()
+    evaluated, checks, unresolved = SAMPLES, 0, False
+    w = pair.weights
+    while len(lo):
+        blo, bhi, lo, hi = lo[:BATCH], hi[:BATCH], lo[BATCH:], hi[BATCH:]
+        centre, half = 0.5 * (blo + bhi), 0.5 * (bhi - blo)
+        bound = half @ w + pair.tolerance
+        ta, tb, poses = pair.placements(centre)
+        lowest = piece_distances(pair.links[pair.a].pack, pair.links[pair.b].pack, ta, tb, bound)
+        evaluated += len(centre)
+        for e in np.argsort(lowest, kind="stable"):
+            if lowest[e] > pair.tolerance or checks >= MAX_WITNESS_CHECKS:
+                break
+            checks += 1
+            status = pair.verdict(ta[e], tb[e])
+            if status in ("interference", "touching"):
+                witness = {n: float(poses[n][e]) for n in pair.names}
+                return _result(pair, SOMETIMES, evaluated, witness, status)
+        open_ = lowest <= bound
+        if not np.any(open_):
+            continue
+        blo, bhi, half = blo[open_], bhi[open_], half[open_]
+        splittable = np.any(2.0 * half > resolution, axis=1)
+        for e in np.flatnonzero(~splittable)[: max(0, MAX_WITNESS_CHECKS - checks) // 2]:
+            unresolved = True  # at the resolution: its corners may still collide
+            checks += 2
+            found = _witness(pair, np.stack([blo[e], bhi[e]]), evaluated)
+            if found is not None:
+                return found
+        unresolved |= bool(np.any(~splittable))
+        new_lo, new_hi = _halve(blo[splittable], bhi[splittable], w)
+        lo, hi = np.concatenate([lo, new_lo]), np.concatenate([hi, new_hi])
+        if evaluated + len(lo) > MAX_BOXES:
+            return _result(pair, UNDECIDED, evaluated)
+    if unresolved:
+        return _result(pair, UNDECIDED, evaluated)
+    ta, tb, _ = pair.placements(0.5 * (lower + upper)[None, :])
+    buried = pair.verdict(ta[0], tb[0], surfaces_apart=True) == "interference"
+    return _result(pair, ALWAYS if buried else NEVER, evaluated)
+
+
+def _halve(lo: np.ndarray, hi: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each box ``lo..hi`` cut in two across the joint contributing most to its motion bound."""
+    axis = np.argmax(0.5 * (hi - lo) * w, axis=1)
+    rows = np.arange(len(axis))
+    mid = 0.5 * (lo[rows, axis] + hi[rows, axis])
+    left_hi, right_lo = hi.copy(), lo.copy()
+    left_hi[rows, axis], right_lo[rows, axis] = mid, mid
+    return np.concatenate([lo, right_lo]), np.concatenate([left_hi, hi])
+
+
+def _sampled_witness(pair: _Pair, lower: np.ndarray, upper: np.ndarray) -> PairSweep | None:
+    """A witness among ``SAMPLES`` poses drawn with a fixed seed (most pairs that collide do so
+    over a wide region, found here before any box is split), else None."""
+    rng = np.random.default_rng(0)
+    values = lower + (upper - lower) * rng.random((SAMPLES, len(lower)))
+    ta, tb, _ = pair.placements(values)
+    lowest = piece_distances(
+        pair.links[pair.a].pack, pair.links[pair.b].pack, ta, tb, np.full(SAMPLES, pair.tolerance)
+    )
+    order = np.argsort(lowest, kind="stable")[:SAMPLE_CHECKS]
+    return _witness(pair, values[order[lowest[order] <= pair.tolerance]], SAMPLES)
+
+
+def _witness(pair: _Pair, values: np.ndarray, boxes: int) -> PairSweep | None:
+    """The first of ``values`` (free joints' values, (k, n)) where the real meshes collide."""
+    if len(values) == 0:
+        return None
+    ta, tb, poses = pair.placements(values)
+    for e in range(len(values)):
+        status = pair.verdict(ta[e], tb[e])
+        if status in ("interference", "touching"):
+            witness = {n: float(poses[n][e]) for n in pair.names}
+            return _result(pair, SOMETIMES, boxes, witness, status)
+    return None
+
+
+def _result(pair: _Pair, status: str, boxes: int, witness=None, verdict=None) -> PairSweep:
+    return PairSweep(pair.a, pair.b, status, tuple(pair.names), witness, verdict, boxes)
+
+
+def sweep_mechanism(
+    mech: Mechanism,
+    bodies: Sequence[Body],
+    pieces: dict[int, list[np.ndarray]],
+    motion,
+    *,
+    tolerance: float | None = None,
+) -> tuple[PairSweep, ...]:
+    """Classify every pair of a robot's links over the swept joints' ranges (``sweep_pair``).
+
+    Parameters
+    ----------
+    mech : Mechanism
+    bodies : sequence of Body
+        The run's parts, placed at ``motion.pose``.
+    pieces : dict of int -> list of (n_i, 3) float64
+        Convex pieces of each of the robot's parts, world coordinates at that pose, covering
+        every triangle (``decompose.decompose_bodies``).
+    motion : motion.Motion
+        The pose (held joints stay there), the joints swept (``()``: every movable one) and the
+        resolution.
+    tolerance : float, optional
+        Touching tolerance, report units; default each pair's own (``settings.pair_tolerances``).
+
+    Returns
+    -------
+    tuple of PairSweep
+        One per pair of links with collision geometry, sorted by link names.
+    """
+    from .load.urdf import joint_values
+    from .settings import pair_tolerances, part_sizes
+    from .units import scale as unit_scale
+
+    robot = mech.robot
+    base = joint_values(robot, motion.pose)
+    swept = _swept(robot, motion.sweep)
+    scale = unit_scale("m", bodies[mech.parts[next(iter(mech.parts))][0]].units)
+    links = _links(robot, mech, bodies, pieces, base, scale)
+    radius = {name: link.radius for name, link in links.items()}
+    names = sorted(links)
+    lower = np.array([links[n].pack.lower.min(axis=0) for n in names])
+    upper = np.array([links[n].pack.upper.max(axis=0) for n in names])
+    diagonal, _ = part_sizes(lower, upper)
+    magnitude = np.full(len(names), max(radius.values()) + _reach(robot, swept, base) * scale)
+    adjacent = adjacent_links(robot)
+    out = []
+    for x, a in enumerate(names):
+        for y in range(x + 1, len(names)):
+            b = names[y]
+            tol = tolerance
+            if tol is None:
+                tol = float(pair_tolerances(diagonal, magnitude, np.array([[x, y]]))[0])
+            weights = motion_weights(robot, (a, b), radius, swept, base, scale)
+            free = sorted(weights)
+            pair = _Pair(robot, a, b, free, np.array([weights[n] for n in free]), base, scale,
+                         tol, links, bodies)  # fmt: skip
+            lo, hi = _ranges(robot, free)
+            swept_pair = sweep_pair(pair, lo, hi, motion.resolution)
+            is_adjacent = frozenset((a, b)) in adjacent
+            out.append(dataclasses.replace(swept_pair, is_adjacent=is_adjacent))
+    return tuple(out)
+
+
+def _swept(robot: Robot, named) -> set[str]:
+    from .errors import ConfigError
+
+    if not named:
+        return {j.name for j in robot.movable}
+    for name in named:
+        joint = robot.joint(name)
+        if joint not in robot.movable:
+            raise ConfigError(robot.path, f"--sweep {name}: not a movable joint that leads")
+    return set(named)
+
+
+def _ranges(robot: Robot, names: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    """Each joint's range; a continuous joint's is one turn, [-pi, pi]."""
+    lo, hi = [], []
+    for name in names:
+        joint = robot.joint(name)
+        lo.append(joint.lower if np.isfinite(joint.lower) else -np.pi)
+        hi.append(joint.upper if np.isfinite(joint.upper) else np.pi)
+    return np.array(lo), np.array(hi)
+
+
+def _reach(robot: Robot, swept: set[str], base: dict) -> float:
+    """A bound on how far any joint frame gets from the root, metres."""
+    total = 0.0
+    for joint in robot.joints:
+        total += float(np.linalg.norm(joint.origin[:3, 3]))
+        if joint.type == "prismatic":
+            total += _extent(robot, joint, swept, base)
+    return total
+
+
+def _links(robot, mech, bodies, pieces, base, scale) -> dict[str, _Link]:
+    """Each link's pieces in its own frame and its parts' offsets from it."""
+    from .geometry import pack_convex
+    from .load.urdf import link_transforms
+
+    placed = link_transforms(robot, base)
+    out = {}
+    for link, ks in sorted(mech.parts.items()):
+        frame = placed[link].copy()
+        frame[:3, 3] *= scale
+        inverse = np.linalg.inv(frame)
+        local = [p @ inverse[:3, :3].T + inverse[:3, 3] for k in ks for p in pieces[k]]
+        parts = tuple((k, inverse @ bodies[k].transform) for k in ks)
+        pack = pack_convex(local, is_hull=True)
+        radius = float(np.linalg.norm(pack.points, axis=1).max())
+        out[link] = _Link(pack, radius, parts)
+    return out
+
+
+@dataclass(frozen=True)
+class RobotSweep:
+    """One robot's sweep: its URDF, its name, and every link pair's ``PairSweep``."""
+
+    path: str
+    name: str
+    pairs: tuple[PairSweep, ...]
+
+
+def summary(robot: RobotSweep) -> str:
+    """One line: how many link pairs of a robot are never, sometimes, always in contact."""
+    counts = {s: sum(p.status == s for p in robot.pairs) for s in STATUSES}
+    shown = ", ".join(f"{n} {s}" for s, n in counts.items() if n or s != ALWAYS)
+    adjacent = sum(p.is_adjacent for p in robot.pairs)
+    return f"{robot.path}: {len(robot.pairs)} link pairs ({adjacent} adjacent): {shown}"
+
+
+def with_sweeps(result, bodies: Sequence[Body], settings, *, executor=None):
+    """``result`` with the sweep of every robot among ``bodies`` when ``settings.motion.sweep``
+    is set (``CheckResult.sweeps``)."""
+    if settings.motion.sweep is None:
+        return result
+    return dataclasses.replace(result, sweeps=sweep_bodies(bodies, settings, executor=executor))
+
+
+def sweep_bodies(bodies: Sequence[Body], settings, *, executor=None) -> tuple[RobotSweep, ...]:
+    """``sweep_mechanism`` of every robot among ``bodies``."""
+    from .decompose import decompose_bodies
+
+    out: list[RobotSweep] = []
+    for mech in mechanisms(bodies):
+        ks = sorted(k for ks in mech.parts.values() for k in ks)
+        piece_lists = decompose_bodies(
+            [bodies[k] for k in ks],
+            threshold=settings.threshold,
+            cache_dir=settings.cache_dir,
+            jobs=settings.jobs,
+            executor=executor,
+            # No time limit: a CoACD time-out would swap a link's pieces for its hull, and the
+            # sweep's classes (the SRDF) would then depend on how the run went.
+            time_limit=None,
+        )
+        pieces = dict(zip(ks, piece_lists, strict=True))
+        pairs = sweep_mechanism(mech, bodies, pieces, settings.motion, tolerance=settings.tolerance)
+        out.append(RobotSweep(mech.robot.path, mech.robot.name, pairs))
+    return tuple(out)

@@ -1,0 +1,247 @@
+"""The sweep (issue 29): never proven, sometimes with a witness, against closed forms, python-fcl
+and random sampling; the motion bound the proof rests on; the SRDF it writes.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from meshes import fcl_collide, winding_inside
+
+from meshcheck.cli import main
+from meshcheck.errors import ExitStatus
+from meshcheck.load import load_bodies
+from meshcheck.load.urdf import joint_values, link_transforms, parse_robot
+from meshcheck.motion import Motion, parse_pose
+from meshcheck.settings import Settings
+from meshcheck.sweep import mechanisms, motion_weights, sweep_bodies
+
+ROBOTS = os.path.join(os.path.dirname(__file__), "data", "robots")
+PANDA = os.path.join(ROBOTS, "panda_description", "urdf", "panda.urdf")
+
+# A door 1 m long and 0.1 m thick on a hinge about z at the origin, and a stop (a box from
+# x 0.5..0.8, y 0.3..0.5) on the frame. Opening (positive angle), the door's face y' = T/2
+# first meets the stop's corner (BX, CY): -sin(a) BX + cos(a) CY = T/2, so
+# a* = acos(T / 2 / R) - atan2(BX, CY), R = |(BX, CY)|.
+T, BX, CY = 0.1, 0.8, 0.3
+STOP_ANGLE = math.acos(T / 2 / math.hypot(BX, CY)) - math.atan2(BX, CY)
+
+
+def door(upper: float, *, stop_at: str = "0.65 0.4 0") -> str:
+    return f"""<robot name="door">
+  <link name="frame"/>
+  <link name="stop"><collision><origin xyz="{stop_at}"/>
+    <geometry><box size="0.3 0.2 0.2"/></geometry></collision></link>
+  <link name="door"><collision><origin xyz="0.5 0 0"/>
+    <geometry><box size="1 {T} 0.2"/></geometry></collision></link>
+  <joint name="hinge" type="revolute"><parent link="frame"/><child link="door"/>
+    <axis xyz="0 0 1"/><limit lower="-0.5" upper="{upper!r}"/></joint>
+  <joint name="fix" type="fixed"><parent link="frame"/><child link="stop"/></joint>
+</robot>"""
+
+
+def sweep(path: str, **motion):
+    settings = Settings(motion=Motion(sweep=(), **motion))
+    bodies = load_bodies([path], motion=settings.motion)
+    (robot,) = sweep_bodies(bodies, settings)
+    return {(p.a, p.b): p for p in robot.pairs}
+
+
+def write(tmp_path, text: str, name: str = "robot.urdf") -> str:
+    path = tmp_path / name
+    path.write_text(text)
+    return str(path)
+
+
+# ------------------------------------------------------------------------------------------
+# Known answers
+
+
+@pytest.mark.parametrize("margin", [1e-3, 1e-4])
+def test_hinge_stop_angle_is_found_within_the_tolerance(tmp_path, margin):
+    """Limits just short of the closed-form stop angle: never (proven); just past it: sometimes,
+    with a witness between the stop angle and the limit."""
+    short = sweep(write(tmp_path, door(STOP_ANGLE - margin)), resolution=margin / 10)
+    assert short["door", "stop"].status == "never"
+    past = sweep(write(tmp_path, door(STOP_ANGLE + margin)), resolution=margin / 10)
+    pair = past["door", "stop"]
+    assert pair.status == "sometimes" and pair.verdict in ("interference", "touching")
+    assert STOP_ANGLE - 1e-9 <= pair.witness["hinge"] <= STOP_ANGLE + margin
+
+
+def test_a_stop_out_of_reach_is_never_and_written_to_the_srdf(tmp_path):
+    path = write(tmp_path, door(1.5, stop_at="2 0 0"))
+    srdf = tmp_path / "robot.srdf"
+    run = CliRunner().invoke(
+        main, [path, "--srdf", str(srdf), "--no-adjacent", "--no-cache", "--no-config", "-j", "1"]
+    )
+    assert run.exit_code == 0, run.output
+    assert '<disable_collisions link1="door" link2="stop" reason="Never"/>' in srdf.read_text()
+    assert "1 never" in run.stderr
+
+
+def test_srdf_marks_adjacent_links_and_leaves_colliding_pairs_checked(tmp_path):
+    path = write(tmp_path, door(1.5))
+    srdf = tmp_path / "robot.srdf"
+    args = [path, "--srdf", str(srdf), "--no-cache", "--no-config", "-j", "1"]
+    run = CliRunner().invoke(main, args)
+    assert run.exit_code == 0, run.output
+    assert 'reason="Adjacent"' in srdf.read_text()
+    run = CliRunner().invoke(main, [*args, "--no-adjacent"])
+    assert run.exit_code == 0, run.output
+    assert "disable_collisions" not in srdf.read_text()  # sometimes: MoveIt keeps checking
+    assert "1 sometimes" in run.stderr
+
+
+def test_sweeping_an_unknown_joint_is_a_usage_error(tmp_path):
+    path = write(tmp_path, door(1.0))
+    run = CliRunner().invoke(
+        main, [path, "--sweep-joints", "nope", "--no-cache", "--no-config", "-j", "1"]
+    )
+    assert run.exit_code == ExitStatus.USAGE
+    assert "no joint named 'nope'" in run.stderr
+
+
+# ------------------------------------------------------------------------------------------
+# A narrow window random sampling misses
+
+L, W, GAP = 1.0, 0.02, 0.0005  # arm length, thickness, how far the tips overlap head-on
+
+
+def two_arms() -> str:
+    """Two arms turning about parallel axes 2L - GAP apart: their tips meet only when both
+    point at each other within about 2 degrees."""
+    arm = f'<origin xyz="{L / 2} 0 0"/><geometry><box size="{L} {W} {W}"/></geometry>'
+    return f"""<robot name="arms">
+  <link name="base"/>
+  <link name="a"><collision>{arm}</collision></link>
+  <link name="b"><collision>{arm}</collision></link>
+  <joint name="ja" type="revolute"><parent link="base"/><child link="a"/><axis xyz="0 0 1"/>
+    <limit lower="-3.14159" upper="3.14159"/></joint>
+  <joint name="jb" type="revolute"><origin xyz="{2 * L - GAP} 0 0"/><parent link="base"/>
+    <child link="b"/><axis xyz="0 0 1"/><limit lower="-3.14159" upper="3.14159"/></joint>
+</robot>"""
+
+
+def test_a_narrow_window_that_10000_random_poses_miss_is_found_with_its_witness(tmp_path):
+    path = write(tmp_path, two_arms())
+    robot = parse_robot(path, open(path, "rb").read())
+    rng = np.random.default_rng(0)
+    samples = rng.uniform(-3.14159, 3.14159, size=(10_000, 2))
+    a_local, b_local = (b.mesh for b in load_bodies([path]))
+    hits = 0
+    for ja, jb in samples:
+        links = link_transforms(robot, joint_values(robot, parse_pose(f"ja={ja},jb={jb}")))
+        a = a_local.copy().apply_transform(links["a"])
+        b = b_local.copy().apply_transform(links["b"])
+        hits += fcl_collide(a, b)
+    assert hits == 0  # MoveIt's 10,000 samples would disable this pair as "Never"
+
+    pair = sweep(path)["a", "b"]
+    assert pair.status == "sometimes"
+    pose = ",".join(f"{k}={v!r}" for k, v in pair.witness.items())
+    posed = load_bodies([path], motion=Motion(pose=parse_pose(pose)))
+    assert fcl_collide(posed[0].world, posed[1].world)  # the witness, confirmed independently
+    assert abs(pair.witness["ja"]) < math.radians(3)
+    assert abs(abs(pair.witness["jb"]) - math.pi) < math.radians(3)
+
+
+# ------------------------------------------------------------------------------------------
+# The bound the proof rests on, and agreement on the panda
+
+
+def test_no_point_moves_farther_than_the_motion_bound():
+    """For random boxes of the panda's joints, every vertex of the two links moves (relative to
+    the pair's common frame) by at most sum_k w_k |q_k - c_k| between the centre and any pose."""
+    bodies = load_bodies([PANDA])
+    (mech,) = mechanisms(bodies)
+    robot = mech.robot
+    base = joint_values(robot)
+    swept = {j.name for j in robot.movable}
+    at_zero = link_transforms(robot, base)
+    local = {}
+    for link, ks in mech.parts.items():
+        inverse = np.linalg.inv(at_zero[link])
+        local[link] = np.vstack([bodies[k].world.vertices @ inverse[:3, :3].T + inverse[:3, 3]
+                                 for k in ks])  # fmt: skip
+    radius = {link: float(np.linalg.norm(v, axis=1).max()) for link, v in local.items()}
+    rng = np.random.default_rng(1)
+    for a, b in [("panda_link0", "panda_hand"), ("panda_link2", "panda_leftfinger")]:
+        weights = motion_weights(robot, (a, b), radius, swept, base)
+        names = sorted(weights)
+        lo = np.array([robot.joint(n).lower for n in names])
+        hi = np.array([robot.joint(n).upper for n in names])
+        for _ in range(40):
+            centre = rng.uniform(lo, hi)
+            pose = np.clip(centre + rng.uniform(-0.3, 0.3, len(names)), lo, hi)
+            moved = []
+            for q in (centre, pose):
+                values = dict(base, **dict(zip(names, q, strict=True)))
+                links = link_transforms(robot, values)
+                # relative to link a: the distance between the links is what matters
+                rel = np.linalg.inv(links[a]) @ links[b]
+                moved.append(local[b] @ rel[:3, :3].T + rel[:3, 3])
+            displacement = np.linalg.norm(moved[1] - moved[0], axis=1).max()
+            bound = sum(
+                weights[n] * abs(p - c) for n, p, c in zip(names, pose, centre, strict=True)
+            )
+            assert displacement <= bound + 1e-12
+
+
+def test_panda_wrist_sweep_agrees_with_fcl_sampling():
+    """Sweep the panda's last two joints: no never pair collides at 300 fcl-sampled poses, and
+    every sometimes pair's witness collides in fcl (or one link is buried in the other)."""
+    pytest.importorskip("fcl")
+    settings = Settings(motion=Motion(sweep=("panda_joint6", "panda_joint7")))
+    bodies = load_bodies([PANDA])
+    (robot_sweep,) = sweep_bodies(bodies, settings)
+    by_pair = {(p.a, p.b): p for p in robot_sweep.pairs}
+    assert by_pair["panda_hand", "panda_link5"].status == "sometimes"
+    assert by_pair["panda_link3", "panda_link7"].status == "never"
+    (mech,) = mechanisms(bodies)
+    robot = mech.robot
+    at_zero = link_transforms(robot, joint_values(robot))
+    local = {
+        link: bodies[ks[0]]
+        .mesh.copy()
+        .apply_transform(np.linalg.inv(at_zero[link]) @ bodies[ks[0]].transform)
+        for link, ks in mech.parts.items()
+    }
+
+    def posed(values: dict) -> dict:
+        links = link_transforms(robot, joint_values(robot, parse_pose(values)))
+        return {link: mesh.copy().apply_transform(links[link]) for link, mesh in local.items()}
+
+    rng = np.random.default_rng(2)
+    j6, j7 = robot.joint("panda_joint6"), robot.joint("panda_joint7")
+    never = [k for k, p in by_pair.items() if p.status == "never" and p.joints]
+    assert len(never) >= 5
+    q6s, q7s = rng.uniform(j6.lower, j6.upper, 300), rng.uniform(j7.lower, j7.upper, 300)
+    for q6, q7 in zip(q6s, q7s, strict=True):
+        world = posed({"panda_joint6": q6, "panda_joint7": q7})
+        for a, b in never:
+            assert not fcl_collide(world[a], world[b]), (a, b, q6, q7)
+    for (a, b), pair in by_pair.items():
+        if pair.status == "sometimes":
+            world = posed(pair.witness)
+            buried = (
+                winding_inside(world[a], world[b].vertices[:50]).any()
+                or winding_inside(world[b], world[a].vertices[:50]).any()
+            )
+            assert fcl_collide(world[a], world[b]) or buried, (a, b)
+
+
+def test_srdf_without_a_robot_is_a_usage_error(tmp_path):
+    from meshes import box
+
+    box().export(tmp_path / "cube.stl")
+    run = CliRunner().invoke(
+        main,
+        [str(tmp_path / "cube.stl"), "--srdf", str(tmp_path / "x.srdf"), "--no-cache", "-j", "1"],
+    )
+    assert run.exit_code == ExitStatus.USAGE
+    assert "swept no robot" in run.stderr and not (tmp_path / "x.srdf").exists()
