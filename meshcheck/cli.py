@@ -93,6 +93,18 @@ def _report_option(ctx, param, values):
     "--report junit:meshcheck.xml --report sarif:meshcheck.sarif --report github:-.",
 )
 @click.option(
+    "--quiet",
+    "-q",
+    is_flag=True,
+    help="List only the findings that fail the run, then the summary (text and markdown).",
+)
+@click.option(
+    "--hide-touching",
+    is_flag=True,
+    help="Leave touching findings out of the table; the summary still counts them (text and "
+    "markdown).",
+)
+@click.option(
     "--baseline",
     "baseline_path",
     default=None,
@@ -244,7 +256,11 @@ def _run(
     jobs,
     scheduler,
     export_path,
+    quiet=False,
+    hide_touching=False,
 ):
+    from .reports import View
+    from .reports.text import terminal_width
     from .settings import Settings
 
     # Everything that can be refused is refused before the check runs.
@@ -315,7 +331,9 @@ def _run(
     failed = False
     for report_fmt, path in targets:
         try:
-            write_output(path, render(result, report_fmt, inputs=files))
+            width = terminal_width(is_terminal=path == STDOUT and sys.stdout.isatty())
+            view = View(width=width, is_quiet=quiet, is_touching_listed=not hide_touching)
+            write_output(path, render(result, report_fmt, inputs=files, view=view))
         except OutputError as exc:
             click.echo(f"error: {printable(str(exc))}", err=True)
             failed = True

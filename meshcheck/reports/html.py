@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..results import CheckResult, Finding, Verdict
-from .common import summary
+from .common import View, ordered, summary
 
 if TYPE_CHECKING:
     from ..load import Body
@@ -112,7 +112,7 @@ class _Placed:
     centre: np.ndarray
 
 
-def render(result: CheckResult, *, inputs: Sequence[str] = ()) -> str:
+def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None = None) -> str:
     """The report format's entry (``reports.render``): ``render_html`` of the result's bodies,
     with the installed meshcheck's version."""
     return render_html(
@@ -186,7 +186,7 @@ def render_html(
         p.row["mesh"] = p.mesh
         p.row["matrix"] = _columns(_translate(-origin) @ np.asarray(p.body.transform) @ local)
     findings = []
-    for f in result.findings:
+    for f in ordered(result):
         solid = line = None
         if f.a in by_name and f.b in by_name:
             solid = _add_clash(f, origin, meshes, mesh_rows)

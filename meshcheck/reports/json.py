@@ -11,13 +11,13 @@ import json
 from collections.abc import Sequence
 
 from ..results import CheckResult
-from .common import summary
+from .common import View, ordered, summary
 
 
 def document(result: CheckResult) -> dict:
     """The report as a JSON-ready dict."""
     results = []
-    for f in result.findings:
+    for f in ordered(result):
         entry = f.to_dict()
         entry["baseline"] = result.baseline_state(f)
         entry["failed"] = result.is_failing(f)
@@ -32,5 +32,5 @@ def document(result: CheckResult) -> dict:
     return doc
 
 
-def render(result: CheckResult, *, inputs: Sequence[str] = ()) -> str:
+def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None = None) -> str:
     return json.dumps(document(result), indent=2, ensure_ascii=True, allow_nan=False) + "\n"

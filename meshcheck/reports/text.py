@@ -1,4 +1,5 @@
-"""The text report: a table that fits 100 columns, each finding's detail under its row, a summary.
+"""The text report: a table that fits the terminal (100 columns without one), each finding's
+detail under its row, a summary.
 
 Part names are shown after the directory prefix every part shares (named once above the table),
 cut in the middle when they still do not fit; the JSON report keeps them whole.
@@ -6,11 +7,12 @@ cut in the middle when they still do not fit; the JSON report keeps them whole.
 
 from __future__ import annotations
 
+import shutil
 import textwrap
 from collections.abc import Sequence
 
 from ..results import CheckResult
-from .common import describe, printable, resolution, summary_line
+from .common import View, describe, ordered, printable, resolution, summary_line, unlisted
 
 WIDTH = 100
 _ID_WIDTH = 12
@@ -45,62 +47,139 @@ def shorten(text: str, width: int) -> str:
     return text[:head] + "..." + text[len(text) - (keep - head) :]
 
 
-def render(result: CheckResult, *, inputs: Sequence[str] = ()) -> str:
-    """The table of findings, resolved baseline findings, the configuration file, the summary."""
+def shorten_all(names: Sequence[str], width: int) -> dict[str, str]:
+    """Each of ``names`` cut to ``width``, two different names never cut to the same text.
+
+    A name whose middle cut collides with another's keeps the part where it differs from the
+    others (the first differing character and what follows, up to the file name); a name that
+    cannot be told apart within ``width`` is shown whole.
+
+    Examples
+    --------
+    >>> cut = shorten_all(["sub/gearbox/left/cap_screw.stl", "sub/gearbox/right/cap_screw.stl"], 24)
+    >>> cut["sub/gearbox/left/cap_screw.stl"], cut["sub/gearbox/right/cap_screw.stl"]
+    ('s...left/cap_screw.stl', 's...right/cap_screw.stl')
+    """
+    distinct = sorted(set(names))
+    out = {n: shorten(n, width) for n in distinct}
+    by_text: dict[str, list[str]] = {}
+    for n in distinct:
+        by_text.setdefault(out[n], []).append(n)
+    for group in by_text.values():
+        if len(group) < 2:
+            continue
+        for n in group:
+            differs = max(_common_prefix(n, m) for m in group if m != n)
+            out[n] = _keep_from(n, width, differs)
+    texts = [out[n] for n in distinct]
+    if len(set(texts)) < len(texts):  # still ambiguous: the whole names, never a wrong one
+        seen: dict[str, int] = {}
+        for t in texts:
+            seen[t] = seen.get(t, 0) + 1
+        out = {n: (n if seen[out[n]] > 1 else out[n]) for n in distinct}
+    return out
+
+
+def _common_prefix(a: str, b: str) -> int:
+    k = 0
+    while k < min(len(a), len(b)) and a[k] == b[k]:
+        k += 1
+    return k
+
+
+def _keep_from(name: str, width: int, differs: int) -> str:
+    """``name`` within ``width`` showing position ``differs`` onward: its start, ``...``, then
+    the rest from just before the difference (cut in its middle when that is still too long)."""
+    if len(name) <= width:
+        return name
+    start = max(name.rfind("/", 0, differs) + 1, 0)  # from the differing path component
+    head = width - 3 - (len(name) - start)
+    if head >= 1:
+        return name[:head] + "..." + name[start:]
+    rest = name[differs:]
+    head = 1
+    room = width - head - 3
+    if room >= 8:
+        return name[:head] + "..." + shorten(rest, room)
+    return name
+
+
+def terminal_width(*, is_terminal: bool) -> int:
+    """Columns for the text table: the terminal's when stdout is one, else ``WIDTH``."""
+    if not is_terminal:
+        return WIDTH
+    return max(shutil.get_terminal_size((WIDTH, 24)).columns, 40)
+
+
+def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None = None) -> str:
+    """The table of findings (most severe first), resolved baseline findings, the
+    configuration file, the summary; ``view`` picks the rows and the width."""
+    view = view or View()
+    width = view.width
     prefix = shared_prefix([p.name for p in result.parts])
     has_baseline = result.baseline is not None
+    shown = [f for f in ordered(result) if view.shows(result, f)]
 
     def short(name: str) -> str:
         return printable(name[len(prefix) :] if name.startswith(prefix) else name)
 
     rows = []
-    for f in result.findings:
+    for f in shown:
         status = str(f.status) + (" (approved)" if f.is_approved else "")
-        a, b = short(f.a), short(f.b)
         state = result.baseline_state(f) or ""
         detail = describe(f, resolution(result, f))
         if f.is_approved:
             detail += f"  approved: {printable(f.approval_reason)}"
-        rows.append((f.id, status, state, a, b, detail))
+        rows.append((f.id, status, state, short(f.a), short(f.b), detail))
+
+    def wrap(text: str, indent: str) -> list[str]:
+        return textwrap.wrap(text, width, subsequent_indent=indent, break_on_hyphens=False) or [
+            text
+        ]
 
     lines = []
     if prefix and rows:
-        lines.append(f"parts below {printable(prefix)}")
+        lines.extend(wrap(f"parts below {printable(prefix)}", "  "))
     if rows:
-        header = ("ID", "STATUS", "BASELINE", "PART A", "PART B", "")
-        status_width = max(len(r[1]) for r in (header, *rows))
-        state_width = max(len(r[2]) for r in (header, *rows)) if has_baseline else 0
-        fixed = _ID_WIDTH + 2 + status_width + 2 + (state_width + 2 if has_baseline else 0) + 2
-        name_width = max((WIDTH - fixed) // 2, 12)
-        a_width = min(name_width, max(len(r[3]) for r in (header, *rows)))
-        for r in (header, *rows):
-            cells = [r[0].ljust(_ID_WIDTH), r[1].ljust(status_width)]
-            if has_baseline:
-                cells.append(r[2].ljust(state_width))
-            cells += [shorten(r[3], name_width).ljust(a_width), shorten(r[4], name_width)]
-            lines.append("  ".join(cells).rstrip())
-            if r[5]:
-                lines.extend(
-                    textwrap.wrap(
-                        r[5],
-                        WIDTH,
-                        initial_indent=_INDENT,
-                        subsequent_indent=_INDENT,
-                        break_on_hyphens=False,
-                    )
-                )
-    if has_baseline:
+        lines.extend(_table(rows, width=width, has_baseline=has_baseline))
+    note = unlisted(result, view, len(shown))
+    if note:
+        lines.extend(wrap(note, "  "))
+    if has_baseline and not view.is_quiet:
         for r in result.baseline.resolved(result.findings):
-            text = f"resolved {r.id}  {r.status}  {short(r.a)} and {short(r.b)}"
-            lines.extend(textwrap.wrap(text, WIDTH, subsequent_indent=_INDENT))
-    if result.settings.config_path:
-        lines.extend(
-            textwrap.wrap(
-                f"configuration: {printable(result.settings.config_path)}",
-                WIDTH,
-                subsequent_indent="  ",
-                break_on_hyphens=False,
+            lines.extend(
+                wrap(f"resolved {r.id}  {r.status}  {short(r.a)} and {short(r.b)}", _INDENT)
             )
-        )
-    lines.append(summary_line(result))
+    if result.settings.config_path:
+        lines.extend(wrap(f"configuration: {printable(result.settings.config_path)}", "  "))
+    lines.extend(wrap(summary_line(result), "  "))
     return "\n".join(lines) + "\n"
+
+
+def _table(rows: list[tuple], *, width: int, has_baseline: bool) -> list[str]:
+    """The header and a line per row, each row's detail wrapped under it, within ``width``."""
+    header = ("ID", "STATUS", "BASELINE", "PART A", "PART B", "")
+    status_width = max(len(r[1]) for r in (header, *rows))
+    state_width = max(len(r[2]) for r in (header, *rows)) if has_baseline else 0
+    fixed = _ID_WIDTH + 2 + status_width + 2 + (state_width + 2 if has_baseline else 0) + 2
+    name_width = max((width - fixed) // 2, 12)
+    cut = shorten_all([r[k] for r in rows for k in (3, 4)], name_width)
+    a_width = min(name_width, max(len(cut.get(r[3], r[3])) for r in (header, *rows)))
+    lines = []
+    for r in (header, *rows):
+        cells = [r[0].ljust(_ID_WIDTH), r[1].ljust(status_width)]
+        if has_baseline:
+            cells.append(r[2].ljust(state_width))
+        cells += [cut.get(r[3], r[3]).ljust(a_width), cut.get(r[4], r[4])]
+        lines.append("  ".join(cells).rstrip())
+        if r[5]:
+            lines.extend(
+                textwrap.wrap(
+                    r[5],
+                    width,
+                    initial_indent=_INDENT,
+                    subsequent_indent=_INDENT,
+                    break_on_hyphens=False,
+                )
+            )
+    return lines
