@@ -72,7 +72,8 @@ def _report_option(ctx, param, values):
     default="text",
     show_default=True,
     help="Report format for stdout (or -o): text (a table and a summary line), json, junit "
-    "(XML), github (annotations), sarif (2.1.0, for code scanning), markdown (a step summary).",
+    "(XML), github (annotations), sarif (2.1.0, for code scanning), markdown (a step summary), "
+    "html (one self-contained file with a 3D view of the clashes).",
 )
 @click.option(
     "--output",
@@ -212,15 +213,21 @@ def _report_option(ctx, param, values):
 def main(**options):
     """Check the parts in FILES for interference, contact and clearance.
 
-    FILES are mesh files (STL, OBJ, PLY, OFF, GLB/GLTF, 3MF) or directories (every mesh file
-    below them). A part is named by its path as given; a body inside a file holding several is
-    PATH#NODE.
+    FILES are mesh files (STL, OBJ, PLY, OFF, GLB/GLTF, 3MF), STEP files (.step, .stp) or
+    directories (every such file below them). A part is named by its path as given; a body
+    inside a file holding several is PATH#NODE.
 
-    Exit status: 0 when nothing fails, 1 when a finding fails the run (interference by default,
-    and clearance violations when --clearance is given), 2 for a usage or configuration error
+    Exit status: 0 when nothing fails, 1 when a finding fails the run (interference and
+    duplicates by default, and clearance violations when --clearance is given), 2 for a usage
+    or configuration error
     (output paths and the baseline are checked before any work), 3 when an input cannot be
     checked, 4 for a bug in meshcheck (the traceback goes to a file named on stderr, or to stderr
     when MESHCHECK_DEBUG is set), 5 when a report or the export cannot be written.
+
+    \b
+    Examples:
+      meshcheck assembly/ --clearance 0.2
+      meshcheck gearbox.step --report html:clashes.html --report junit:meshcheck.xml
     """
     try:
         _run(click.get_current_context(), **options)

@@ -46,7 +46,8 @@ from .settings import (
 )
 from .units import DEFAULT_UNIT
 from .verify import verify_pairs
-from .verify.shells import warn_overlapping_shells
+from .verify.duplicates import duplicate_findings, duplicate_sets, without_duplicate_pairs
+from .verify.shells import warn_nothing_to_compare, warn_overlapping_shells
 
 _EPS32 = float(np.finfo(np.float32).eps)
 
@@ -152,6 +153,7 @@ def check_bodies(
     names = [_names(b) for b in bodies]
     if not settings.split:  # a part's own shells that clash are never a finding: say so
         warn_overlapping_shells(bodies)
+    warn_nothing_to_compare(bodies, is_split=settings.split)
     _check_patterns(settings, names)
     # The key cache entries are signed with, read once for the run (None: no cache).
     secret = None if settings.cache_dir is None else pair_secret()
@@ -162,6 +164,10 @@ def check_bodies(
         diagonal, magnitude = part_sizes(hulls.lower, hulls.upper)
         deflection = max((b.deflection for b in bodies), default=0.0)
         pairs = select_pairs(hulls, settings, names, diagonal, magnitude, deflection)
+        copies = duplicate_sets(
+            bodies, geometry, tolerance=settings.tolerance, fraction=TOLERANCE_FRACTION
+        )
+        pairs = without_duplicate_pairs(pairs, copies, len(bodies))
         tolerance = _tolerances(settings, bodies, diagonal, magnitude, pairs)
         reach = tolerance + (settings.clearance or 0.0)
         hull_query = query_pairs(hulls, pairs, tolerance=tolerance, depth=False, max_distance=reach)
@@ -184,6 +190,9 @@ def check_bodies(
         findings = verify_pairs(
             bodies, pairs_near, tol_near, near_surfaces, settings, executor=executor, secret=secret
         )
+    findings = sorted(
+        [*duplicate_findings(bodies, copies, geometry), *findings], key=lambda f: (f.a, f.b)
+    )
     findings = approve(
         findings, settings.approvals, dict(zip([b.name for b in bodies], names, strict=True))
     )

@@ -18,11 +18,14 @@ if TYPE_CHECKING:
 class Verdict(enum.StrEnum):
     """What the real meshes of a part pair say: the one vocabulary of statuses.
 
-    The first three are findings (they appear in reports and can fail the run); ``CLEAR`` pairs
-    are not reported. Members compare equal to their lower-case names, so JSON and the
-    configuration file use the plain words.
+    The first four are findings (they appear in reports and can fail the run); ``CLEAR`` pairs
+    are not reported. ``DUPLICATE`` is a set of copies of one part placed at the same spot
+    (a modelling error), decided from geometry digests and placements before verification.
+    Members compare equal to their lower-case
+    names, so JSON and the configuration file use the plain words.
     """
 
+    DUPLICATE = "duplicate"
     INTERFERENCE = "interference"
     TOUCHING = "touching"
     CLEARANCE = "clearance"
@@ -30,7 +33,7 @@ class Verdict(enum.StrEnum):
 
 
 #: Statuses a finding can have, most severe first.
-FINDING_STATUSES = (Verdict.INTERFERENCE, Verdict.CLEARANCE, Verdict.TOUCHING)
+FINDING_STATUSES = (Verdict.DUPLICATE, Verdict.INTERFERENCE, Verdict.CLEARANCE, Verdict.TOUCHING)
 
 
 @dataclass(frozen=True)
@@ -152,6 +155,9 @@ class Finding:
         The reason from the approval rule when the finding is an approved exception.
     tolerance : float or None
         The touching tolerance that decided this pair, model units.
+    members : tuple of str
+        A ``DUPLICATE`` finding's whole set of copies (sorted names, ``a`` and ``b`` the first
+        two); empty otherwise.
     """
 
     a: str
@@ -160,6 +166,7 @@ class Finding:
     id: str = ""
     approval_reason: str | None = None
     tolerance: float | None = None
+    members: tuple[str, ...] = ()
 
     @property
     def status(self) -> Verdict:
@@ -210,6 +217,7 @@ class Finding:
             "surface_only": self.is_surface_only,
             "approved": self.approval_reason,
             "tolerance": None if self.tolerance is None else float(self.tolerance),
+            **({"members": list(self.members)} if self.members else {}),
         }
 
 

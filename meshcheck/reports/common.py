@@ -109,6 +109,8 @@ def summary_line(result: CheckResult) -> str:
     s = summary(result)
     verdict = "PASS" if s["passed"] else "FAIL"
     parts = [f"{s[Verdict.INTERFERENCE]} interference", f"{s[Verdict.TOUCHING]} touching"]
+    if s[Verdict.DUPLICATE]:
+        parts.insert(0, f"{s[Verdict.DUPLICATE]} duplicate")
     if result.clearance is not None:
         parts.append(f"{s[Verdict.CLEARANCE]} clearance (< {result.clearance:g})")
     if s["approved"]:
@@ -159,12 +161,22 @@ def length(value: float, tolerance: float | None = None) -> str:
     return "0" if text in ("-0", "") else text
 
 
+#: Copies a duplicate finding's one-line description names (the JSON report lists them all).
+_MEMBERS_SHOWN = 4
+
+
 def describe(finding: Finding, tolerance: float | None = None) -> str:
     """One-line measurements of a finding: depth or distance, volume, location.
 
     Lengths are rounded to what ``tolerance`` (the one that decided the finding) can resolve.
     """
     detail = f"distance {length(finding.distance, tolerance)}"
+    if finding.status == Verdict.DUPLICATE:
+        names = [printable(n) for n in finding.members]
+        shown = ", ".join(names[:_MEMBERS_SHOWN])
+        if len(names) > _MEMBERS_SHOWN:
+            shown += f" and {len(names) - _MEMBERS_SHOWN} more"
+        detail = f"{len(names)} copies at the same spot: {shown}"
     if finding.depth is not None:
         detail = f"depth {length(finding.depth, tolerance)}"
     if finding.volume is not None:

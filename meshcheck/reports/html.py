@@ -48,7 +48,12 @@ DISPLAY_TRIANGLES = 600_000
 _CANDIDATES = 8  # earlier distinct meshes a new mesh is compared with, per topology
 MIN_TRIANGLES = 500  # a mesh this small is never decimated: it would lose its shape
 _QUANT = 32767  # signed 16-bit vertex grid over half of each mesh's largest extent
-_SEVERITY = (INTERFERENCE, CLEARANCE, TOUCHING)  # colour of a part in several findings
+_SEVERITY = (
+    Verdict.DUPLICATE,
+    INTERFERENCE,
+    CLEARANCE,
+    TOUCHING,
+)  # colour of a part in several findings
 
 
 @dataclass

@@ -31,6 +31,7 @@ SCHEMA = "https://json.schemastore.org/sarif-2.1.0.json"
 FINGERPRINT = "meshcheckFindingId/v1"
 
 _RULES = {
+    Verdict.DUPLICATE: "Copies of one part placed at the same spot: a doubled component.",
     Verdict.INTERFERENCE: "Two parts share volume: they cannot both be built as modelled.",
     Verdict.CLEARANCE: "Two parts are closer than the required clearance.",
     Verdict.TOUCHING: "Two parts touch within the tolerance (contact, usually by design).",
