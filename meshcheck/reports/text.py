@@ -50,27 +50,33 @@ def shorten(text: str, width: int) -> str:
 def shorten_all(names: Sequence[str], width: int) -> dict[str, str]:
     """Each of ``names`` cut to ``width``, two different names never cut to the same text.
 
-    A name whose middle cut collides with another's keeps the part where it differs from the
-    others (the first differing character and what follows, up to the file name); a name that
+    A name whose middle cut collides with another's keeps where it differs from those others
+    (the first and the last differing character, their path components whole when they fit),
+    then as much of its file name and start as fits, each cut run shown as ``...``; a name that
     cannot be told apart within ``width`` is shown whole.
 
     Examples
     --------
     >>> cut = shorten_all(["sub/gearbox/left/cap_screw.stl", "sub/gearbox/right/cap_screw.stl"], 24)
     >>> cut["sub/gearbox/left/cap_screw.stl"], cut["sub/gearbox/right/cap_screw.stl"]
-    ('s...left/cap_screw.stl', 's...right/cap_screw.stl')
+    ('...left/cap_...rew.stl', '...right/cap...rew.stl')
     """
     distinct = sorted(set(names))
     out = {n: shorten(n, width) for n in distinct}
-    by_text: dict[str, list[str]] = {}
-    for n in distinct:
-        by_text.setdefault(out[n], []).append(n)
-    for group in by_text.values():
-        if len(group) < 2:
-            continue
-        for n in group:
-            differs = max(_common_prefix(n, m) for m in group if m != n)
-            out[n] = _keep_from(n, width, differs)
+    needed: dict[str, set[int]] = {n: set() for n in distinct}
+    for _ in range(4):  # each round keeps more of the names that still look alike
+        by_text: dict[str, list[str]] = {}
+        for n in distinct:
+            by_text.setdefault(out[n], []).append(n)
+        groups = [g for g in by_text.values() if len(g) > 1]
+        if not groups:
+            return out
+        for group in groups:
+            for n in group:
+                for m in group:
+                    if m != n:
+                        needed[n].update(_differing(n, m))
+                out[n] = _keep(n, width, needed[n])
     texts = [out[n] for n in distinct]
     if len(set(texts)) < len(texts):  # still ambiguous: the whole names, never a wrong one
         seen: dict[str, int] = {}
@@ -80,28 +86,57 @@ def shorten_all(names: Sequence[str], width: int) -> dict[str, str]:
     return out
 
 
-def _common_prefix(a: str, b: str) -> int:
-    k = 0
-    while k < min(len(a), len(b)) and a[k] == b[k]:
-        k += 1
-    return k
+def _differing(a: str, b: str) -> set[int]:
+    """Where ``a`` first differs from ``b`` reading from the start, and reading from the end."""
+    first = 0
+    while first < min(len(a), len(b)) and a[first] == b[first]:
+        first += 1
+    last = 0
+    while last < min(len(a), len(b)) - first and a[-1 - last] == b[-1 - last]:
+        last += 1
+    end = max(len(a) - last, first + 1)
+    return {min(first, len(a) - 1), min(end, len(a)) - 1}
 
 
-def _keep_from(name: str, width: int, differs: int) -> str:
-    """``name`` within ``width`` showing position ``differs`` onward: its start, ``...``, then
-    the rest from just before the difference (cut in its middle when that is still too long)."""
+def _render(name: str, kept: set[int]) -> str:
+    out, gap = [], False
+    for k, ch in enumerate(name):
+        if k in kept:
+            out.append(ch)
+            gap = False
+        elif not gap:
+            out.append("...")
+            gap = True
+    return "".join(out)
+
+
+def _keep(name: str, width: int, needed: set[int]) -> str:
+    """``name`` within ``width``, the ``needed`` positions kept and every cut run shown as
+    ``...``; then as much of the end (the file name) and the start as fits. The whole name when
+    the needed positions alone do not fit."""
     if len(name) <= width:
         return name
-    start = max(name.rfind("/", 0, differs) + 1, 0)  # from the differing path component
-    head = width - 3 - (len(name) - start)
-    if head >= 1:
-        return name[:head] + "..." + name[start:]
-    rest = name[differs:]
-    head = 1
-    room = width - head - 3
-    if room >= 8:
-        return name[:head] + "..." + shorten(rest, room)
-    return name
+    kept = set(needed)
+    if len(_render(name, kept)) > width:
+        return name
+    whole = set(kept)  # the path components holding the differences, whole, when they fit
+    for k in needed:
+        start, end = name.rfind("/", 0, k) + 1, name.find("/", k)
+        whole.update(range(start, len(name) if end < 0 else end))
+    if len(_render(name, whole)) <= width:
+        kept = whole
+    # the file name first, then outward from the kept runs (fewer cuts), ends before middles
+    base = name.rfind("/") + 1
+    order = sorted(
+        range(len(name)),
+        key=lambda k: (k < base, min(abs(k - j) for j in {*needed, 0, len(name) - 1}), -k),
+    )
+    for k in order:
+        if k not in kept:
+            kept.add(k)
+            if len(_render(name, kept)) > width:
+                kept.discard(k)
+    return _render(name, kept)
 
 
 def terminal_width(*, is_terminal: bool) -> int:
