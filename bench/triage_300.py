@@ -67,7 +67,7 @@ def main() -> int:
         os.chdir(where)
         paths = [os.path.relpath(p, where) for p in paths]
         start = time.perf_counter()
-        result = check(paths, config=None, cache_dir=None)
+        result = check(paths, config=None, use_cache=False)
         checked = time.perf_counter() - start
         start = time.perf_counter()
         text = render(result, "text", view=View(width=args.width))
