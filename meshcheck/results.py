@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import enum
 import hashlib
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
@@ -317,4 +318,75 @@ def finding_id(name_a: str, digest_a: str, name_b: str, digest_b: str) -> str:
     (na, da), (nb, db) = sorted([(name_a, digest_a), (name_b, digest_b)])
     text = "\0".join((na, da, nb, db))
     # surrogateescape: a file name that is not UTF-8 keeps its bytes
+    return hashlib.sha256(text.encode("utf-8", "surrogateescape")).hexdigest()[:12]
+
+
+@dataclass(frozen=True)
+class ClashGroup:
+    """Findings of one status that share a part: one bracket clipping many bolts.
+
+    Attributes
+    ----------
+    id : str
+        Stable 12-hex-digit ID: the shared part's name and the status (``group_id``).
+    part : str
+        The part every member names.
+    status : Verdict
+    members : tuple of Finding
+        Most severe first, as the reports list findings.
+    """
+
+    id: str
+    part: str
+    status: Verdict
+    members: tuple[Finding, ...]
+
+    def to_dict(self) -> dict:
+        return {
+            "id": self.id,
+            "part": self.part,
+            "status": str(self.status),
+            "findings": [f.id for f in self.members],
+        }
+
+
+#: Statuses whose findings are grouped (contact by design is not a clash to triage).
+GROUPED_STATUSES = (Verdict.INTERFERENCE, Verdict.CLEARANCE)
+
+
+def clash_groups(findings: Sequence[Finding]) -> list[ClashGroup]:
+    """Group unapproved interference (and clearance) findings by a part they share.
+
+    The part named by most findings of one status makes the first group, its findings leave the
+    pool, and so on while a part is named twice; each finding is in at most one group. Groups
+    come largest first, ties by part name, so the same findings always give the same groups.
+
+    Examples
+    --------
+    >>> v = PairVerdict(Verdict.INTERFERENCE, 0.0, depth=1.0)
+    >>> fs = [Finding(b, "plate", v, id=b) for b in ("bolt1", "bolt2", "bolt3")]
+    >>> [(g.part, len(g.members)) for g in clash_groups(fs)]
+    [('plate', 3)]
+    """
+    pool = [f for f in findings if f.status in GROUPED_STATUSES and not f.is_approved]
+    groups = []
+    while True:
+        counts: dict[tuple[str, Verdict], int] = {}
+        for f in pool:
+            for name in (f.a, f.b):
+                counts[name, f.status] = counts.get((name, f.status), 0) + 1
+        best = min(counts.items(), key=lambda kv: (-kv[1], kv[0][0], kv[0][1]), default=None)
+        if best is None or best[1] < 2:
+            return groups
+        (part, status), _ = best
+        members = [f for f in pool if f.status == status and part in (f.a, f.b)]
+        members.sort(key=lambda f: (-(f.depth or 0.0), f.distance, f.a, f.b))
+        groups.append(ClashGroup(group_id(part, status), part, status, tuple(members)))
+        taken = {id(f) for f in members}
+        pool = [f for f in pool if id(f) not in taken]
+
+
+def group_id(part: str, status: str) -> str:
+    """Stable 12-hex-digit ID of a clash group: its shared part's name and its status."""
+    text = "\0".join(("group", str(status), part))
     return hashlib.sha256(text.encode("utf-8", "surrogateescape")).hexdigest()[:12]

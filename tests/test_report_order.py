@@ -18,7 +18,17 @@ from hypothesis import strategies as st
 from meshcheck.cli import main
 from meshcheck.reports import FORMATS, View, render
 from meshcheck.reports.text import shorten_all
-from meshcheck.results import CheckResult, Finding, Location, PairVerdict, Part, Verdict, finding_id
+from meshcheck.results import (
+    CheckResult,
+    Finding,
+    Location,
+    PairVerdict,
+    Part,
+    Verdict,
+    clash_groups,
+    finding_id,
+    group_id,
+)
 from meshcheck.settings import Settings, resolve_fail_on
 
 HYPOTHESIS = settings(derandomize=True, deadline=None, max_examples=200)
@@ -55,6 +65,13 @@ def make_result(findings=FINDINGS) -> CheckResult:
             tolerance=1e-5, clearance=0.5, fail_on=resolve_fail_on(None, clearance=0.5)
         ),
     )
+
+
+def _html_data(text: str) -> dict:
+    found = re.search(
+        r'<script type="application/json" id="meshcheck-data">(.*?)</script>', text, re.S
+    )
+    return json.loads(found.group(1))
 
 
 def _order(fmt: str, text: str) -> list[str]:
@@ -166,3 +183,45 @@ def test_cli_quiet_and_hide_touching():
         )
         assert run.stdout.splitlines()[-1] == full.stdout.splitlines()[-1]
     assert "Traceback" not in full.output + quiet.output + hidden.output
+
+
+CLIPPED = [
+    finding("bolt_1.stl", "bracket.stl", "interference", depth=0.2),
+    finding("bolt_2.stl", "bracket.stl", "interference", depth=0.4),
+    finding("bolt_3.stl", "bracket.stl", "interference", depth=0.3),
+    finding("nut.stl", "shaft.stl", "interference", depth=1.0),
+    finding("bolt_4.stl", "bracket.stl", "touching"),
+    finding("bolt_5.stl", "bracket.stl", "touching"),
+]
+
+
+def test_one_bracket_clipping_many_bolts_is_one_group_in_every_human_and_json_format():
+    result = make_result(CLIPPED)
+    (group,) = clash_groups(result.findings)  # touching and the lone nut are not grouped
+    assert (group.part, group.status) == ("bracket.stl", Verdict.INTERFERENCE)
+    assert [f.a for f in group.members] == ["bolt_2.stl", "bolt_3.stl", "bolt_1.stl"]
+    assert group.id == group_id("bracket.stl", "interference")  # stable: the part and status
+    text = render(result, "text").splitlines()
+    head = text.index(f"group {group.id}  bracket.stl: 3 interference")
+    assert [line.split()[1] for line in text[head + 1 : head + 4]] == [
+        "bolt_2.stl",
+        "bolt_3.stl",
+        "bolt_1.stl",
+    ]
+    doc = json.loads(render(result, "json"))
+    assert doc["groups"] == [
+        {
+            "id": group.id,
+            "part": "bracket.stl",
+            "status": "interference",
+            "findings": [f.id for f in group.members],
+        }
+    ]
+    md = render(result, "markdown")
+    assert f"- `{group.id}` bracket\\.stl: 3 interference" in md
+    pytest.importorskip("trimesh")
+    html = render(result, "html")
+    data = re.search(
+        r'<script type="application/json" id="meshcheck-data">(.*?)</script>', html, re.S
+    )
+    assert json.loads(data.group(1))["groups"] == doc["groups"]

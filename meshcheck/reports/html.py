@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..results import CheckResult, Finding, Verdict
+from ..results import CheckResult, Finding, Verdict, clash_groups
 from .common import View, ordered, summary
 
 if TYPE_CHECKING:
@@ -293,6 +293,7 @@ def _data(result, units, inputs, version, mesh_rows, parts, findings, triangles)
         "meshes": mesh_rows,
         "parts": parts,
         "findings": findings,
+        "groups": [g.to_dict() for g in clash_groups(ordered(result))],
         "triangles": triangles,
     }
 

@@ -1,4 +1,7 @@
-"""The JSON report: ``results``, ``parts`` and ``summary``; names kept whole, as data.
+"""The JSON report: ``results``, ``groups``, ``parts`` and ``summary``; names kept whole.
+
+``groups`` are the clash groups (``results.clash_groups``): each names its shared part, its
+status and its findings' IDs.
 
 Every finding carries ``baseline`` (``"new"``, ``"active"``, or null without a baseline); with a
 baseline the document also has ``resolved``, the baseline's findings this run no longer has.
@@ -10,7 +13,7 @@ from __future__ import annotations
 import json
 from collections.abc import Sequence
 
-from ..results import CheckResult
+from ..results import CheckResult, clash_groups
 from .common import View, ordered, summary
 
 
@@ -24,6 +27,7 @@ def document(result: CheckResult) -> dict:
         results.append(entry)
     doc = {
         "results": results,
+        "groups": [g.to_dict() for g in clash_groups(ordered(result))],
         "parts": [p.to_dict() for p in result.parts],
         "summary": summary(result),
     }

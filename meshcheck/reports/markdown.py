@@ -10,7 +10,7 @@ from __future__ import annotations
 import re
 from collections.abc import Sequence
 
-from ..results import CheckResult
+from ..results import CheckResult, clash_groups
 from .common import (
     View,
     describe,
@@ -70,6 +70,15 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
         lines.append("")
     elif not result.findings:
         lines += ["No findings.", ""]
+    groups = clash_groups(rows)
+    if groups:
+        lines += ["Clash groups:", ""]
+        for g in groups:
+            lines.append(f"- `{g.id}` {escape(g.part)}: {len(g.members)} {g.status}")
+            for f in g.members:
+                other = f.b if f.a == g.part else f.a
+                lines.append(f"  - `{f.id}` {escape(other)}")
+        lines.append("")
     note = unlisted(result, view, len(rows))
     if note:
         lines += [note, ""]

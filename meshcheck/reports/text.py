@@ -1,5 +1,5 @@
 """The text report: a table that fits the terminal (100 columns without one), each finding's
-detail under its row, a summary.
+detail under its row, the clash groups (a line per group, its findings below), a summary.
 
 Part names are shown after the directory prefix every part shares (named once above the table),
 cut in the middle when they still do not fit; the JSON report keeps them whole.
@@ -11,7 +11,7 @@ import shutil
 import textwrap
 from collections.abc import Sequence
 
-from ..results import CheckResult
+from ..results import CheckResult, clash_groups
 from .common import View, describe, ordered, printable, resolution, summary_line, unlisted
 
 WIDTH = 100
@@ -177,6 +177,16 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
         lines.extend(wrap(f"parts below {printable(prefix)}", "  "))
     if rows:
         lines.extend(_table(rows, width=width, has_baseline=has_baseline))
+    for group in clash_groups(shown):
+        lines.extend(
+            wrap(
+                f"group {group.id}  {short(group.part)}: {len(group.members)} {group.status}",
+                _INDENT,
+            )
+        )
+        for f in group.members:
+            other = f.b if f.a == group.part else f.a
+            lines.extend(wrap(f"  {f.id}  {short(other)}", _INDENT))
     note = unlisted(result, view, len(shown))
     if note:
         lines.extend(wrap(note, "  "))
