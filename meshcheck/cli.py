@@ -72,7 +72,8 @@ def _report_option(ctx, param, values):
     default="text",
     show_default=True,
     help="Report format for stdout (or -o): text (a table and a summary line), json, junit "
-    "(XML), github (annotations), sarif (2.1.0, for code scanning), markdown (a step summary).",
+    "(XML), github (annotations), sarif (2.1.0, for code scanning), markdown (a step summary), "
+    "html (one self-contained file with a 3D view of the clashes).",
 )
 @click.option(
     "--output",
@@ -91,6 +92,18 @@ def _report_option(ctx, param, values):
     metavar="FORMAT:PATH",
     help="Also write a report in FORMAT to PATH (- for stdout); repeatable, e.g. "
     "--report junit:meshcheck.xml --report sarif:meshcheck.sarif --report github:-.",
+)
+@click.option(
+    "--quiet",
+    "-q",
+    is_flag=True,
+    help="List only the findings that fail the run, then the summary (text and markdown).",
+)
+@click.option(
+    "--hide-touching",
+    is_flag=True,
+    help="Leave touching findings out of the table; the summary still counts them (text and "
+    "markdown).",
 )
 @click.option(
     "--baseline",
@@ -244,15 +257,21 @@ def _report_option(ctx, param, values):
 def main(**options):
     """Check the parts in FILES for interference, contact and clearance.
 
-    FILES are mesh files (STL, OBJ, PLY, OFF, GLB/GLTF, 3MF) or directories (every mesh file
-    below them). A part is named by its path as given; a body inside a file holding several is
-    PATH#NODE.
+    FILES are mesh files (STL, OBJ, PLY, OFF, GLB/GLTF, 3MF), STEP files (.step, .stp) or
+    directories (every such file below them). A part is named by its path as given; a body
+    inside a file holding several is PATH#NODE.
 
-    Exit status: 0 when nothing fails, 1 when a finding fails the run (interference by default,
-    and clearance violations when --clearance is given), 2 for a usage or configuration error
+    Exit status: 0 when nothing fails, 1 when a finding fails the run (interference and
+    duplicates by default, and clearance violations when --clearance is given), 2 for a usage
+    or configuration error
     (output paths and the baseline are checked before any work), 3 when an input cannot be
     checked, 4 for a bug in meshcheck (the traceback goes to a file named on stderr, or to stderr
     when MESHCHECK_DEBUG is set), 5 when a report or the export cannot be written.
+
+    \b
+    Examples:
+      meshcheck assembly/ --clearance 0.2
+      meshcheck gearbox.step --report html:clashes.html --report junit:meshcheck.xml
     """
     try:
         _run(click.get_current_context(), **options)
@@ -280,6 +299,8 @@ def _run(
     adjacent=None,
     sweep=False,
     sweep_joints=None,
+    quiet=False,
+    hide_touching=False,
     **options,
 ):
     """Refuse what can be refused, check, write the reports, exit with the run's status."""
@@ -302,7 +323,8 @@ def _run(
     except MeshcheckError as exc:
         _fail(exc)
     result = _check(files, settings, baseline, export_path)
-    written = _write_reports(result, targets, files, srdf_path)
+    view_options = {"is_quiet": quiet, "is_touching_listed": not hide_touching}
+    written = _write_reports(result, targets, files, srdf_path, view_options)
     if written:
         noun = "report" if len(written) == 1 else "reports"
         where = ", ".join(printable(p) for p in written)
@@ -374,14 +396,19 @@ def _check(files, settings, baseline, export_path):
     return result
 
 
-def _write_reports(result, targets, files, srdf_path=None) -> list[str]:
+def _write_reports(result, targets, files, srdf_path=None, view_options=None) -> list[str]:
     """Write every report; the files written when all of them went to files. A report that
     cannot be written is an error line and exit 5, after the others are written; then no summary
     line follows (stderr's last line is the error)."""
     failed = None
     for report_fmt, path in targets:
         try:
-            write_output(path, render(result, report_fmt, inputs=files))
+            from .reports import View
+            from .reports.text import terminal_width
+
+            width = terminal_width(is_terminal=path == STDOUT and sys.stdout.isatty())
+            view = View(width=width, **(view_options or {}))
+            write_output(path, render(result, report_fmt, inputs=files, view=view))
         except OutputError as exc:
             click.echo(f"error: {printable(str(exc))}", err=True)
             failed = exc

@@ -49,7 +49,8 @@ from .sweep import with_mechanisms, with_sweeps
 from .units import DEFAULT_UNIT
 from .verify import verify_pairs
 from .verify.brep import confirm_on_brep
-from .verify.shells import warn_overlapping_shells
+from .verify.duplicates import duplicate_findings, duplicate_sets, without_duplicate_pairs
+from .verify.shells import warn_nothing_to_compare, warn_overlapping_shells
 
 _EPS32 = float(np.finfo(np.float32).eps)
 
@@ -151,6 +152,7 @@ def check_bodies(
     names = [_names(b) for b in bodies]
     if not settings.split:  # a part's own shells that clash are never a finding: say so
         warn_overlapping_shells(bodies)
+    warn_nothing_to_compare(bodies, is_split=settings.split)
     _check_patterns(settings, names)
     # The key cache entries are signed with, read once for the run (None: no cache).
     secret = None if settings.cache_dir is None else pair_secret()
@@ -162,6 +164,10 @@ def check_bodies(
         magnitude = np.where([b.is_float32 for b in bodies], magnitude, 0.0)  # the float32 floor
         deflection = max((b.deflection for b in bodies), default=0.0)
         pairs = select_pairs(hulls, settings, names, diagonal, magnitude, deflection)
+        copies = duplicate_sets(
+            bodies, geometry, tolerance=settings.tolerance, fraction=TOLERANCE_FRACTION
+        )
+        pairs = without_duplicate_pairs(pairs, copies, len(bodies))
         check_candidate_pairs(len(pairs), len(bodies))  # budgeted, like triangles
         tolerance = _tolerances(settings, bodies, diagonal, magnitude, pairs)
         reach = tolerance + (settings.clearance or 0.0)
@@ -193,6 +199,9 @@ def check_bodies(
             hulls_penetrate=hull_query.status[near] == Status.PENETRATING,
         )
         findings = confirm_on_brep(bodies, findings, settings, secret=secret)
+    findings = sorted(
+        [*duplicate_findings(bodies, copies, geometry), *findings], key=lambda f: (f.a, f.b)
+    )
     findings = approve(
         findings, settings.approvals, dict(zip([b.name for b in bodies], names, strict=True))
     )

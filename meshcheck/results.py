@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import enum
 import hashlib
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
@@ -18,11 +19,14 @@ if TYPE_CHECKING:
 class Verdict(enum.StrEnum):
     """What the real meshes of a part pair say: the one vocabulary of statuses.
 
-    The first three are findings (they appear in reports and can fail the run); ``CLEAR`` pairs
-    are not reported. Members compare equal to their lower-case names, so JSON and the
-    configuration file use the plain words.
+    The first four are findings (they appear in reports and can fail the run); ``CLEAR`` pairs
+    are not reported. ``DUPLICATE`` is a set of copies of one part placed at the same spot
+    (a modelling error), decided from geometry digests and placements before verification.
+    Members compare equal to their lower-case
+    names, so JSON and the configuration file use the plain words.
     """
 
+    DUPLICATE = "duplicate"
     INTERFERENCE = "interference"
     TOUCHING = "touching"
     CLEARANCE = "clearance"
@@ -30,7 +34,7 @@ class Verdict(enum.StrEnum):
 
 
 #: Statuses a finding can have, most severe first.
-FINDING_STATUSES = (Verdict.INTERFERENCE, Verdict.CLEARANCE, Verdict.TOUCHING)
+FINDING_STATUSES = (Verdict.DUPLICATE, Verdict.INTERFERENCE, Verdict.CLEARANCE, Verdict.TOUCHING)
 
 
 @dataclass(frozen=True)
@@ -152,6 +156,9 @@ class Finding:
         The reason from the approval rule when the finding is an approved exception.
     tolerance : float or None
         The touching tolerance that decided this pair, model units.
+    members : tuple of str
+        A ``DUPLICATE`` finding's whole set of copies (sorted names, ``a`` and ``b`` the first
+        two); empty otherwise.
     """
 
     a: str
@@ -160,6 +167,7 @@ class Finding:
     id: str = ""
     approval_reason: str | None = None
     tolerance: float | None = None
+    members: tuple[str, ...] = ()
 
     @property
     def status(self) -> Verdict:
@@ -210,6 +218,7 @@ class Finding:
             "surface_only": self.is_surface_only,
             "approved": self.approval_reason,
             "tolerance": None if self.tolerance is None else float(self.tolerance),
+            **({"members": list(self.members)} if self.members else {}),
         }
 
 
@@ -352,3 +361,74 @@ def finding_id(
 
 def _name(part: tuple) -> tuple[str, str]:
     return part[0], part[1]
+
+
+@dataclass(frozen=True)
+class ClashGroup:
+    """Findings of one status that share a part: one bracket clipping many bolts.
+
+    Attributes
+    ----------
+    id : str
+        Stable 12-hex-digit ID: the shared part's name and the status (``group_id``).
+    part : str
+        The part every member names.
+    status : Verdict
+    members : tuple of Finding
+        Most severe first, as the reports list findings.
+    """
+
+    id: str
+    part: str
+    status: Verdict
+    members: tuple[Finding, ...]
+
+    def to_dict(self) -> dict:
+        return {
+            "id": self.id,
+            "part": self.part,
+            "status": str(self.status),
+            "findings": [f.id for f in self.members],
+        }
+
+
+#: Statuses whose findings are grouped (contact by design is not a clash to triage).
+GROUPED_STATUSES = (Verdict.INTERFERENCE, Verdict.CLEARANCE)
+
+
+def clash_groups(findings: Sequence[Finding]) -> list[ClashGroup]:
+    """Group unapproved interference (and clearance) findings by a part they share.
+
+    The part named by most findings of one status makes the first group, its findings leave the
+    pool, and so on while a part is named twice; each finding is in at most one group. Groups
+    come largest first, ties by part name, so the same findings always give the same groups.
+
+    Examples
+    --------
+    >>> v = PairVerdict(Verdict.INTERFERENCE, 0.0, depth=1.0)
+    >>> fs = [Finding(b, "plate", v, id=b) for b in ("bolt1", "bolt2", "bolt3")]
+    >>> [(g.part, len(g.members)) for g in clash_groups(fs)]
+    [('plate', 3)]
+    """
+    pool = [f for f in findings if f.status in GROUPED_STATUSES and not f.is_approved]
+    groups = []
+    while True:
+        counts: dict[tuple[str, Verdict], int] = {}
+        for f in pool:
+            for name in (f.a, f.b):
+                counts[name, f.status] = counts.get((name, f.status), 0) + 1
+        best = min(counts.items(), key=lambda kv: (-kv[1], kv[0][0], kv[0][1]), default=None)
+        if best is None or best[1] < 2:
+            return groups
+        (part, status), _ = best
+        members = [f for f in pool if f.status == status and part in (f.a, f.b)]
+        members.sort(key=lambda f: (-(f.depth or 0.0), f.distance, f.a, f.b))
+        groups.append(ClashGroup(group_id(part, status), part, status, tuple(members)))
+        taken = {id(f) for f in members}
+        pool = [f for f in pool if id(f) not in taken]
+
+
+def group_id(part: str, status: str) -> str:
+    """Stable 12-hex-digit ID of a clash group: its shared part's name and its status."""
+    text = "\0".join(("group", str(status), part))
+    return hashlib.sha256(text.encode("utf-8", "surrogateescape")).hexdigest()[:12]

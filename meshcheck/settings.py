@@ -288,21 +288,21 @@ class Settings:
 
 
 def resolve_fail_on(words: Sequence[str] | None, *, clearance: float | None) -> tuple[Verdict, ...]:
-    """Statuses that fail the run: interference, plus clearance when a clearance is set, plus
-    ``words``; an empty ``words`` (``none``) means nothing fails.
+    """Statuses that fail the run: duplicate and interference, plus clearance when a clearance
+    is set, plus ``words``; an empty ``words`` (``none``) means nothing fails.
 
     Examples
     --------
     >>> [str(s) for s in resolve_fail_on(None, clearance=0.5)]
-    ['interference', 'clearance']
+    ['duplicate', 'interference', 'clearance']
     >>> [str(s) for s in resolve_fail_on(("touching",), clearance=None)]
-    ['interference', 'touching']
+    ['duplicate', 'interference', 'touching']
     >>> resolve_fail_on((), clearance=0.5)
     ()
     """
     if words is not None and len(words) == 0:
         return ()
-    chosen = {Verdict.INTERFERENCE, *(Verdict(w) for w in words or ())}
+    chosen = {Verdict.DUPLICATE, Verdict.INTERFERENCE, *(Verdict(w) for w in words or ())}
     if clearance is not None:
         chosen.add(Verdict.CLEARANCE)
     return tuple(s for s in FINDING_STATUSES if s in chosen)

@@ -193,7 +193,7 @@ def sample_json(cache_dir):
 def test_sample_assembly_fails_on_the_oversized_bolt(sample_json):
     assert sample_json.exit_code == 1, sample_json.stderr
     doc = json.loads(sample_json.stdout)
-    assert set(doc) == {"results", "parts", "summary"}
+    assert set(doc) == {"results", "groups", "parts", "summary"}
     assert [p["name"] for p in doc["parts"]] == SAMPLES
     clashes = [r for r in doc["results"] if r["status"] == "interference"]
     assert [(r["a"], r["b"]) for r in clashes] == [(OVERSIZED, PLATE)]

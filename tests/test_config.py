@@ -237,7 +237,10 @@ def test_check_applies_the_config_file(tmp_path):
     assert explicit.tolerance == 0.01
     assert [(f.status, f.approval_reason) for f in explicit.findings] == [("interference", "shim")]
 
-    plain = check(str(a))  # one path as a string is one part, not one per character
+    from meshcheck.errors import MeshcheckWarning
+
+    with pytest.warns(MeshcheckWarning, match="nothing to compare"):
+        plain = check(str(a))  # one path as a string is one part, not one per character
     assert [p.name for p in plain.parts] == [str(a)]
 
 

@@ -529,24 +529,44 @@ def test_cache_subfolder_symlinks_are_never_followed(tmp_path):
 # Candidate pairs are budgeted like triangles
 
 
-def test_2000_coincident_cubes_are_refused_with_the_pair_count(tmp_path):
-    # 0.2: 2 million candidate pairs, 5,872 done after 60 s at 1.3 GB
+def test_2000_coincident_cubes_are_one_duplicate_finding(tmp_path):
+    # 0.2: 2 million candidate pairs, 5,872 done after 60 s at 1.3 GB. Copies at one spot are
+    # one duplicate finding (issue 28), decided before any pair is verified.
     items = '<item objectid="1"/>' * 2000
     path = write_3mf(tmp_path / "stack.3mf", items)
     start = time.monotonic()
-    status, _, lines = run([path, "-j", "1"], seconds=180, memory=3 << 30)
-    one_error(lines, status, ExitStatus.INPUT, "1_999_000 candidate part pairs", "2000 parts")
+    status, out, lines = run([path, "-j", "1", "--format", "json"], seconds=180, memory=3 << 30)
+    assert status == ExitStatus.FAILED, lines
+    (finding,) = json.loads(out)["results"]
+    assert finding["status"] == "duplicate" and len(finding["members"]) == 2000
     assert time.monotonic() - start < 120
 
 
-def test_2000_coincident_step_instances_are_refused_not_a_memory_error(tmp_path):
+def test_overlapping_cubes_past_the_pair_budget_are_refused_with_the_count(tmp_path):
+    # Not duplicates (each 0.0005 further along x, 30 times the tolerance), all overlapping the
+    # unit cube:
+    # 1,001 parts make 500,500 candidate pairs, over the budget of 500,000.
+    items = "".join(
+        f'<item objectid="1" transform="1 0 0 0 1 0 0 0 1 {0.0005 * k!r} 0 0"/>'
+        for k in range(1001)
+    )
+    path = write_3mf(tmp_path / "fan.3mf", items)
+    start = time.monotonic()
+    status, _, lines = run([path, "-j", "1"], seconds=180, memory=3 << 30)
+    one_error(lines, status, ExitStatus.INPUT, "500_500 candidate part pairs", "1001 parts")
+    assert time.monotonic() - start < 120
+
+
+def test_2000_coincident_step_instances_are_one_duplicate_not_a_memory_error(tmp_path):
     # 0.2: MemoryError in surfaces_near, exit 4
     step_writer = pytest.importorskip("step_writer")
     path = tmp_path / "stack.step"
     products = {"cube": step_writer.box((0, 0, 0), (1, 1, 1))}
     step_writer.write_step(str(path), products, [("cube", np.eye(4))] * 2000)
-    status, _, lines = run([path, "-j", "1"], seconds=300, memory=3 << 30)
-    one_error(lines, status, ExitStatus.INPUT, "1_999_000 candidate part pairs")
+    status, out, lines = run([path, "-j", "1", "--format", "json"], seconds=300, memory=3 << 30)
+    assert status == ExitStatus.FAILED, lines
+    (finding,) = json.loads(out)["results"]
+    assert finding["status"] == "duplicate" and len(finding["members"]) == 2000
 
 
 # ------------------------------------------------------------------------------------------

@@ -21,6 +21,7 @@ from meshcheck.config import Approval
 from meshcheck.load import Body
 from meshcheck.pipeline import check_bodies
 from meshcheck.reports import html as html_report
+from meshcheck.reports.common import ordered
 from meshcheck.reports.html import render_html
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(__file__)), "scripts"))
@@ -336,7 +337,7 @@ def test_report_in_chromium(checked, browser_page, tmp_path):
     rows = page.locator("#findings tbody tr")
     assert rows.count() == len(result.findings)
     ids = [rows.nth(k).get_attribute("data-id") for k in range(rows.count())]
-    assert ids == [f.id for f in result.findings]
+    assert ids == [f.id for f in ordered(result)]  # most severe first, as every format
     hostile_row = page.locator("#findings tbody tr[data-status=approved]")
     assert hostile_row.count() == 1
     shown = hostile_row.inner_text()

@@ -568,9 +568,13 @@ def test_overlapping_closed_shells_warn_and_suggest_split(tmp_path):
     path = write_stl(tmp_path / "assy.stl", trimesh.util.concatenate([box(), box(at=(0.5, 0, 0))]))
     (body,) = load_bodies([path])  # the loader keeps it; the check warns (verify.shells)
     assert len(body.mesh.faces) == 24
-    with pytest.warns(MeshcheckWarning, match=r"assy\.stl: closed shells 1 and 2 .* --split"):
+    with (
+        pytest.warns(MeshcheckWarning, match="the only part: nothing to compare"),
+        pytest.warns(MeshcheckWarning, match=r"assy\.stl: closed shells 1 and 2 .* --split"),
+    ):
         result = meshcheck.check([path], cache_dir=None)
-    assert result.warnings[-1].startswith(f"{path}: closed shells 1 and 2 of this part overlap")
+    assert result.warnings[-2].startswith(f"{path}: closed shells 1 and 2 of this part overlap")
+    assert result.warnings[-1].endswith("it holds 2 shells: --split checks them against each other")
     split = meshcheck.check([path], split=True, cache_dir=None)  # no warning: the clash is checked
     assert [str(f.status) for f in split.findings] == ["interference"]
 

@@ -88,7 +88,7 @@ def test_finding_id_is_stable_and_order_free():
 
 def test_json_follows_the_contract():
     doc = json.loads(render(make_result(CLASH, TOUCH, APPROVED), "json"))
-    assert set(doc) == {"results", "parts", "summary"}
+    assert set(doc) == {"results", "groups", "parts", "summary"}
     for item in doc["results"]:
         assert {"a", "b", "status", "distance", "depth", "volume", "id"} <= set(item)
         assert item["status"] in ("interference", "touching", "clearance")

@@ -201,6 +201,7 @@ def test_sarif_meets_the_schema():
     assert not errors, errors[0]
     run = doc["runs"][0]
     assert [r["id"] for r in run["tool"]["driver"]["rules"]] == [
+        "duplicate",
         "interference",
         "clearance",
         "touching",
@@ -424,6 +425,6 @@ def test_fail_on_new_from_the_configuration_file(tmp_path):
     config.write_text('fail_on = ["new", "touching"]\n')
     settings = Settings.from_options(config=config)
     assert settings.fail_on_new
-    assert [str(s) for s in settings.fail_on] == ["interference", "touching"]
+    assert [str(s) for s in settings.fail_on] == ["duplicate", "interference", "touching"]
     only_new = Settings.from_options(fail_on=["new"], clearance=0.5)
-    assert [str(s) for s in only_new.fail_on] == ["interference", "clearance"]
+    assert [str(s) for s in only_new.fail_on] == ["duplicate", "interference", "clearance"]

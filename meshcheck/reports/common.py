@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import re
+from dataclasses import dataclass
 
 from ..errors import ExitStatus
 from ..results import FINDING_STATUSES, CheckResult, Finding, Verdict
@@ -122,6 +123,8 @@ def summary_line(result: CheckResult) -> str:
     s = summary(result)
     verdict = "PASS" if s["passed"] else "FAIL"
     parts = [f"{s[Verdict.INTERFERENCE]} interference", f"{s[Verdict.TOUCHING]} touching"]
+    if s[Verdict.DUPLICATE]:
+        parts.insert(0, f"{s[Verdict.DUPLICATE]} duplicate")
     if result.clearance is not None:
         parts.append(f"{s[Verdict.CLEARANCE]} clearance (< {result.clearance:g})")
     if s["approved"]:
@@ -172,12 +175,22 @@ def length(value: float, tolerance: float | None = None) -> str:
     return "0" if text in ("-0", "") else text
 
 
+#: Copies a duplicate finding's one-line description names (the JSON report lists them all).
+_MEMBERS_SHOWN = 4
+
+
 def describe(finding: Finding, tolerance: float | None = None) -> str:
     """One-line measurements of a finding: depth or distance, volume, location.
 
     Lengths are rounded to what ``tolerance`` (the one that decided the finding) can resolve.
     """
     detail = f"distance {length(finding.distance, tolerance)}"
+    if finding.status == Verdict.DUPLICATE:
+        names = [printable(n) for n in finding.members]
+        shown = ", ".join(names[:_MEMBERS_SHOWN])
+        if len(names) > _MEMBERS_SHOWN:
+            shown += f" and {len(names) - _MEMBERS_SHOWN} more"
+        detail = f"{len(names)} copies at the same spot: {shown}"
     if finding.depth is not None:
         detail = f"depth {length(finding.depth, tolerance)}"
     if finding.volume is not None:
@@ -200,12 +213,59 @@ def part_files(result: CheckResult) -> dict[str, str]:
     return {p.name: p.path for p in result.parts}
 
 
-#: Rank of a finding for "most severe first": failing before not, then by status.
-def severity(result: CheckResult, finding: Finding) -> tuple[int, int]:
-    order = {s: k for k, s in enumerate(FINDING_STATUSES)}
-    return (0 if result.is_failing(finding) else 1 if not finding.is_approved else 2), order[
-        finding.status
-    ]
+@dataclass(frozen=True)
+class View:
+    """How much of a result a person-facing report shows; machine formats show everything.
+
+    Attributes
+    ----------
+    width : int
+        Columns the text report fits (the terminal's, or 100 without one).
+    is_quiet : bool
+        Only the findings that fail the run, and the summary.
+    is_touching_listed : bool
+        False leaves touching findings out of the table; the summary still counts them.
+    """
+
+    width: int = 100
+    is_quiet: bool = False
+    is_touching_listed: bool = True
+
+    def shows(self, result: CheckResult, finding: Finding) -> bool:
+        """True when ``finding`` has a row under this view."""
+        if self.is_quiet and not result.is_failing(finding):
+            return False
+        return self.is_touching_listed or finding.status != Verdict.TOUCHING
+
+
+def severity(result: CheckResult, finding: Finding) -> tuple:
+    """Sort key, most severe first: failing findings, then unapproved, then approved; within
+    each, interference (deepest first), clearance (closest first), touching; then by names."""
+    rank = 0 if result.is_failing(finding) else 1 if not finding.is_approved else 2
+    status = FINDING_STATUSES.index(finding.status)
+    if finding.status == Verdict.INTERFERENCE:
+        # unknown depth (surface only) after the measured ones
+        measure = -finding.depth if finding.depth is not None else 0.0
+    elif finding.status == Verdict.CLEARANCE:
+        measure = finding.distance
+    else:
+        measure = 0.0
+    return rank, status, measure, finding.a, finding.b
+
+
+def unlisted(result: CheckResult, view: View, listed: int) -> str | None:
+    """``200 touching findings not listed (--hide-touching)``: what a view left out, or None."""
+    left = len(result.findings) - listed
+    if left <= 0:
+        return None
+    why = "--quiet" if view.is_quiet else "--hide-touching"
+    kind = "finding" if view.is_quiet else "touching finding"
+    return f"{plural(left, kind)} not listed ({why}; counted in the summary)"
+
+
+def ordered(result: CheckResult) -> list[Finding]:
+    """The result's findings most severe first (``severity``): the order of every format."""
+    return sorted(result.findings, key=lambda f: severity(result, f))
 
 
 def finding_title(finding: Finding) -> str:

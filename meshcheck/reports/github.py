@@ -17,13 +17,14 @@ from dataclasses import dataclass
 
 from ..results import CheckResult, Finding, Verdict
 from .common import (
+    View,
     describe,
+    ordered,
     part_file,
     part_files,
     plural,
     printable,
     resolution,
-    severity,
     summary_line,
 )
 
@@ -59,11 +60,11 @@ class _Annotation:
     message: str
 
 
-def render(result: CheckResult, *, inputs: Sequence[str] = ()) -> str:
+def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None = None) -> str:
     # most severe first within each level
     annotations: dict[str, list[_Annotation]] = {name: [] for name in LEVELS}
     paths = part_files(result)
-    for f in sorted(result.findings, key=lambda f: severity(result, f)):
+    for f in ordered(result):
         extra = f" (approved: {f.approval_reason})" if f.is_approved else ""
         state = result.baseline_state(f)
         title = f"meshcheck {f.status} [{f.id}]" + (f" {state}" if state else "")

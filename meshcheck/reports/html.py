@@ -29,8 +29,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..results import CheckResult, Finding, Verdict
-from .common import summary
+from ..results import CheckResult, Finding, Verdict, clash_groups
+from .common import View, ordered, summary
 
 if TYPE_CHECKING:
     from ..load import Body
@@ -48,7 +48,12 @@ DISPLAY_TRIANGLES = 600_000
 _CANDIDATES = 8  # earlier distinct meshes a new mesh is compared with, per topology
 MIN_TRIANGLES = 500  # a mesh this small is never decimated: it would lose its shape
 _QUANT = 32767  # signed 16-bit vertex grid over half of each mesh's largest extent
-_SEVERITY = (INTERFERENCE, CLEARANCE, TOUCHING)  # colour of a part in several findings
+_SEVERITY = (
+    Verdict.DUPLICATE,
+    INTERFERENCE,
+    CLEARANCE,
+    TOUCHING,
+)  # colour of a part in several findings
 
 
 @dataclass
@@ -112,7 +117,7 @@ class _Placed:
     centre: np.ndarray
 
 
-def render(result: CheckResult, *, inputs: Sequence[str] = ()) -> str:
+def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None = None) -> str:
     """The report format's entry (``reports.render``): ``render_html`` of the result's bodies,
     with the installed meshcheck's version."""
     return render_html(
@@ -188,7 +193,7 @@ def render_html(
         p.row["mesh"] = p.mesh
         p.row["matrix"] = _columns(_translate(-origin) @ np.asarray(p.body.transform) @ local)
     findings = []
-    for f in result.findings:
+    for f in ordered(result):
         solid = line = None
         if f.a in by_name and f.b in by_name:
             solid = _add_clash(f, origin, meshes, mesh_rows)
@@ -290,6 +295,7 @@ def _data(result, units, inputs, version, mesh_rows, parts, findings, triangles)
         "meshes": mesh_rows,
         "parts": parts,
         "findings": findings,
+        "groups": [g.to_dict() for g in clash_groups(ordered(result))],
         "triangles": triangles,
     }
 

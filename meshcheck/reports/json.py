@@ -1,4 +1,7 @@
-"""The JSON report: ``results``, ``parts`` and ``summary``; names kept whole, as data.
+"""The JSON report: ``results``, ``groups``, ``parts`` and ``summary``; names kept whole.
+
+``groups`` are the clash groups (``results.clash_groups``): each names its shared part, its
+status and its findings' IDs.
 
 Every finding carries ``baseline`` (``"new"``, ``"active"``, or null without a baseline); with a
 baseline the document also has ``resolved``, the baseline's findings this run no longer has.
@@ -10,20 +13,21 @@ from __future__ import annotations
 import json
 from collections.abc import Sequence
 
-from ..results import CheckResult
-from .common import summary
+from ..results import CheckResult, clash_groups
+from .common import View, ordered, summary
 
 
 def document(result: CheckResult) -> dict:
     """The report as a JSON-ready dict."""
     results = []
-    for f in result.findings:
+    for f in ordered(result):
         entry = f.to_dict()
         entry["baseline"] = result.baseline_state(f)
         entry["failed"] = result.is_failing(f)
         results.append(entry)
     doc = {
         "results": results,
+        "groups": [g.to_dict() for g in clash_groups(ordered(result))],
         "parts": [p.to_dict() for p in result.parts],
         "summary": summary(result),
     }
@@ -32,5 +36,5 @@ def document(result: CheckResult) -> dict:
     return doc
 
 
-def render(result: CheckResult, *, inputs: Sequence[str] = ()) -> str:
+def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None = None) -> str:
     return json.dumps(document(result), indent=2, ensure_ascii=True, allow_nan=False) + "\n"

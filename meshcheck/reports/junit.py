@@ -14,13 +14,13 @@ from collections.abc import Sequence
 from xml.etree import ElementTree as ET
 
 from ..results import CheckResult, Finding
-from .common import describe, part_files, printable, resolution
+from .common import View, describe, ordered, part_files, printable, resolution
 
 
-def render(result: CheckResult, *, inputs: Sequence[str] = ()) -> str:
+def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None = None) -> str:
     """The findings, then the clear pairs (or parts), as one ``testsuite``."""
     paths = part_files(result)
-    cases = [_finding_case(result, f, paths) for f in result.findings]
+    cases = [_finding_case(result, f, paths) for f in ordered(result)]
     cases.extend(_clear_cases(result))
     failures = sum(1 for c in cases if c.find("failure") is not None)
     skipped = sum(1 for c in cases if c.find("skipped") is not None)

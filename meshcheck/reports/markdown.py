@@ -10,8 +10,18 @@ from __future__ import annotations
 import re
 from collections.abc import Sequence
 
-from ..results import CheckResult
-from .common import describe, plural, printable, resolution, summary, summary_line
+from ..results import CheckResult, clash_groups
+from .common import (
+    View,
+    describe,
+    ordered,
+    plural,
+    printable,
+    resolution,
+    summary,
+    summary_line,
+    unlisted,
+)
 
 #: Rows shown in the table; the rest are counted (a step summary is limited to 1 MiB).
 MAX_ROWS = 1000
@@ -36,22 +46,21 @@ def escape(text: str) -> str:
     return _MARKUP.sub(r"\\\1", printable(text)).replace("@", "@&#8203;")
 
 
-def render(result: CheckResult, *, inputs: Sequence[str] = ()) -> str:
+def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None = None) -> str:
     s = summary(result)
     icon = "✅" if s["passed"] else "❌"
     lines = [f"## {icon} meshcheck: {'PASS' if s['passed'] else 'FAIL'}", ""]
     lines.append(summary_line(result))  # names no part: no markup to fear
     lines.append("")
-    if result.findings:
+    view = view or View()
+    rows = [f for f in ordered(result) if view.shows(result, f)]
+    if rows:
         has_baseline = result.baseline is not None
         header = ["", "Status", "Part A", "Part B", "Detail", "ID"]
         if has_baseline:
             header.insert(2, "Baseline")
         lines.append("| " + " | ".join(header) + " |")
         lines.append("|" + "---|" * len(header))
-        rows = sorted(
-            result.findings, key=lambda f: (not result.is_failing(f), f.is_approved, f.a, f.b)
-        )
         for f in rows[:MAX_ROWS]:
             mark = "❌" if result.is_failing(f) else "☑️" if f.is_approved else "⚠️"
             detail = describe(f, resolution(result, f))
@@ -65,8 +74,20 @@ def render(result: CheckResult, *, inputs: Sequence[str] = ()) -> str:
             more = plural(len(rows) - MAX_ROWS, "more finding")
             lines += ["", f"... and {more} (see the report)"]
         lines.append("")
-    else:
+    elif not result.findings:
         lines += ["No findings.", ""]
+    groups = clash_groups(rows)
+    if groups:
+        lines += ["Clash groups:", ""]
+        for g in groups:
+            lines.append(f"- `{g.id}` {escape(g.part)}: {len(g.members)} {g.status}")
+            for f in g.members:
+                other = f.b if f.a == g.part else f.a
+                lines.append(f"  - `{f.id}` {escape(other)}")
+        lines.append("")
+    note = unlisted(result, view, len(rows))
+    if note:
+        lines += [note, ""]
     if result.baseline is not None:
         resolved = result.baseline.resolved(result.findings)
         if resolved:

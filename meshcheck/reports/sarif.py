@@ -16,12 +16,22 @@ from collections.abc import Sequence
 from importlib import metadata
 
 from ..results import FINDING_STATUSES, CheckResult, Finding, Verdict
-from .common import describe, part_file, part_files, printable, resolution, summary_line
+from .common import (
+    View,
+    describe,
+    ordered,
+    part_file,
+    part_files,
+    printable,
+    resolution,
+    summary_line,
+)
 
 SCHEMA = "https://json.schemastore.org/sarif-2.1.0.json"
 FINGERPRINT = "meshcheckFindingId/v1"
 
 _RULES = {
+    Verdict.DUPLICATE: "Copies of one part placed at the same spot: a doubled component.",
     Verdict.INTERFERENCE: "Two parts share volume: they cannot both be built as modelled.",
     Verdict.CLEARANCE: "Two parts are closer than the required clearance.",
     Verdict.TOUCHING: "Two parts touch within the tolerance (contact, usually by design).",
@@ -96,7 +106,7 @@ def document(result: CheckResult) -> dict:
         for status in FINDING_STATUSES
     ]
     paths = part_files(result)
-    results = [_result(result, f, paths) for f in result.findings]
+    results = [_result(result, f, paths) for f in ordered(result)]
     if result.baseline is not None:
         for r in result.baseline.resolved(result.findings):
             results.append(
@@ -139,5 +149,5 @@ def _srcroot() -> str:
     return "file://" + urllib.parse.quote(os.fsencode(os.getcwd())).rstrip("/") + "/"
 
 
-def render(result: CheckResult, *, inputs: Sequence[str] = ()) -> str:
+def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None = None) -> str:
     return json.dumps(document(result), indent=2, ensure_ascii=True, allow_nan=False) + "\n"

@@ -1,4 +1,5 @@
-"""The text report: a table that fits 100 columns, each finding's detail under its row, a summary.
+"""The text report: a table that fits the terminal (100 columns without one), each finding's
+detail under its row, the clash groups (a line per group, its findings below), a summary.
 
 Part names are shown after the directory prefix every part shares (named once above the table),
 cut in the middle when they still do not fit; the JSON report keeps them whole.
@@ -6,11 +7,12 @@ cut in the middle when they still do not fit; the JSON report keeps them whole.
 
 from __future__ import annotations
 
+import shutil
 import textwrap
 from collections.abc import Sequence
 
-from ..results import CheckResult
-from .common import describe, printable, resolution, summary_line
+from ..results import CheckResult, clash_groups
+from .common import View, describe, ordered, printable, resolution, summary_line, unlisted
 
 WIDTH = 100
 _ID_WIDTH = 12
@@ -45,62 +47,184 @@ def shorten(text: str, width: int) -> str:
     return text[:head] + "..." + text[len(text) - (keep - head) :]
 
 
-def render(result: CheckResult, *, inputs: Sequence[str] = ()) -> str:
-    """The table of findings, resolved baseline findings, the configuration file, the summary."""
+def shorten_all(names: Sequence[str], width: int) -> dict[str, str]:
+    """Each of ``names`` cut to ``width``, two different names never cut to the same text.
+
+    A name whose middle cut collides with another's keeps where it differs from those others
+    (the first and the last differing character, their path components whole when they fit),
+    then as much of its file name and start as fits, each cut run shown as ``...``; a name that
+    cannot be told apart within ``width`` is shown whole.
+
+    Examples
+    --------
+    >>> cut = shorten_all(["sub/gearbox/left/cap_screw.stl", "sub/gearbox/right/cap_screw.stl"], 24)
+    >>> cut["sub/gearbox/left/cap_screw.stl"], cut["sub/gearbox/right/cap_screw.stl"]
+    ('...left/cap_...rew.stl', '...right/cap...rew.stl')
+    """
+    distinct = sorted(set(names))
+    out = {n: shorten(n, width) for n in distinct}
+    needed: dict[str, set[int]] = {n: set() for n in distinct}
+    for _ in range(4):  # each round keeps more of the names that still look alike
+        by_text: dict[str, list[str]] = {}
+        for n in distinct:
+            by_text.setdefault(out[n], []).append(n)
+        groups = [g for g in by_text.values() if len(g) > 1]
+        if not groups:
+            return out
+        for group in groups:
+            for n in group:
+                for m in group:
+                    if m != n:
+                        needed[n].update(_differing(n, m))
+                out[n] = _keep(n, width, needed[n])
+    texts = [out[n] for n in distinct]
+    if len(set(texts)) < len(texts):  # still ambiguous: the whole names, never a wrong one
+        seen: dict[str, int] = {}
+        for t in texts:
+            seen[t] = seen.get(t, 0) + 1
+        out = {n: (n if seen[out[n]] > 1 else out[n]) for n in distinct}
+    return out
+
+
+def _differing(a: str, b: str) -> set[int]:
+    """Where ``a`` first differs from ``b`` reading from the start, and reading from the end."""
+    first = 0
+    while first < min(len(a), len(b)) and a[first] == b[first]:
+        first += 1
+    last = 0
+    while last < min(len(a), len(b)) - first and a[-1 - last] == b[-1 - last]:
+        last += 1
+    end = max(len(a) - last, first + 1)
+    return {min(first, len(a) - 1), min(end, len(a)) - 1}
+
+
+def _render(name: str, kept: set[int]) -> str:
+    out, gap = [], False
+    for k, ch in enumerate(name):
+        if k in kept:
+            out.append(ch)
+            gap = False
+        elif not gap:
+            out.append("...")
+            gap = True
+    return "".join(out)
+
+
+def _keep(name: str, width: int, needed: set[int]) -> str:
+    """``name`` within ``width``, the ``needed`` positions kept and every cut run shown as
+    ``...``; then as much of the end (the file name) and the start as fits. The whole name when
+    the needed positions alone do not fit."""
+    if len(name) <= width:
+        return name
+    kept = set(needed)
+    if len(_render(name, kept)) > width:
+        return name
+    whole = set(kept)  # the path components holding the differences, whole, when they fit
+    for k in needed:
+        start, end = name.rfind("/", 0, k) + 1, name.find("/", k)
+        whole.update(range(start, len(name) if end < 0 else end))
+    if len(_render(name, whole)) <= width:
+        kept = whole
+    # the file name first, then outward from the kept runs (fewer cuts), ends before middles
+    base = name.rfind("/") + 1
+    order = sorted(
+        range(len(name)),
+        key=lambda k: (k < base, min(abs(k - j) for j in {*needed, 0, len(name) - 1}), -k),
+    )
+    for k in order:
+        if k not in kept:
+            kept.add(k)
+            if len(_render(name, kept)) > width:
+                kept.discard(k)
+    return _render(name, kept)
+
+
+def terminal_width(*, is_terminal: bool) -> int:
+    """Columns for the text table: the terminal's when stdout is one, else ``WIDTH``."""
+    if not is_terminal:
+        return WIDTH
+    return max(shutil.get_terminal_size((WIDTH, 24)).columns, 40)
+
+
+def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None = None) -> str:
+    """The table of findings (most severe first), resolved baseline findings, the
+    configuration file, the summary; ``view`` picks the rows and the width."""
+    view = view or View()
+    width = view.width
     prefix = shared_prefix([p.name for p in result.parts])
     has_baseline = result.baseline is not None
+    shown = [f for f in ordered(result) if view.shows(result, f)]
 
     def short(name: str) -> str:
         return printable(name[len(prefix) :] if name.startswith(prefix) else name)
 
     rows = []
-    for f in result.findings:
+    for f in shown:
         status = str(f.status) + (" (approved)" if f.is_approved else "")
-        a, b = short(f.a), short(f.b)
         state = result.baseline_state(f) or ""
         detail = describe(f, resolution(result, f))
         if f.is_approved:
             detail += f"  approved: {printable(f.approval_reason)}"
-        rows.append((f.id, status, state, a, b, detail))
+        rows.append((f.id, status, state, short(f.a), short(f.b), detail))
+
+    def wrap(text: str, indent: str) -> list[str]:
+        return textwrap.wrap(text, width, subsequent_indent=indent, break_on_hyphens=False) or [
+            text
+        ]
 
     lines = []
     if prefix and rows:
-        lines.append(f"parts below {printable(prefix)}")
+        lines.extend(wrap(f"parts below {printable(prefix)}", "  "))
     if rows:
-        header = ("ID", "STATUS", "BASELINE", "PART A", "PART B", "")
-        status_width = max(len(r[1]) for r in (header, *rows))
-        state_width = max(len(r[2]) for r in (header, *rows)) if has_baseline else 0
-        fixed = _ID_WIDTH + 2 + status_width + 2 + (state_width + 2 if has_baseline else 0) + 2
-        name_width = max((WIDTH - fixed) // 2, 12)
-        a_width = min(name_width, max(len(r[3]) for r in (header, *rows)))
-        for r in (header, *rows):
-            cells = [r[0].ljust(_ID_WIDTH), r[1].ljust(status_width)]
-            if has_baseline:
-                cells.append(r[2].ljust(state_width))
-            cells += [shorten(r[3], name_width).ljust(a_width), shorten(r[4], name_width)]
-            lines.append("  ".join(cells).rstrip())
-            if r[5]:
-                lines.extend(
-                    textwrap.wrap(
-                        r[5],
-                        WIDTH,
-                        initial_indent=_INDENT,
-                        subsequent_indent=_INDENT,
-                        break_on_hyphens=False,
-                    )
-                )
-    if has_baseline:
-        for r in result.baseline.resolved(result.findings):
-            text = f"resolved {r.id}  {r.status}  {short(r.a)} and {short(r.b)}"
-            lines.extend(textwrap.wrap(text, WIDTH, subsequent_indent=_INDENT))
-    if result.settings.config_path:
+        lines.extend(_table(rows, width=width, has_baseline=has_baseline))
+    for group in clash_groups(shown):
         lines.extend(
-            textwrap.wrap(
-                f"configuration: {printable(result.settings.config_path)}",
-                WIDTH,
-                subsequent_indent="  ",
-                break_on_hyphens=False,
+            wrap(
+                f"group {group.id}  {short(group.part)}: {len(group.members)} {group.status}",
+                _INDENT,
             )
         )
-    lines.append(summary_line(result))
+        for f in group.members:
+            other = f.b if f.a == group.part else f.a
+            lines.extend(wrap(f"  {f.id}  {short(other)}", _INDENT))
+    note = unlisted(result, view, len(shown))
+    if note:
+        lines.extend(wrap(note, "  "))
+    if has_baseline and not view.is_quiet:
+        for r in result.baseline.resolved(result.findings):
+            lines.extend(
+                wrap(f"resolved {r.id}  {r.status}  {short(r.a)} and {short(r.b)}", _INDENT)
+            )
+    if result.settings.config_path:
+        lines.extend(wrap(f"configuration: {printable(result.settings.config_path)}", "  "))
+    lines.extend(wrap(summary_line(result), "  "))
     return "\n".join(lines) + "\n"
+
+
+def _table(rows: list[tuple], *, width: int, has_baseline: bool) -> list[str]:
+    """The header and a line per row, each row's detail wrapped under it, within ``width``."""
+    header = ("ID", "STATUS", "BASELINE", "PART A", "PART B", "")
+    status_width = max(len(r[1]) for r in (header, *rows))
+    state_width = max(len(r[2]) for r in (header, *rows)) if has_baseline else 0
+    fixed = _ID_WIDTH + 2 + status_width + 2 + (state_width + 2 if has_baseline else 0) + 2
+    name_width = max((width - fixed) // 2, 12)
+    cut = shorten_all([r[k] for r in rows for k in (3, 4)], name_width)
+    a_width = min(name_width, max(len(cut.get(r[3], r[3])) for r in (header, *rows)))
+    lines = []
+    for r in (header, *rows):
+        cells = [r[0].ljust(_ID_WIDTH), r[1].ljust(status_width)]
+        if has_baseline:
+            cells.append(r[2].ljust(state_width))
+        cells += [cut.get(r[3], r[3]).ljust(a_width), cut.get(r[4], r[4])]
+        lines.append("  ".join(cells).rstrip())
+        if r[5]:
+            lines.extend(
+                textwrap.wrap(
+                    r[5],
+                    width,
+                    initial_indent=_INDENT,
+                    subsequent_indent=_INDENT,
+                    break_on_hyphens=False,
+                )
+            )
+    return lines

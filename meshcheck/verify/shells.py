@@ -43,6 +43,22 @@ def warn_overlapping_shells(bodies: Sequence[Body]) -> None:
             )
 
 
+def warn_nothing_to_compare(bodies: Sequence[Body], *, is_split: bool) -> None:
+    """Warn when the run has one part: it passes with nothing compared.
+
+    When that part's mesh holds several shells (and ``--split`` was not given), the warning
+    suggests ``--split``, which makes each shell a part of its own.
+    """
+    if len(bodies) != 1:
+        return
+    body = bodies[0]
+    reason = "the only part: nothing to compare it with, so the run passes without a check"
+    shells = 1 if is_split else len(split_shells(body.mesh))
+    if shells > 1:
+        reason += f"; it holds {shells} shells: --split checks them against each other"
+    warn(body.name, reason)
+
+
 def overlapping_shells(mesh: trimesh.Trimesh) -> tuple[int, int] | None:
     """Two closed shells of ``mesh`` that share volume, as 1-based shell numbers, or None.
 

@@ -5,6 +5,7 @@
   "use strict";
   const T = window.MeshcheckThree;
   const STATUS_COLORS = {
+    duplicate: 0xd00060,
     interference: 0xff8c00,
     clearance: 0xc026d3,
     touching: 0x2f7de1,
@@ -12,7 +13,7 @@
   };
   const PART_COLOR = 0x9aa0a6;
   const CLASH_COLOR = 0xe00000;
-  const STATUS_ORDER = ["interference", "clearance", "touching"];
+  const STATUS_ORDER = ["duplicate", "interference", "clearance", "touching"];
 
   // Control characters, bidirectional overrides and the like would hide or reorder text: show
   // them as escapes so a hostile name reads as what it is.
@@ -77,6 +78,7 @@
     const items = [
       [s.parts, "parts"],
       [s.pairs_checked, "pairs checked"],
+      [s.duplicate, "duplicate"],
       [s.interference, "interference"],
       [s.touching, "touching"],
       [s.clearance, "clearance"],
