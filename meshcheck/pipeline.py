@@ -205,6 +205,11 @@ def check_bodies(
     findings = approve(
         findings, settings.approvals, dict(zip([b.name for b in bodies], names, strict=True))
     )
+    return _result(bodies, findings, settings, pairs, piece_count)
+
+
+def _result(bodies, findings, settings, pairs, piece_count) -> CheckResult:
+    """The run's ``CheckResult``: findings, parts, the candidate pairs, the bodies."""
     parts = [
         Part(b.name, b.path, len(b.mesh.faces), b.is_closed, int(piece_count[k]))
         for k, b in enumerate(bodies)

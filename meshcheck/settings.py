@@ -242,12 +242,7 @@ class Settings:
         ConfigError
             An invalid value or configuration file.
         """
-        if isinstance(config, str) and config == "auto":
-            found = find_config()
-            config = None if found is None else found
-        if config is not None and not isinstance(config, Config):
-            config = load_config(config)
-        file = config or Config()
+        file = _config(config)
 
         def pick(value, from_file):
             return from_file if value is None else value
@@ -259,10 +254,7 @@ class Settings:
         fail_on_new = bool(words) and "new" in words
         if fail_on_new:  # "new" narrows which findings fail; the statuses resolve as without it
             words = tuple(w for w in words if w != "new") or None
-        if not use_cache:
-            cache = None
-        else:
-            cache = os.fspath(cache_dir) if cache_dir is not None else default_cache_dir()
+        cache = _cache_dir(cache_dir, use_cache=use_cache)
         return cls(
             clearance=clearance,
             tolerance=pick(tolerance, file.tolerance),
@@ -319,3 +311,19 @@ __all__ = [
     "part_sizes",
     "resolve_fail_on",
 ]
+
+
+def _config(config) -> Config:
+    """The configuration ``from_options`` merges: found (``"auto"``), read, given, or empty."""
+    if isinstance(config, str) and config == "auto":
+        config = find_config()
+    if config is not None and not isinstance(config, Config):
+        config = load_config(config)
+    return config or Config()
+
+
+def _cache_dir(cache_dir, *, use_cache: bool) -> str | None:
+    """The cache directory a run uses: none without the cache, else the given or the default."""
+    if not use_cache:
+        return None
+    return os.fspath(cache_dir) if cache_dir is not None else default_cache_dir()

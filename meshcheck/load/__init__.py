@@ -227,11 +227,17 @@ def load_bodies(
     )
     report = units_.report_unit([r.declared for r in reads], units)
 
+    return _placed_bodies(files, reads, report, units, budget.limits, split=split)
+
+
+def _placed_bodies(files, reads, report, units, limits, *, split: bool) -> list[Body]:
+    """Every file's bodies placed in the report unit, split into shells when asked; a name
+    given twice is refused, and sizes that differ by ``MIXED_UNITS_RATIO`` warn."""
     bodies: list[Body] = []
     seen: set[str] = set()
     sizes = []
     for (path, rel), file_read in zip(files, reads, strict=True):
-        file_bodies, diagonal = _place(path, rel, file_read, report, units, budget.limits)
+        file_bodies, diagonal = _place(path, rel, file_read, report, units, limits)
         sizes.append((diagonal, path))
         for body in file_bodies:
             for part in split_body(body) if split else [body]:

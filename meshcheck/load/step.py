@@ -181,11 +181,7 @@ def read_step(
     >>> asm.unit, [name for name, _, _ in asm.items][:3]
     ('mm', ['bolt_m6', 'bolt_m6_1', 'bolt_m6_2'])
     """
-    if deflection_unit is not None and deflection_unit not in UNIT_METRES:
-        raise ValueError(f"unknown length unit {deflection_unit!r}")
-    for value in (deflection, angular_deflection):
-        if value is not None and not (np.isfinite(value) and value > 0):
-            raise ValueError(f"deflection must be a positive number, not {value!r}")
+    _check_deflections(deflection, deflection_unit, angular_deflection)
     angular = (
         DEFAULT_ANGULAR_DEFLECTION if angular_deflection is None else float(angular_deflection)
     )
@@ -212,6 +208,15 @@ def read_step(
     if declared is None:
         _warn_no_unit(path)
     return assembly
+
+
+def _check_deflections(deflection, deflection_unit, angular_deflection) -> None:
+    """Refuse (ValueError) an unknown unit or a deflection that is not a positive number."""
+    if deflection_unit is not None and deflection_unit not in UNIT_METRES:
+        raise ValueError(f"unknown length unit {deflection_unit!r}")
+    for value in (deflection, angular_deflection):
+        if value is not None and not (np.isfinite(value) and value > 0):
+            raise ValueError(f"deflection must be a positive number, not {value!r}")
 
 
 def brep_solids(path: str) -> dict[str, object]:
