@@ -37,6 +37,7 @@ def main(argv=None) -> None:
 
     from PIL import Image
 
+    import meshcheck
     from meshcheck.load import load_bodies
     from meshcheck.pipeline import check
     from meshcheck.reports import exit_status
@@ -45,7 +46,9 @@ def main(argv=None) -> None:
     os.chdir(ROOT)  # part names as README shows them: sample_meshes/...
     paths = sorted(glob.glob("sample_meshes/*.stl"))
     result = check(paths, jobs=1)
-    text = render_html(result, load_bodies(paths), inputs=paths, version=version("meshcheck"))
+    text = render_html(
+        result, load_bodies(paths), inputs=paths, version=version(meshcheck.DISTRIBUTION)
+    )
     with tempfile.TemporaryDirectory() as tmp:
         page_path = os.path.join(tmp, "report.html")
         with open(page_path, "w", encoding="utf-8") as f:

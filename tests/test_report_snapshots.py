@@ -41,6 +41,7 @@ from importlib import metadata
 
 import pytest
 
+import meshcheck
 from meshcheck.pipeline import check
 from meshcheck.reports import FORMATS, render
 from meshcheck.reports.gltf import export_clashes
@@ -124,7 +125,7 @@ def _outputs(result, paths: list[str], where) -> dict[str, str]:
 
 
 def _version() -> str:
-    return metadata.version("meshcheck")
+    return metadata.version(meshcheck.DISTRIBUTION)
 
 
 def _sarif(text: str) -> str:
