@@ -16,7 +16,7 @@ from .config import Approval
 from .load import Body
 from .load.files import URDF_EXTENSIONS
 from .load.limits import Limits, read_file
-from .load.urdf import MOVABLE, Robot, adjacent_links, parse_robot
+from .load.urdf import MOVABLE, Robot, adjacent_links, parse_robot, with_mimics
 
 #: The reason adjacent links' findings are approved with (MoveIt's "Adjacent").
 ADJACENT = "adjacent"
@@ -245,18 +245,7 @@ def _poses(robot: Robot, base: dict, names: list[str], values: np.ndarray) -> di
     out = {j.name: np.full(count, base[j.name]) for j in robot.movable}
     for k, name in enumerate(names):
         out[name] = values[:, k]
-    by_name = {j.name: j for j in robot.joints}
-
-    def value(name: str) -> np.ndarray:
-        if name not in out:
-            leader, multiplier, offset = by_name[name].mimic
-            out[name] = multiplier * value(leader) + offset
-        return out[name]
-
-    for joint in robot.joints:
-        if joint.type in MOVABLE:
-            value(joint.name)
-    return out
+    return with_mimics(robot, out)  # elementwise on the (E,) arrays
 
 
 def _motions(joint, values: np.ndarray) -> np.ndarray:

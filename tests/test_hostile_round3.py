@@ -8,7 +8,6 @@ id (or closed, for a socket this process holds).
 
 from __future__ import annotations
 
-import base64
 import json
 import os
 import resource
@@ -18,6 +17,7 @@ import time
 
 import numpy as np
 import pytest
+import test_hostile_inputs as hostile_inputs
 from meshes import box
 
 from meshcheck.errors import ExitStatus
@@ -71,31 +71,9 @@ def write_3mf(path, build: str, mesh=None) -> str:
 
 
 def gltf_doc(nodes: list[dict]) -> dict:
-    """A glTF holding one unit cube (float32 positions, metres), placed by ``nodes``."""
-    cube = box()
-    v = np.asarray(cube.vertices, dtype=np.float32)
-    f = np.asarray(cube.faces, dtype=np.uint32)
-    data = v.tobytes() + f.tobytes()
-    return {
-        "asset": {"version": "2.0"},
-        "scene": 0,
-        "scenes": [{"nodes": list(range(len(nodes)))}],
-        "nodes": nodes,
-        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
-        "buffers": [{
-            "byteLength": len(data),
-            "uri": "data:application/octet-stream;base64," + base64.b64encode(data).decode(),
-        }],
-        "bufferViews": [
-            {"buffer": 0, "byteOffset": 0, "byteLength": v.nbytes},
-            {"buffer": 0, "byteOffset": v.nbytes, "byteLength": f.nbytes},
-        ],
-        "accessors": [
-            {"bufferView": 0, "componentType": 5126, "count": len(v), "type": "VEC3",
-             "min": v.min(axis=0).tolist(), "max": v.max(axis=0).tolist()},
-            {"bufferView": 1, "componentType": 5125, "count": f.size, "type": "SCALAR"},
-        ],
-    }  # fmt: skip
+    """A glTF holding one unit cube (float32 positions, metres), placed by ``nodes``, all of
+    them roots of the scene (``test_hostile_inputs.gltf_doc``)."""
+    return hostile_inputs.gltf_doc(nodes, list(range(len(nodes))))
 
 
 def write_gltf(path, nodes: list[dict]) -> str:
