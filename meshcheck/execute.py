@@ -263,93 +263,31 @@ class LocalPool(Executor):
         return tuple(sorted(w.task for w in list(self.workers) if w.task is not None))
 
     def map(self, function, tasks, *, shared=None, progress=None, time_limit=None) -> list:
-        from multiprocessing.connection import wait
-
-        shared = shared or {}
-        results: list = [None] * len(tasks)
         if not tasks:
-            return results
-        pending = deque(sorted(range(len(tasks)), key=lambda i: -tasks[i].size))
+            return []
         wanted = min(self.jobs, len(tasks))
         while len(self.workers) < wanted:
             self.workers.append(_Worker())
-        finished = 0
-
-        def limit_of(index: int) -> float:
-            limit = tasks[index].time_limit if tasks[index].time_limit is not None else time_limit
-            return math.inf if limit is None else limit
-
-        def lost(worker: _Worker) -> None:
-            nonlocal finished
-            worker.kill()
-            self.workers.remove(worker)
-            if not worker.is_ready:
-                self.failed_starts += 1
-                if self.failed_starts >= self.MAX_FAILED_STARTS:
-                    raise ExecutionError(
-                        sys.executable,
-                        "worker processes exit before they start (python -m meshcheck._worker); "
-                        "run with -j 1 to check in this process",
-                    )
-            if worker.task is not None:
-                finished += 1  # results[task] stays None: the caller decides what that means
-                if progress is not None:
-                    progress(finished)
-            if pending and len(self.workers) < wanted:
-                self.workers.append(_Worker())
-
-        def start(worker: _Worker) -> None:
-            index = pending.popleft()
-            task = tasks[index]
-            try:
-                for key in task.needs:
-                    if key not in worker.keys:
-                        worker.send_end.send(("put", key, shared[key]))
-                        worker.keys.add(key)
-                worker.send_end.send(("run", function, task.needs, task.args))
-            except (BrokenPipeError, OSError):  # it died before taking the task: put it back
-                pending.appendleft(index)
-                worker.task = None
-                lost(worker)
-                return
-            worker.task, worker.started = index, time.monotonic()
-
+        run = _LocalRun(self, function, tasks, shared or {}, progress, time_limit, wanted)
         try:
-            for worker in list(self.workers):  # idle workers kept from an earlier map
-                if worker.is_ready and worker.task is None and pending:
-                    start(worker)
-            while finished < len(tasks):
-                timeout = None
-                ends = [w.started + limit_of(w.task) for w in self.workers if w.task is not None]
-                ends = [end for end in ends if end < math.inf]
-                if ends:
-                    timeout = max(0.0, min(ends) - time.monotonic())
-                for worker in wait(list(self.workers), timeout=timeout):
-                    try:
-                        message = worker.receive_end.recv()
-                    except (EOFError, OSError):
-                        lost(worker)
-                        continue
-                    if message[0] == "error":
-                        raise RuntimeError(f"a meshcheck worker failed:\n{message[1]}")
-                    if message[0] == "ok":
-                        results[worker.task] = message[1]
-                        finished += 1
-                        if progress is not None:
-                            progress(finished)
-                    worker.task, worker.is_ready = None, True
-                    if pending:
-                        start(worker)
-                now = time.monotonic()
-                for worker in list(self.workers):
-                    if worker.task is not None and now - worker.started > limit_of(worker.task):
-                        lost(worker)
-                if not self.workers and pending:
-                    self.workers.append(_Worker())
+            return run.results_when_done()
         except BaseException:
             self.close()  # workers in the middle of a task cannot be reused
             raise
-        return results
+
+    def replace_lost(self, worker: _Worker) -> None:
+        """Kill a worker that died or overran and take it out of the pool; give up when
+        workers keep dying before they start."""
+        worker.kill()
+        self.workers.remove(worker)
+        if not worker.is_ready:
+            self.failed_starts += 1
+            if self.failed_starts >= self.MAX_FAILED_STARTS:
+                raise ExecutionError(
+                    sys.executable,
+                    "worker processes exit before they start (python -m meshcheck._worker); "
+                    "run with -j 1 to check in this process",
+                )
 
     def close(self) -> None:
         for worker in self.workers:
@@ -358,6 +296,90 @@ class LocalPool(Executor):
             else:
                 worker.kill()
         self.workers = []
+
+
+class _LocalRun:
+    """One ``LocalPool.map``: the tasks not started yet, the results, and the worker loop."""
+
+    def __init__(self, pool, function, tasks, shared, progress, time_limit, wanted):
+        self.pool, self.function, self.tasks, self.shared = pool, function, tasks, shared
+        self.progress, self.time_limit, self.wanted = progress, time_limit, wanted
+        self.results: list = [None] * len(tasks)
+        self.pending = deque(sorted(range(len(tasks)), key=lambda i: -tasks[i].size))
+        self.finished = 0
+
+    def results_when_done(self) -> list:
+        from multiprocessing.connection import wait
+
+        pool = self.pool
+        for worker in list(pool.workers):  # idle workers kept from an earlier map
+            if worker.is_ready and worker.task is None and self.pending:
+                self.start(worker)
+        while self.finished < len(self.tasks):
+            for worker in wait(list(pool.workers), timeout=self.wait_timeout()):
+                self.receive(worker)
+            now = time.monotonic()
+            for worker in list(pool.workers):
+                if worker.task is not None and now - worker.started > self.limit_of(worker.task):
+                    self.lost(worker)
+            if not pool.workers and self.pending:
+                pool.workers.append(_Worker())
+        return self.results
+
+    def limit_of(self, index: int) -> float:
+        task_limit = self.tasks[index].time_limit
+        limit = task_limit if task_limit is not None else self.time_limit
+        return math.inf if limit is None else limit
+
+    def wait_timeout(self) -> float | None:
+        """Seconds until the first running task's time limit, None without limits."""
+        ends = [w.started + self.limit_of(w.task) for w in self.pool.workers if w.task is not None]
+        ends = [end for end in ends if end < math.inf]
+        return max(0.0, min(ends) - time.monotonic()) if ends else None
+
+    def count_finished(self) -> None:
+        self.finished += 1
+        if self.progress is not None:
+            self.progress(self.finished)
+
+    def receive(self, worker: _Worker) -> None:
+        """Take a worker's message (ready, a result, or its death) and give it the next task."""
+        try:
+            message = worker.receive_end.recv()
+        except (EOFError, OSError):
+            self.lost(worker)
+            return
+        if message[0] == "error":
+            raise RuntimeError(f"a meshcheck worker failed:\n{message[1]}")
+        if message[0] == "ok":
+            self.results[worker.task] = message[1]
+            self.count_finished()
+        worker.task, worker.is_ready = None, True
+        if self.pending:
+            self.start(worker)
+
+    def lost(self, worker: _Worker) -> None:
+        self.pool.replace_lost(worker)
+        if worker.task is not None:
+            self.count_finished()  # results[task] stays None: the caller decides what it means
+        if self.pending and len(self.pool.workers) < self.wanted:
+            self.pool.workers.append(_Worker())
+
+    def start(self, worker: _Worker) -> None:
+        index = self.pending.popleft()
+        task = self.tasks[index]
+        try:
+            for key in task.needs:
+                if key not in worker.keys:
+                    worker.send_end.send(("put", key, self.shared[key]))
+                    worker.keys.add(key)
+            worker.send_end.send(("run", self.function, task.needs, task.args))
+        except (BrokenPipeError, OSError):  # it died before taking the task: put it back
+            self.pending.appendleft(index)
+            worker.task = None
+            self.lost(worker)
+            return
+        worker.task, worker.started = index, time.monotonic()
 
 
 class DaskExecutor(Executor):
@@ -405,90 +427,16 @@ class DaskExecutor(Executor):
     def map(self, function, tasks, *, shared=None, progress=None, time_limit=None) -> list:
         """See ``Executor.map``; ``time_limit`` is not enforced on a cluster (a Dask worker
         cannot be killed per task): a CoACD overrun only takes longer there."""
-        from distributed import wait
-
-        try:
-            from distributed.client import FuturesCancelledError
-        except ImportError:  # older distributed: wait raises the plain CancelledError
-            from concurrent.futures import CancelledError as FuturesCancelledError
-
-        shared = shared or {}
-        results: list = [None] * len(tasks)
         if not tasks:
-            return results
-        attempts = [0] * len(tasks)
-        running: dict = {}  # future -> task index
-        finished = 0
-        healthy_at = time.monotonic()
-
-        def again(index: int, why: str) -> None:
-            """Send a task again (its worker or a value it needs was lost), or give up."""
-            attempts[index] += 1
-            if attempts[index] >= self.ATTEMPTS:
-                raise ExecutionError(
-                    self.address,
-                    f"a task was lost {self.ATTEMPTS} times on the cluster ({why}); "
-                    "workers keep dying?",
-                )
-            for key in tasks[index].needs:
-                old = self._scattered.get(key)
-                if old is not None and old.status != "finished":
-                    del self._scattered[key]
-            running[self._submit(function, tasks[index], shared)] = index
-
+            return []
+        run = _DaskRun(self, function, tasks, shared or {}, progress)
         try:
-            for index in sorted(range(len(tasks)), key=lambda i: -tasks[i].size):
-                running[self._submit(function, tasks[index], shared)] = index
-            while running:
-                try:
-                    with self.client.as_current():
-                        done, _ = wait(list(running), timeout=1.0, return_when="FIRST_COMPLETED")
-                except TimeoutError:
-                    done = set()
-                except FuturesCancelledError:
-                    # The scheduler forgot a task whose input died with a killed worker: sent
-                    # again below (``again``), as any lost task.
-                    done = {f for f in running if f.cancelled()}
-                for future in done:
-                    index = running.pop(future)
-                    if future.status == "finished":
-                        kind, value = future.result()
-                        if kind == "error":
-                            raise RuntimeError(f"a meshcheck task failed on the cluster:\n{value}")
-                        results[index] = value
-                        finished += 1
-                        if progress is not None:
-                            progress(finished)
-                    else:
-                        again(index, _describe(future))
-                if done:
-                    healthy_at = time.monotonic()
-                    continue
-                # Nothing finished for a second: is anything still able to finish?
-                lost = [
-                    f
-                    for f, i in running.items()
-                    if any(
-                        self._scattered.get(k) is None or self._scattered[k].status != "finished"
-                        for k in tasks[i].needs
-                    )
-                ]
-                for future in lost:  # a value it needs died with its only worker
-                    future.cancel()
-                    again(running.pop(future), "a mesh it needs was lost with a worker")
-                if self._is_healthy():
-                    healthy_at = time.monotonic()
-                elif time.monotonic() - healthy_at > self.NO_WORKER_GRACE:
-                    raise ExecutionError(
-                        self.address,
-                        f"no scheduler or no worker for {self.NO_WORKER_GRACE:g} s; giving up",
-                    )
+            return run.results_when_done()
         except (OSError, TimeoutError) as exc:
             raise ExecutionError(self.address, f"lost the Dask scheduler ({exc})") from None
         finally:
-            for future in running:
+            for future in run.running:
                 future.cancel()
-        return results
 
     def _is_healthy(self) -> bool:
         """The client is connected and the cluster has at least one worker."""
@@ -532,6 +480,108 @@ class DaskExecutor(Executor):
 
             with contextlib.suppress(Exception):
                 client.close(timeout=5)
+
+
+class _DaskRun:
+    """One ``DaskExecutor.map``: the futures running, their attempts, and the wait loop."""
+
+    def __init__(self, executor, function, tasks, shared, progress):
+        self.executor, self.function, self.tasks = executor, function, tasks
+        self.shared, self.progress = shared, progress
+        self.results: list = [None] * len(tasks)
+        self.attempts = [0] * len(tasks)
+        self.running: dict = {}  # future -> task index
+        self.finished = 0
+
+    def results_when_done(self) -> list:
+        executor = self.executor
+        for index in sorted(range(len(self.tasks)), key=lambda i: -self.tasks[i].size):
+            self.submit(index)
+        healthy_at = time.monotonic()
+        while self.running:
+            if self.collect(self.wait_a_second()):
+                healthy_at = time.monotonic()
+                continue
+            # Nothing finished for a second: is anything still able to finish?
+            self.resubmit_orphans()
+            if executor._is_healthy():
+                healthy_at = time.monotonic()
+            elif time.monotonic() - healthy_at > executor.NO_WORKER_GRACE:
+                raise ExecutionError(
+                    executor.address,
+                    f"no scheduler or no worker for {executor.NO_WORKER_GRACE:g} s; giving up",
+                )
+        return self.results
+
+    def submit(self, index: int) -> None:
+        future = self.executor._submit(self.function, self.tasks[index], self.shared)
+        self.running[future] = index
+
+    def wait_a_second(self) -> set:
+        """The futures that finished (or were cancelled) within a second."""
+        from distributed import wait
+
+        try:
+            from distributed.client import FuturesCancelledError
+        except ImportError:  # older distributed: wait raises the plain CancelledError
+            from concurrent.futures import CancelledError as FuturesCancelledError
+        try:
+            with self.executor.client.as_current():
+                done, _ = wait(list(self.running), timeout=1.0, return_when="FIRST_COMPLETED")
+        except TimeoutError:
+            return set()
+        except FuturesCancelledError:
+            # The scheduler forgot a task whose input died with a killed worker: sent again
+            # (``again``), as any lost task.
+            return {f for f in self.running if f.cancelled()}
+        return set(done)
+
+    def collect(self, done: set) -> bool:
+        """Store the results of ``done``, send the lost ones again; True if any was done."""
+        for future in done:
+            index = self.running.pop(future)
+            if future.status != "finished":
+                self.again(index, _describe(future))
+                continue
+            kind, value = future.result()
+            if kind == "error":
+                raise RuntimeError(f"a meshcheck task failed on the cluster:\n{value}")
+            self.results[index] = value
+            self.finished += 1
+            if self.progress is not None:
+                self.progress(self.finished)
+        return bool(done)
+
+    def resubmit_orphans(self) -> None:
+        """Send again the tasks a value they need died for, with its only worker."""
+        scattered = self.executor._scattered
+        lost = [
+            f
+            for f, i in self.running.items()
+            if any(
+                scattered.get(k) is None or scattered[k].status != "finished"
+                for k in self.tasks[i].needs
+            )
+        ]
+        for future in lost:
+            future.cancel()
+            self.again(self.running.pop(future), "a mesh it needs was lost with a worker")
+
+    def again(self, index: int, why: str) -> None:
+        """Send a task again (its worker or a value it needs was lost), or give up."""
+        executor = self.executor
+        self.attempts[index] += 1
+        if self.attempts[index] >= executor.ATTEMPTS:
+            raise ExecutionError(
+                executor.address,
+                f"a task was lost {executor.ATTEMPTS} times on the cluster ({why}); "
+                "workers keep dying?",
+            )
+        for key in self.tasks[index].needs:
+            old = executor._scattered.get(key)
+            if old is not None and old.status != "finished":
+                del executor._scattered[key]
+        self.submit(index)
 
 
 def _dask_call(function: str, needed: dict, args: tuple):
