@@ -364,7 +364,7 @@ def coacd_budgets(
         Open meshes always get 0 (CoACD remeshes them into a different surface, slowly).
     """
     geometry = local_geometries(bodies) if geometry is None else geometry
-    digests = [geometry[id(b.mesh)][3] for b in bodies]
+    digests = [geometry[id(b.mesh)].digest for b in bodies]
     triangles = np.array([len(b.mesh.faces) for b in bodies], dtype=np.int64)
     saving = dict.fromkeys(digests, 0.0)
     for i, j in np.asarray(pairs, dtype=np.int64).reshape(-1, 2):

@@ -301,7 +301,7 @@ def decompose_parts(
     budgets = coacd_budgets(
         chosen, rank[pairs], geometry=geometry, forced=float(forced) if forced else None
     )
-    with Progress("decomposing", len({geometry[id(b.mesh)][3] for b in chosen})) as bar:
+    with Progress("decomposing", len({geometry[id(b.mesh)].digest for b in chosen})) as bar:
         piece_lists = decompose_bodies(
             chosen,
             threshold=settings.threshold,

@@ -323,7 +323,7 @@ def test_overrunning_the_time_limit_falls_back_to_the_hull_and_says_so_on_progre
 def test_a_part_whose_pieces_do_not_pay_gets_its_hull_without_coacd(tmp_path, counted):
     mesh = l_bracket()
     body = Body("a", "a", mesh)
-    digest = decompose.local_geometries([body])[id(mesh)][3]
+    digest = decompose.local_geometries([body])[id(mesh)].digest
     (pieces,) = decompose_bodies(
         [body], options=FAST, cache_dir=str(tmp_path), jobs=1, time_limit={digest: 0.0}
     )
@@ -346,13 +346,13 @@ def test_budgets_follow_the_work_the_pieces_would_save():
         bodies += [Body(f"b{k}", f"b{k}", box.copy()) for k in range(neighbours)]
         pairs = np.array([[0, k + 1] for k in range(neighbours)])
         budgets = decompose.coacd_budgets(bodies, pairs)
-        digest = decompose.local_geometries(bodies)[id(plate)][3]
+        digest = decompose.local_geometries(bodies)[id(plate)].digest
         assert (budgets[digest] > 0) == pays
         if pays:
             assert budgets[digest] == pytest.approx(neighbours * per_pair)
         opened = Body("open", "open", trimesh.Trimesh(plate.vertices, plate.faces[1:]))
         budgets = decompose.coacd_budgets([opened, *bodies[1:]], pairs)
-        assert budgets[decompose.local_geometries([opened])[id(opened.mesh)][3]] == 0.0
+        assert budgets[decompose.local_geometries([opened])[id(opened.mesh)].digest] == 0.0
 
 
 def test_progress_reports_every_mesh():

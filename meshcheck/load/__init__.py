@@ -66,7 +66,7 @@ import numpy as np
 from .. import units as units_
 from ..errors import ConfigError, InputError
 from ..mesh import is_closed, split_shells, warn
-from .body import Body, local_geometries, local_geometry, mesh_digest
+from .body import Body, LocalGeometry, local_geometries, local_geometry, mesh_digest
 from .files import (
     SUPPORTED_EXTENSIONS,
     FileRead,
@@ -81,6 +81,7 @@ __all__ = [
     "SUPPORTED_EXTENSIONS",
     "Body",
     "Limits",
+    "LocalGeometry",
     "expand_paths",
     "is_closed",
     "load_bodies",

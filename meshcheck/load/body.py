@@ -5,6 +5,7 @@ from __future__ import annotations
 import functools
 import hashlib
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 import trimesh
@@ -82,11 +83,11 @@ def mesh_digest(mesh: trimesh.Trimesh) -> str:
     return h.hexdigest()
 
 
-def local_geometry(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
-    """A mesh's geometry up to translation, and its digest.
+class LocalGeometry(NamedTuple):
+    """A mesh's geometry up to translation, and its digest (``local_geometry``).
 
-    Returns
-    -------
+    Attributes
+    ----------
     local : (n, 3) float64
         Vertices moved so their lowest corner (per-axis minimum) is the origin.
     faces : (m, 3) int64
@@ -97,19 +98,28 @@ def local_geometry(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
         Hex SHA-256 of ``local`` and ``faces``: equal for copies of a mesh moved by a translation
         that leaves their coordinates' bits alone (instances, exact offsets).
     """
+
+    local: np.ndarray
+    faces: np.ndarray
+    corner: np.ndarray
+    digest: str
+
+
+def local_geometry(mesh) -> LocalGeometry:
+    """A mesh's geometry up to translation, and its digest (see ``LocalGeometry``)."""
     vertices = np.asarray(mesh.vertices, dtype=np.float64)
     faces = np.ascontiguousarray(mesh.faces, dtype=np.int64)
     corner = vertices.min(axis=0) if len(vertices) else np.zeros(3)
     local = np.ascontiguousarray(vertices - corner)
     h = hashlib.sha256(local.tobytes())
     h.update(faces.tobytes())
-    return local, faces, corner, h.hexdigest()
+    return LocalGeometry(local, faces, corner, h.hexdigest())
 
 
-def local_geometries(bodies) -> dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, str]]:
+def local_geometries(bodies) -> dict[int, LocalGeometry]:
     """``local_geometry`` of each distinct mesh of ``bodies``, by ``id(mesh)`` (the bodies keep
     the meshes alive while the dict is used)."""
-    out: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, str]] = {}
+    out: dict[int, LocalGeometry] = {}
     for body in bodies:
         if id(body.mesh) not in out:
             out[id(body.mesh)] = local_geometry(body.mesh)

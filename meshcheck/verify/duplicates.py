@@ -39,12 +39,12 @@ def duplicate_sets(
     """
     by_digest: dict[str, list[int]] = {}
     for k, body in enumerate(bodies):
-        by_digest.setdefault(geometry[id(body.mesh)][3], []).append(k)
+        by_digest.setdefault(geometry[id(body.mesh)].digest, []).append(k)
     sets = []
     for members in by_digest.values():
         if len(members) < 2:
             continue
-        local = geometry[id(bodies[members[0]].mesh)][0]
+        local = geometry[id(bodies[members[0]].mesh)].local
         diagonal = float(np.linalg.norm(local.max(axis=0))) if len(local) else 0.0
         tol = tolerance if tolerance is not None else fraction * diagonal
         features = np.array([_placement(bodies[k], geometry, diagonal) for k in members])
@@ -54,7 +54,7 @@ def duplicate_sets(
 
 def _placement(body, geometry: dict, diagonal: float) -> np.ndarray:
     """The body's local-to-world map as 12 numbers: rotation x diagonal, then the origin."""
-    corner = geometry[id(body.mesh)][2]
+    corner = geometry[id(body.mesh)].corner
     transform = np.asarray(body.transform, dtype=np.float64)
     rotation, shift = transform[:3, :3], transform[:3, 3]
     return np.concatenate([(rotation * diagonal).ravel(), rotation @ corner + shift])
