@@ -364,6 +364,10 @@ def test_report_in_chromium(checked, browser_page, tmp_path):
     page.locator("#filters input[data-status=touching]").uncheck()
     visible = page.locator("#findings tbody tr:visible")
     assert visible.count() == len(result.findings) - 1
+    assert not page.locator("#clash-label .card").is_visible()  # the selected one was touching
+    page.locator("#filters input[data-status=touching]").check()
+    page.wait_for_selector("#clash-label .card", state="visible")  # on the next frame
+    assert label_lines(page) == ["touching", "base.stl", "resting.stl"]
     assert errors == []
 
 

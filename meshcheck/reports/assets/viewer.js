@@ -270,7 +270,7 @@
     const leader = el("span", "leader");
     node.append(leader, el("span", "pin"), card);
     container.append(node);
-    return { node, card, leader, anchor: null, radius: 0 };
+    return { node, card, leader, anchor: null, radius: 0, ids: [] };
   }
 
   function labelText(f, units) {
@@ -284,7 +284,8 @@
 
   function groupText(g, findings) {
     const others = findings.map((f) => (f.a === g.part ? f.b : f.a));
-    return [findings.length + " " + g.status + " \u00b7 group " + g.id, g.part, "with " + others.join(", ")];
+    const more = others.length > 3 ? " and " + (others.length - 3) + " more" : "";
+    return [findings.length + " " + g.status + " \u00b7 group " + g.id, g.part, "with " + others.slice(0, 3).join(", ") + more];
   }
 
   function createView(data, buffer) {
@@ -302,8 +303,47 @@
     const controls = new T.OrbitControls(camera, renderer.domElement);
     controls.enableDamping = false;
     controls.screenSpacePanning = true;
-    const state = { renderer, camera, scene, overlay, controls, container, label, radius };
+    const hidden = new Set(); // findings filtered out of the table and the view
+    const state = { renderer, camera, scene, overlay, controls, container, label, radius, hidden };
 
+    const { render, requestRender } = renderLoop(state);
+
+    const look = (centre, r, direction) => {
+      lookAt(state, centre, r, direction);
+      render(); // at once: the label and the overlay change even when the camera does not
+    };
+    const home = () => look(sceneSphere.center, 0.8 * radius, new T.Vector3(1, -1.2, 0.9));
+    const select = (findings, names, text) => {
+      highlight({ mats, overlay, markers, partObjects }, findings, names);
+      const region = new T.Box3();
+      for (const f of findings) region.union(regionOf(markers.get(f.id), f, partObjects));
+      label.ids = findings.map((f) => f.id);
+      label.anchor = region.getCenter(new T.Vector3());
+      label.radius = region.getBoundingSphere(new T.Sphere()).radius;
+      setLabel(label, text, findings[0]);
+      fit(state, region, names.filter((n) => partObjects.has(n)).map((n) => partObjects.get(n).box), look);
+    };
+    const frame = (f) => select([f], [f.a, f.b], labelText(f, data.units));
+    const frameGroup = (g, findings) => {
+      const names = [g.part, ...findings.map((f) => (f.a === g.part ? f.b : f.a))];
+      return select(findings, names, groupText(g, findings));
+    };
+    const setVisible = (id, isVisible) => {
+      const m = markers.get(id);
+      for (const o of m ? [m.solid, ...m.witness] : []) if (o) o.visible = isVisible;
+      for (const o of overlay.children) if (o.userData.id === id) o.visible = isVisible;
+      if (isVisible) hidden.delete(id);
+      else hidden.add(id);
+      if (label.ids.every((i) => hidden.has(i))) label.node.hidden = true; // as the row goes
+      requestRender();
+    };
+    resize(state);
+    home();
+    return { renderer, camera, scene, controls, frame, frameGroup, home, setVisible, render };
+  }
+
+  // Draw now (render) or on the next animation frame, once however often asked (requestRender).
+  function renderLoop(state) {
     const render = () => drawFrame(state);
     let pending = false;
     const requestRender = () => {
@@ -315,40 +355,12 @@
         });
       }
     };
-    controls.addEventListener("change", requestRender);
+    state.controls.addEventListener("change", requestRender);
     window.addEventListener("resize", () => {
       resize(state);
       requestRender();
     });
-
-    const look = (centre, r, direction) => {
-      lookAt(state, centre, r, direction);
-      render(); // at once: the label and the overlay change even when the camera does not
-    };
-    const home = () => look(sceneSphere.center, 0.8 * radius, new T.Vector3(1, -1.2, 0.9));
-    const select = (findings, names, text) => {
-      highlight({ mats, overlay, markers, partObjects }, findings, names);
-      const region = new T.Box3();
-      for (const f of findings) region.union(regionOf(markers.get(f.id), f, partObjects));
-      label.anchor = region.getCenter(new T.Vector3());
-      label.radius = region.getBoundingSphere(new T.Sphere()).radius;
-      setLabel(label, text, findings[0]);
-      fit(state, region, names.filter((n) => partObjects.has(n)).map((n) => partObjects.get(n).box), look);
-      return { centre: label.anchor.toArray(), box: [region.min.toArray(), region.max.toArray()] };
-    };
-    const frame = (f) => select([f], [f.a, f.b], labelText(f, data.units));
-    const frameGroup = (g, findings) => {
-      const names = [g.part, ...findings.map((f) => (f.a === g.part ? f.b : f.a))];
-      return select(findings, names, groupText(g, findings));
-    };
-    const setVisible = (id, isVisible) => {
-      const m = markers.get(id);
-      for (const o of m ? [m.solid, ...m.witness] : []) if (o) o.visible = isVisible;
-      requestRender();
-    };
-    resize(state);
-    home();
-    return { renderer, camera, scene, controls, frame, frameGroup, home, setVisible, render };
+    return { render, requestRender };
   }
 
   function regionOf(marker, f, partObjects) {
@@ -375,10 +387,15 @@
         const solid = new T.Mesh(m.solid.geometry, f.approved !== null ? mats.strongApproved : mats.clash);
         solid.matrixAutoUpdate = false;
         solid.matrix.copy(m.solid.matrix);
+        solid.userData.id = f.id;
         overlay.add(solid);
       }
       if (m.witness.length) [m.witness[0].material, m.witness[1].material] = [mats.strongWitness, mats.strongWitnessPoints];
-      if (!m.solid && !m.witness.length && !m.region.isEmpty()) overlay.add(boxOutline(m.region, mats.contact));
+      if (!m.solid && !m.witness.length && !m.region.isEmpty()) {
+        const outline = boxOutline(m.region, mats.contact);
+        outline.userData.id = f.id;
+        overlay.add(outline);
+      }
     }
   }
 
@@ -423,7 +440,7 @@
     camera.updateProjectionMatrix();
   }
 
-  function drawFrame({ renderer, camera, scene, overlay, container, label }) {
+  function drawFrame({ renderer, camera, scene, overlay, container, label, hidden }) {
     renderer.clear();
     renderer.render(scene, camera);
     if (overlay.children.some((o) => !o.isLight)) {
@@ -432,8 +449,8 @@
       renderer.render(overlay, camera);
       scene.add(camera);
     }
-    label.node.hidden = label.anchor === null;
-    if (label.anchor === null) return;
+    label.node.hidden = label.anchor === null || label.ids.every((id) => hidden.has(id));
+    if (label.node.hidden) return;
     const p = label.anchor.clone().project(camera);
     const isInView = p.z < 1 && Math.abs(p.x) <= 1 && Math.abs(p.y) <= 1;
     label.node.hidden = !isInView;
