@@ -383,7 +383,8 @@ def open_report(page, path) -> None:
 
 def printable(text: str) -> str:
     """A name as the page shows it: control characters as ``\\uXXXX``."""
-    return re.sub(r"[\x00-\x1f\x7f-\x9f\u2028\u2029]", lambda m: f"\\u{ord(m.group()):04x}", text)
+    unprintable = r"[\x00-\x1f\x7f-\x9f\u200b-\u200f\u2028-\u202e\u2060-\u206f\ufeff]"
+    return re.sub(unprintable, lambda m: f"\\u{ord(m.group()):04x}", text)
 
 
 def project(page, points) -> np.ndarray:
@@ -553,13 +554,16 @@ def test_label_keeps_hostile_names_as_text(checked, browser_page, tmp_path):
     assert errors == []
 
 
+PEG3 = 'peg3<img src=x onerror="window.__pwned=3">\u202e.stl'  # a hostile name in a group
+
+
 def grouped_assembly() -> list[Body]:
     """A plate with three pegs sunk into it (one clash group on the plate) and a loose block."""
     return [
         box("plate.stl", [0, 0, 0], [30, 10, 2]),
         box("peg1.stl", [2, 2, 1.5], [4, 4, 5]),
         box("peg2.stl", [12, 2, 1.0], [14, 4, 5]),
-        box("peg3.stl", [22, 2, 1.8], [24, 4, 5]),
+        box(PEG3, [22, 2, 1.8], [24, 4, 5]),
         box("block.stl", [0, 20, 0], [5, 25, 5]),
     ]
 
@@ -589,7 +593,7 @@ def test_clash_groups_are_listed_and_framed(browser_page, tmp_path):
     assert [members.nth(k).locator(".part").inner_text() for k in range(3)] == [
         "peg2.stl",  # deepest first
         "peg1.stl",
-        "peg3.stl",
+        printable(PEG3),
     ]
     # The group's line frames all its clashes at once, and marks its rows.
     node.locator(".group-head").click()
@@ -605,10 +609,13 @@ def test_clash_groups_are_listed_and_framed(browser_page, tmp_path):
     assert label_lines(page)[0] == f"3 interference \u00b7 group {group['id']}"
     # A member frames that finding alone.
     members.nth(2).click()
-    peg3 = next(f for f in data["findings"] if f["a"] == "peg3.stl")
+    peg3 = next(f for f in data["findings"] if f["a"] == PEG3)
     target = np.array(page.evaluate("window.meshcheckView.controls.target.toArray()"))
     np.testing.assert_allclose(target, solid_box(data, buffer, peg3).mean(axis=0), atol=1e-3)
     assert page.locator("#findings tbody tr.selected").get_attribute("data-id") == peg3["id"]
+    assert label_lines(page)[1:] == [printable(PEG3), "plate.stl"]
+    assert page.locator("img").count() == 0
+    assert page.evaluate("window.__pwned") is None
     assert errors == []
 
 

@@ -141,7 +141,9 @@
   // without it gets a sentence, not an exception from inside the renderer.
   function hasWebGL() {
     try {
-      return Boolean(window.WebGL2RenderingContext && document.createElement("canvas").getContext("webgl2"));
+      const gl = window.WebGL2RenderingContext && document.createElement("canvas").getContext("webgl2");
+      gl?.getExtension("WEBGL_lose_context")?.loseContext(); // a probe: give the context back
+      return Boolean(gl);
     } catch (err) {
       return false;
     }
@@ -317,6 +319,8 @@
       highlight({ mats, overlay, markers, partObjects }, findings, names);
       const region = new T.Box3();
       for (const f of findings) region.union(regionOf(markers.get(f.id), f, partObjects));
+      label.anchor = null;
+      if (region.isEmpty()) return render(); // nothing of it is drawn: the camera stays
       label.ids = findings.map((f) => f.id);
       label.anchor = region.getCenter(new T.Vector3());
       label.radius = region.getBoundingSphere(new T.Sphere()).radius;
