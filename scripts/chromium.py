@@ -34,6 +34,9 @@ FLAGS = (
     "--remote-debugging-port=0",
 )
 
+# No WebGL at all: the 3D APIs off, as on a machine whose GPU is blocklisted.
+WITHOUT_WEBGL = ("--disable-3d-apis", "--disable-webgl", "--disable-webgl2")
+
 
 def find_chromium() -> str | None:
     """Path of the system Chromium, or None."""
@@ -46,12 +49,13 @@ def find_chromium() -> str | None:
 
 @contextlib.contextmanager
 def chromium_page(
-    *, width: int = 1280, height: int = 720, timeout: float = 30.0
+    *, width: int = 1280, height: int = 720, timeout: float = 30.0, flags: tuple[str, ...] = ()
 ) -> Iterator[tuple[object, list[str]]]:
     """A Playwright page in a fresh headless Chromium, and the list its console errors go to.
 
-    The browser runs with a new empty profile in a temporary directory; it is killed (by its
-    process group) on exit, and any Playwright call waits at most ``timeout`` seconds.
+    The browser runs with a new empty profile in a temporary directory and ``FLAGS`` plus
+    ``flags`` (``WITHOUT_WEBGL`` to see a page as a browser without WebGL does); it is killed
+    (by its process group) on exit, and any Playwright call waits at most ``timeout`` seconds.
     """
     from playwright.sync_api import sync_playwright
 
@@ -60,7 +64,7 @@ def chromium_page(
         raise FileNotFoundError("chromium is not installed")
     profile = tempfile.mkdtemp(prefix="meshcheck-chromium-")
     proc = subprocess.Popen(
-        [executable, *FLAGS, f"--user-data-dir={profile}", "about:blank"],
+        [executable, *FLAGS, *flags, f"--user-data-dir={profile}", "about:blank"],
         stdin=subprocess.DEVNULL,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,

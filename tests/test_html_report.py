@@ -320,9 +320,7 @@ def test_report_in_chromium(checked, browser_page, tmp_path):
     path.write_text(render(checked, inputs=[HOSTILE]), encoding="utf-8")
     requests = []
     page.on("request", lambda r: requests.append(r.url))
-    page.goto(path.as_uri())
-    page.wait_for_function("document.body.dataset.ready")
-    assert page.evaluate("document.body.dataset.ready") == "true"
+    open_report(page, path)
     assert page.evaluate("window.__pwned") is None
     assert errors == []
     assert requests == [path.as_uri()]  # the page itself, nothing else: no network
@@ -345,26 +343,339 @@ def test_report_in_chromium(checked, browser_page, tmp_path):
     assert "\\u001b[31m" in shown and "\\u2028" in shown  # control characters shown as escapes
     assert "approved: press fit\\u000a</script>\\u001b[0m" in shown
     inputs = page.locator("#header .inputs li").all_text_contents()  # folded: not "inner"
-    assert inputs == [
-        HOSTILE.replace("\n", "\\u000a").replace("\x1b", "\\u001b").replace("\u2028", "\\u2028")
-    ]
+    assert inputs == [printable(HOSTILE)]
 
-    # Clicking a row frames that finding: the camera moves and looks at its location.
+    # Clicking a row frames that finding: the camera moves and looks at its clashing region.
     before = page.evaluate("window.meshcheckView.camera.position.toArray()")
-    sunk = next(f for f in result.findings if f.b == "sunk.stl")
-    page.locator(f"#findings tbody tr[data-id='{sunk.id}']").click()
+    resting = next(f for f in result.findings if f.b == "resting.stl")
+    page.locator(f"#findings tbody tr[data-id='{resting.id}']").click()
     after = page.evaluate("window.meshcheckView.camera.position.toArray()")
     target = np.array(page.evaluate("window.meshcheckView.controls.target.toArray()"))
     assert np.linalg.norm(np.subtract(after, before)) > 1.0
     data, _ = embedded(path.read_text(encoding="utf-8"))
-    box = np.asarray(next(f for f in data["findings"] if f["id"] == sunk.id)["box"])
+    box = np.asarray(next(f for f in data["findings"] if f["id"] == resting.id)["box"])
     np.testing.assert_allclose(target, box.mean(axis=0), atol=1e-6)
+    assert label_lines(page) == ["touching", "base.stl", "resting.stl"]
+    # A contact has no volume: its location box is outlined in the strong blue, over the parts.
+    pixels = canvas_pixels(page)
+    assert strong(pixels, "blue").sum() > 20
 
     # Filtering by status hides those rows only.
     page.locator("#filters input[data-status=touching]").uncheck()
     visible = page.locator("#findings tbody tr:visible")
     assert visible.count() == len(result.findings) - 1
+    assert not page.locator("#clash-label .card").is_visible()  # the selected one was touching
+    page.locator("#filters input[data-status=touching]").check()
+    page.wait_for_selector("#clash-label .card", state="visible")  # on the next frame
+    assert label_lines(page) == ["touching", "base.stl", "resting.stl"]
     assert errors == []
+
+
+# ---------------------------------------------------------------------------------------------
+# the view frames the clash
+
+
+def open_report(page, path) -> None:
+    page.goto(path.as_uri())
+    page.wait_for_function("document.body.dataset.ready")
+    assert page.evaluate("document.body.dataset.ready") == "true"
+
+
+def printable(text: str) -> str:
+    """A name as the page shows it: control characters as ``\\uXXXX``."""
+    unprintable = r"[\x00-\x1f\x7f-\x9f\u200b-\u200f\u2028-\u202e\u2060-\u206f\ufeff]"
+    return re.sub(unprintable, lambda m: f"\\u{ord(m.group()):04x}", text)
+
+
+def project(page, points) -> np.ndarray:
+    """``points`` (n, 3), scene coordinates, in the view's normalised device coordinates
+    (x and y in [-1, 1] inside the view), from the camera's own matrices."""
+    camera = page.evaluate(
+        "[window.meshcheckView.camera.projectionMatrix.elements,"
+        " window.meshcheckView.camera.matrixWorldInverse.elements]"
+    )
+    projection, view = (np.asarray(m, dtype=np.float64).reshape(4, 4).T for m in camera)
+    p = np.c_[np.asarray(points, dtype=np.float64), np.ones(len(points))] @ (projection @ view).T
+    assert np.all(p[:, 3] > 0), "a point is behind the camera"
+    return p[:, :3] / p[:, 3:]
+
+
+def canvas_pixels(page) -> np.ndarray:
+    """What WebGL drew (the canvas alone: no label or page over it), (h, w, 3) uint8."""
+    from PIL import Image
+
+    url = page.evaluate("window.meshcheckView.renderer.domElement.toDataURL('image/png')")
+    raw = base64.b64decode(url.partition(",")[2])
+    return np.asarray(Image.open(io.BytesIO(raw)).convert("RGB"))
+
+
+def strong(pixels: np.ndarray, hue: str) -> np.ndarray:
+    """Mask of the pixels in one of the view's strong colours (red: an interference's shared
+    solid; magenta: a clearance witness; blue: a contact box), whatever the lighting."""
+    r, g, b = (pixels[..., k].astype(np.int64) for k in range(3))
+    if hue == "red":
+        return (r > 110) & (r > 2.5 * g) & (r > 2.5 * b)
+    if hue == "magenta":
+        return (r > 110) & (b > 110) & (r > 2.5 * g) & (b > 2.5 * g)
+    return (b > 110) & (b > 2 * r) & (b > 1.6 * g)
+
+
+def saturated(pixels: np.ndarray) -> np.ndarray:
+    """Mask of strongly coloured pixels of any hue (the muted part colours are not)."""
+    p = pixels.astype(np.int64)
+    return p.max(axis=2) - p.min(axis=2) > 100
+
+
+def pixel_box(ndc: np.ndarray, shape: tuple[int, ...], margin: int = 3) -> tuple[slice, slice]:
+    """The canvas pixels covering the projected points' 2D box, with a margin."""
+    h, w = shape[:2]
+    x = (ndc[:, 0] + 1) / 2 * w
+    y = (1 - ndc[:, 1]) / 2 * h
+    x0, x1 = max(int(x.min()) - margin, 0), min(int(np.ceil(x.max())) + margin, w)
+    y0, y1 = max(int(y.min()) - margin, 0), min(int(np.ceil(y.max())) + margin, h)
+    return slice(y0, y1), slice(x0, x1)
+
+
+def corners(lower, upper) -> np.ndarray:
+    return np.array(np.meshgrid(*np.c_[lower, upper])).reshape(3, -1).T
+
+
+def label_lines(page) -> list[str]:
+    card = page.locator("#clash-label .card")
+    assert card.is_visible()
+    return card.locator("div").all_text_contents()
+
+
+def solid_box(data, buffer, finding: dict) -> np.ndarray:
+    """The (2, 3) box of a finding's shared solid as the report stores it, scene coordinates."""
+    v = decoded_vertices(data, buffer, finding["solid"], data["meshes"][finding["solid"]]["matrix"])
+    return np.array([v.min(axis=0), v.max(axis=0)])
+
+
+@pytest.mark.slow
+def test_view_frames_the_worst_failing_clash_on_load(checked, browser_page, tmp_path):
+    """On load, the camera fits the deepest failing interference's shared solid (not the whole
+    assembly), a label at it names the parts and the depth, and only the solid is strong red."""
+    page, errors = browser_page
+    result, bodies = checked
+    path = tmp_path / "report.html"
+    path.write_text(render(checked), encoding="utf-8")
+    open_report(page, path)
+    worst = next(f for f in ordered(result) if result.is_failing(f))
+    assert (worst.a, worst.b) == ("base.stl", "sunk.stl")
+    assert page.locator("#findings tbody tr.selected").get_attribute("data-id") == worst.id
+
+    data, buffer = embedded(path.read_text(encoding="utf-8"))
+    row = next(f for f in data["findings"] if f["id"] == worst.id)
+    box = solid_box(data, buffer, row)
+    centre, region = project(page, box.mean(axis=0)[None])[0], project(page, corners(*box))
+    assert np.all(np.abs(centre[:2]) < 0.1)  # the clash is in the middle of the view
+    assert np.all(np.abs(region[:, :2]) < 1)  # all of it is in view
+    assert np.ptp(region[:, :2], axis=0).max() > 0.5  # and it fills much of it
+    scene_origin = 0.5 * (  # the view works relative to the assembly's centre
+        np.min([b.world.bounds[0] for b in bodies], axis=0)
+        + np.max([b.world.bounds[1] for b in bodies], axis=0)
+    )
+    base = next(b for b in bodies if b.name == "base.stl").world.bounds - scene_origin
+    assert np.abs(project(page, corners(*base))[:, :2]).max() > 1  # the assembly is not fitted
+
+    # The label: anchored at the clash, with the parts and the depth, as text.
+    assert label_lines(page) == [
+        f"interference \u00b7 {worst.depth:.6g} mm deep \u00b7 {worst.volume:.6g} mm\u00b3",
+        "base.stl",
+        "sunk.stl",
+    ]
+    pin = page.locator("#clash-label .pin").bounding_box()
+    view = page.locator("#view canvas").bounding_box()
+    pin_ndc = [
+        2 * (pin["x"] + pin["width"] / 2 - view["x"]) / view["width"] - 1,
+        1 - 2 * (pin["y"] + pin["height"] / 2 - view["y"]) / view["height"],
+    ]
+    np.testing.assert_allclose(pin_ndc, centre[:2], atol=0.02)
+
+    # Colour: the shared solid's pixels are strong red, and nothing else in the view is strong.
+    pixels = canvas_pixels(page)
+    rows, cols = pixel_box(region, pixels.shape)
+    red = strong(pixels, "red")
+    inside = red[rows, cols].sum()
+    assert inside > 0.3 * red[rows, cols].size
+    outside_mask = np.ones(red.shape, dtype=bool)
+    outside_mask[rows, cols] = False
+    assert red[outside_mask].sum() < 30
+    assert saturated(pixels)[outside_mask].sum() < 0.002 * outside_mask.sum()
+    page.screenshot(path=str(tmp_path / "framed.png"))
+    assert errors == []
+
+
+@pytest.mark.slow
+def test_selecting_a_clearance_frames_its_witness(checked, browser_page, tmp_path):
+    page, errors = browser_page
+    result, _ = checked
+    path = tmp_path / "report.html"
+    path.write_text(render(checked), encoding="utf-8")
+    open_report(page, path)
+    near = next(f for f in result.findings if f.b == "near.stl")
+    page.locator(f"#findings tbody tr[data-id='{near.id}']").click()
+    data, _ = embedded(path.read_text(encoding="utf-8"))
+    line = np.asarray(next(f for f in data["findings"] if f["id"] == near.id)["line"])
+    ends = project(page, line)
+    assert np.all(np.abs(ends.mean(axis=0)[:2]) < 0.1)
+    assert label_lines(page) == [
+        f"clearance \u00b7 {near.distance:.6g} mm apart",
+        "base.stl",
+        "near.stl",
+    ]
+    # The witness segment between the closest points is drawn in the strong magenta.
+    pixels = canvas_pixels(page)
+    rows, cols = pixel_box(ends, pixels.shape, margin=8)
+    assert strong(pixels, "magenta")[rows, cols].sum() > 20
+    assert errors == []
+
+
+@pytest.mark.slow
+def test_label_keeps_hostile_names_as_text(checked, browser_page, tmp_path):
+    page, errors = browser_page
+    result, _ = checked
+    path = tmp_path / "report.html"
+    path.write_text(render(checked), encoding="utf-8")
+    open_report(page, path)
+    hostile = next(f for f in result.findings if f.b == HOSTILE)
+    page.locator(f"#findings tbody tr[data-id='{hostile.id}']").click()
+    lines = label_lines(page)
+    assert lines[0] == f"interference \u00b7 {hostile.depth:.6g} mm deep \u00b7 " + (
+        f"{hostile.volume:.6g} mm\u00b3 \u00b7 approved"
+    )
+    assert lines[1:] == ["base.stl", printable(HOSTILE)]
+    # Only the label's own elements: the pin, the leader, the card and its three lines.
+    tags = page.evaluate("[...document.querySelectorAll('#clash-label *')].map(e => e.tagName)")
+    assert sorted(tags) == ["DIV", "DIV", "DIV", "DIV", "SPAN", "SPAN"]
+    assert page.locator("img").count() == 0
+    assert page.evaluate("window.__pwned") is None
+    assert errors == []
+
+
+PEG3 = 'peg3<img src=x onerror="window.__pwned=3">\u202e.stl'  # a hostile name in a group
+
+
+def grouped_assembly() -> list[Body]:
+    """A plate with three pegs sunk into it (one clash group on the plate) and a loose block."""
+    return [
+        box("plate.stl", [0, 0, 0], [30, 10, 2]),
+        box("peg1.stl", [2, 2, 1.5], [4, 4, 5]),
+        box("peg2.stl", [12, 2, 1.0], [14, 4, 5]),
+        box(PEG3, [22, 2, 1.8], [24, 4, 5]),
+        box("block.stl", [0, 20, 0], [5, 25, 5]),
+    ]
+
+
+@pytest.mark.slow
+def test_clash_groups_are_listed_and_framed(browser_page, tmp_path):
+    page, errors = browser_page
+    bodies = grouped_assembly()
+    result = check_bodies(bodies, jobs=1)
+    path = tmp_path / "groups.html"
+    path.write_text(render_html(result, bodies, version="0.1.0"), encoding="utf-8")
+    open_report(page, path)
+    data, buffer = embedded(path.read_text(encoding="utf-8"))
+    (group,) = data["groups"]
+    assert group["part"] == "plate.stl" and len(group["findings"]) == 3
+    # On load: the deepest interference (peg2, 1 deep), not the first by name (peg1, 0.5 deep).
+    peg2 = next(f for f in data["findings"] if f["a"] == "peg2.stl")
+    assert page.locator("#findings tbody tr.selected").get_attribute("data-id") == peg2["id"]
+    target = np.array(page.evaluate("window.meshcheckView.controls.target.toArray()"))
+    np.testing.assert_allclose(target, solid_box(data, buffer, peg2).mean(axis=0), atol=1e-3)
+
+    node = page.locator(f"#groups .group[data-id='{group['id']}']")
+    head = node.locator(".group-head").inner_text()
+    assert group["id"] in head and "plate.stl" in head and "3 findings" in head
+    members = node.locator("li")
+    assert [members.nth(k).get_attribute("data-id") for k in range(3)] == group["findings"]
+    assert [members.nth(k).locator(".part").inner_text() for k in range(3)] == [
+        "peg2.stl",  # deepest first
+        "peg1.stl",
+        printable(PEG3),
+    ]
+    # The group's line frames all its clashes at once, and marks its rows.
+    node.locator(".group-head").click()
+    boxes = [solid_box(data, buffer, f) for f in data["findings"]]
+    union = np.array([np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)])
+    target = np.array(page.evaluate("window.meshcheckView.controls.target.toArray()"))
+    np.testing.assert_allclose(target, union.mean(axis=0), atol=1e-3)
+    assert np.abs(project(page, corners(*union))[:, :2]).max() < 1
+    selected = page.locator("#findings tbody tr.selected")
+    assert sorted(selected.nth(k).get_attribute("data-id") for k in range(3)) == sorted(
+        group["findings"]
+    )
+    assert label_lines(page)[0] == f"3 interference \u00b7 group {group['id']}"
+    # A member frames that finding alone.
+    members.nth(2).click()
+    peg3 = next(f for f in data["findings"] if f["a"] == PEG3)
+    target = np.array(page.evaluate("window.meshcheckView.controls.target.toArray()"))
+    np.testing.assert_allclose(target, solid_box(data, buffer, peg3).mean(axis=0), atol=1e-3)
+    assert page.locator("#findings tbody tr.selected").get_attribute("data-id") == peg3["id"]
+    assert label_lines(page)[1:] == [printable(PEG3), "plate.stl"]
+    assert page.locator("img").count() == 0
+    assert page.evaluate("window.__pwned") is None
+    assert errors == []
+
+
+# Runs in its own process: one process drives one Playwright at a time, and the module's
+# browser (with WebGL) is open while these tests run.
+WITHOUT_WEBGL_PROBE = """
+import json, sys
+sys.path.insert(0, sys.argv[1])
+from chromium import WITHOUT_WEBGL, chromium_page
+
+with chromium_page(flags=WITHOUT_WEBGL, timeout=30) as (page, errors):
+    page.goto(sys.argv[2])
+    page.wait_for_function("document.body.dataset.ready")
+    seen = page.evaluate(\"\"\"() => ({
+        ready: document.body.dataset.ready,
+        webgl2: Boolean(document.createElement("canvas").getContext("webgl2")),
+        message: document.querySelector("#view .no-view")?.textContent ?? null,
+        canvases: document.querySelectorAll("#view canvas").length,
+        view: window.meshcheckView,
+        rows: [...document.querySelectorAll("#findings tbody tr")].map((r) => r.dataset.id),
+        selected: document.querySelector("#findings tbody tr.selected")?.dataset.id ?? null,
+    })\"\"\")
+    seen["message_visible"] = page.locator("#view .no-view").is_visible()
+    seen["home_visible"] = page.locator("#home").is_visible()
+    page.locator("#findings tbody tr").nth(2).click()  # selecting still works
+    seen["clicked"] = page.locator("#findings tbody tr.selected").get_attribute("data-id")
+    seen["errors"] = errors
+print(json.dumps(seen))
+"""
+
+
+@pytest.mark.slow
+def test_report_without_webgl_says_so_and_lists_the_findings(checked, browser_page, tmp_path):
+    """Chromium with its 3D APIs off: a sentence where the view was, and the whole table."""
+    import subprocess
+
+    result, _ = checked
+    path = tmp_path / "report.html"
+    path.write_text(render(checked), encoding="utf-8")
+    scripts = os.path.join(os.path.dirname(os.path.dirname(__file__)), "scripts")
+    run = subprocess.run(
+        [sys.executable, "-c", WITHOUT_WEBGL_PROBE, scripts, path.as_uri()],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert run.returncode == 0, run.stderr
+    seen = json.loads(run.stdout)
+    assert seen["ready"] == "true"
+    assert seen["webgl2"] is False
+    assert seen["message"].startswith("WebGL is unavailable in this browser")
+    assert seen["message_visible"] and not seen["home_visible"]
+    assert seen["canvases"] == 0 and seen["view"] is None
+    ordered_ids = [f.id for f in ordered(result)]
+    assert seen["rows"] == ordered_ids  # the findings, all of them, most severe first
+    worst = next(f for f in ordered(result) if result.is_failing(f))
+    assert seen["selected"] == worst.id
+    assert seen["clicked"] == ordered_ids[2]
+    assert seen["errors"] == []
 
 
 @pytest.mark.slow
@@ -374,9 +685,11 @@ def test_report_without_findings_in_chromium(browser_page, tmp_path):
     result = check_bodies(bodies, jobs=1)
     path = tmp_path / "clear.html"
     path.write_text(render_html(result, bodies, version="0.1.0"), encoding="utf-8")
-    page.goto(path.as_uri())
-    page.wait_for_function("document.body.dataset.ready")
+    open_report(page, path)
     assert page.locator("#verdict").inner_text() == "PASS"
     assert "No findings" in page.locator("#findings tbody").inner_text()
     assert pixel_spread(page.locator("#view canvas").screenshot()) > 5
+    assert not page.locator(
+        "#clash-label .card"
+    ).is_visible()  # nothing to frame: the whole assembly
     assert errors == []

@@ -504,10 +504,10 @@ def _document(data_json: str, blob: str) -> str:
 <header id="header"></header>
 <div id="main">
 <div id="view"><button id="home" type="button">Reset view</button><span class="hint">drag: \
-rotate &middot; right-drag: pan &middot; wheel: zoom &middot; click a finding to frame it</span>\
-</div>
+rotate &middot; right-drag: pan &middot; wheel: zoom &middot; click a finding or a group to \
+frame it</span></div>
 <div id="side"><div id="filters"></div><div id="table-wrap"><table id="findings">
-<thead><tr>{headings}</tr></thead><tbody></tbody></table></div></div>
+<thead><tr>{headings}</tr></thead><tbody></tbody></table><div id="groups"></div></div></div>
 </div>
 <script type="application/json" id="meshcheck-data">{data_json}</script>
 <script type="application/octet-stream" id="meshcheck-geometry">{blob}</script>

@@ -11,8 +11,16 @@
     touching: 0x2f7de1,
     approved: 0x1f9d55,
   };
+  // Colour says where the clash is: every part is a muted translucent grey, the selected
+  // finding's two parts muted blue and sand, and only its clashing region is strong (the shared
+  // solid red, the clearance witness magenta, the contact box blue), drawn over the parts.
   const PART_COLOR = 0x9aa0a6;
+  const PART_A_COLOR = 0x6f8fb3;
+  const PART_B_COLOR = 0xb3996f;
   const CLASH_COLOR = 0xe00000;
+  const APPROVED_CLASH_COLOR = 0x1f9d55;
+  const WITNESS_COLOR = 0xd000d0;
+  const CONTACT_COLOR = 0x0050ff;
   const STATUS_ORDER = ["duplicate", "interference", "clearance", "touching"];
 
   // Control characters, bidirectional overrides and the like would hide or reorder text: show
@@ -94,7 +102,7 @@
     const u = data.units;
     const settings = el("p", "settings");
     const pairs = [
-      ["tolerance", fmt(s.tolerance) + " " + u],
+      ["tolerance", s.tolerance === null ? "per pair" : fmt(s.tolerance) + " " + u],
       ["clearance", s.required_clearance === null ? "not set" : fmt(s.required_clearance) + " " + u],
       ["units", u],
       ["fail on", s.fail_on.length ? s.fail_on.join(", ") : "nothing"],
@@ -129,22 +137,20 @@
 
   // ------------------------------------------------------------------------------ 3D view
 
-  function createView(data, buffer) {
-    const container = document.getElementById("view");
-    const renderer = new T.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
-    renderer.setPixelRatio(window.devicePixelRatio || 1);
-    renderer.setClearColor(0xf4f5f7, 1);
-    container.append(renderer.domElement);
+  // three.js draws with WebGL 2 only: ask for a context before building anything, so a browser
+  // without it gets a sentence, not an exception from inside the renderer.
+  function hasWebGL() {
+    try {
+      const gl = window.WebGL2RenderingContext && document.createElement("canvas").getContext("webgl2");
+      gl?.getExtension("WEBGL_lose_context")?.loseContext(); // a probe: give the context back
+      return Boolean(gl);
+    } catch (err) {
+      return false;
+    }
+  }
 
-    const scene = new T.Scene();
-    const camera = new T.PerspectiveCamera(40, 1, 1, 10);
-    scene.add(new T.HemisphereLight(0xffffff, 0x8a8f98, 1.6));
-    const headlight = new T.DirectionalLight(0xffffff, 1.4);
-    headlight.position.set(0.4, 0.6, 1);
-    camera.add(headlight);
-    scene.add(camera);
-
-    const material = (color, opacity) =>
+  function materials() {
+    const lit = (color, opacity) =>
       new T.MeshStandardMaterial({
         color,
         roughness: 0.75,
@@ -155,207 +161,409 @@
         opacity,
         depthWrite: true, // with back-to-front sorting: a part on top of a larger one stays on top
       });
-    const partMaterial = material(PART_COLOR, 0.18);
-    const statusMaterials = {};
-    for (const [status, color] of Object.entries(STATUS_COLORS)) {
-      statusMaterials[status] = material(color, 0.3);
-    }
-    const edgeMaterial = new T.LineBasicMaterial({ color: 0x30343a, transparent: true, opacity: 0.28 });
-    const clashMaterial = material(CLASH_COLOR, 1.0);
+    // Markers drawn over everything (transparent objects are drawn last, in renderOrder), so the
+    // parts around them cannot hide them.
+    const over = (color, opacity) => ({ color, depthTest: false, transparent: true, opacity });
+    return {
+      part: lit(PART_COLOR, 0.18),
+      partA: lit(PART_A_COLOR, 0.35),
+      partB: lit(PART_B_COLOR, 0.35),
+      clash: lit(CLASH_COLOR, 1.0),
+      approvedClash: lit(APPROVED_CLASH_COLOR, 0.35),
+      strongApproved: lit(APPROVED_CLASH_COLOR, 1.0),
+      edge: new T.LineBasicMaterial({ color: 0x30343a, transparent: true, opacity: 0.28 }),
+      witness: new T.LineBasicMaterial(over(STATUS_COLORS.clearance, 0.45)),
+      witnessPoints: new T.PointsMaterial({ ...over(STATUS_COLORS.clearance, 0.45), size: 5, sizeAttenuation: false }),
+      strongWitness: new T.LineBasicMaterial(over(WITNESS_COLOR, 1.0)),
+      strongWitnessPoints: new T.PointsMaterial({ ...over(WITNESS_COLOR, 1.0), size: 9, sizeAttenuation: false }),
+      contact: new T.LineBasicMaterial(over(CONTACT_COLOR, 1.0)),
+    };
+  }
 
-    const geometries = data.meshes.map((m) => buildGeometry(buffer, m));
+  function createStage(container) {
+    const renderer = new T.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+    renderer.setPixelRatio(window.devicePixelRatio || 1);
+    renderer.setClearColor(0xf4f5f7, 1);
+    renderer.autoClear = false; // the overlay is drawn over the scene after clearing depth only
+    container.append(renderer.domElement);
+    const camera = new T.PerspectiveCamera(40, 1, 1, 10);
+    const headlight = new T.DirectionalLight(0xffffff, 1.4);
+    headlight.position.set(0.4, 0.6, 1);
+    camera.add(headlight);
+    const scene = new T.Scene();
+    const overlay = new T.Scene(); // the selected clash region, always in view
+    for (const s of [scene, overlay]) s.add(new T.HemisphereLight(0xffffff, 0x8a8f98, 1.6));
+    scene.add(camera);
+    return { renderer, camera, scene, overlay };
+  }
+
+  function addParts(data, geometries, mats, scene) {
     const edges = [];
     const edgesOf = (k) => (edges[k] ||= new T.EdgesGeometry(geometries[k], 35));
-
-    const parts = new T.Group();
     const partObjects = new Map();
     const sceneBox = new T.Box3();
     for (const part of data.parts) {
       if (part.mesh === null) continue;
       const m = matrixOf(part.matrix);
-      const base = part.status ? statusMaterials[part.status] : partMaterial;
-      const mesh = new T.Mesh(geometries[part.mesh], base);
-      mesh.matrixAutoUpdate = false;
-      mesh.matrix.copy(m);
-      mesh.renderOrder = 1;
-      const lines = new T.LineSegments(edgesOf(part.mesh), edgeMaterial);
-      lines.matrixAutoUpdate = false;
-      lines.matrix.copy(m);
-      lines.renderOrder = 2;
-      parts.add(mesh, lines);
+      const mesh = new T.Mesh(geometries[part.mesh], mats.part);
+      const lines = new T.LineSegments(edgesOf(part.mesh), mats.edge);
+      for (const [o, order] of [[mesh, 1], [lines, 2]]) {
+        o.matrixAutoUpdate = false;
+        o.matrix.copy(m);
+        o.renderOrder = order;
+        scene.add(o);
+      }
       const box = geometries[part.mesh].boundingBox.clone().applyMatrix4(m);
       sceneBox.union(box);
       partObjects.set(part.name, { mesh, box });
     }
-    scene.add(parts);
+    if (sceneBox.isEmpty()) sceneBox.set(new T.Vector3(-1, -1, -1), new T.Vector3(1, 1, 1));
+    return { partObjects, sceneBox };
+  }
 
-    const markers = new Map(); // finding id -> objects drawn for it
+  // What each finding draws in the scene (its shared solid, its witness segment), and the box
+  // its clashing region occupies: the solid's, the witness points', else the location's.
+  function addMarkers(data, geometries, mats, scene) {
+    const markers = new Map();
     for (const f of data.findings) {
-      const objects = [];
+      const marker = { solid: null, witness: [], region: new T.Box3() };
       if (f.solid !== null) {
-        const solid = new T.Mesh(geometries[f.solid], clashMaterial);
-        solid.matrixAutoUpdate = false;
-        solid.matrix.copy(matrixOf(data.meshes[f.solid].matrix));
-        objects.push(solid);
+        const m = matrixOf(data.meshes[f.solid].matrix);
+        marker.solid = new T.Mesh(geometries[f.solid], f.approved !== null ? mats.approvedClash : mats.clash);
+        marker.solid.matrixAutoUpdate = false;
+        marker.solid.matrix.copy(m);
+        marker.region.copy(geometries[f.solid].boundingBox).applyMatrix4(m);
       }
       if (f.line !== null) {
-        // The closest points and the segment between them, drawn over everything (transparent
-        // objects are drawn last, in renderOrder), so the parts around them cannot hide them.
         const g = new T.BufferGeometry();
         g.setAttribute("position", new T.Float32BufferAttribute(f.line.flat(), 3));
-        const color = f.approved !== null ? STATUS_COLORS.approved : STATUS_COLORS[f.status];
-        const over = { color, depthTest: false, transparent: true };
-        objects.push(new T.LineSegments(g, new T.LineBasicMaterial(over)));
-        objects.push(new T.Points(g, new T.PointsMaterial({ ...over, size: 7, sizeAttenuation: false })));
+        marker.witness = [new T.LineSegments(g, mats.witness), new T.Points(g, mats.witnessPoints)];
+        for (const p of f.line) marker.region.expandByPoint(new T.Vector3(...p));
       }
-      for (const o of objects) {
+      if (marker.region.isEmpty() && f.box) {
+        marker.region.set(new T.Vector3(...f.box[0]), new T.Vector3(...f.box[1]));
+      }
+      for (const o of [marker.solid, ...marker.witness]) {
+        if (!o) continue;
         o.renderOrder = 3;
         scene.add(o);
       }
-      markers.set(f.id, objects);
+      markers.set(f.id, marker);
     }
+    return markers;
+  }
 
-    if (sceneBox.isEmpty()) sceneBox.set(new T.Vector3(-1, -1, -1), new T.Vector3(1, 1, 1));
+  // The twelve edges of a box, as line segments.
+  function boxOutline(box, material) {
+    const corner = (i) => [i & 1 ? box.max.x : box.min.x, i & 2 ? box.max.y : box.min.y, i & 4 ? box.max.z : box.min.z];
+    const edges = [0, 1, 2, 3, 4, 5, 6, 7, 0, 2, 1, 3, 4, 6, 5, 7, 0, 4, 1, 5, 2, 6, 3, 7];
+    const g = new T.BufferGeometry();
+    g.setAttribute("position", new T.Float32BufferAttribute(edges.flatMap(corner), 3));
+    return new T.LineSegments(g, material);
+  }
+
+  // The label anchored at the clash: a pin at the anchor and a card beside it. Its text comes
+  // from files, so it is set with textContent (through el) only.
+  function createLabel(container) {
+    const node = el("div", "clash-label");
+    node.id = "clash-label";
+    node.hidden = true;
+    const card = el("div", "card");
+    const leader = el("span", "leader");
+    node.append(leader, el("span", "pin"), card);
+    container.append(node);
+    return { node, card, leader, anchor: null, radius: 0, ids: [] };
+  }
+
+  function labelText(f, units) {
+    let title = f.status;
+    if (f.status === "interference" && f.depth !== null) title += " \u00b7 " + fmt(f.depth) + " " + units + " deep";
+    if (f.status === "interference" && f.volume !== null) title += " \u00b7 " + fmt(f.volume) + " " + units + "\u00b3";
+    if (f.status === "clearance") title += " \u00b7 " + fmt(f.distance) + " " + units + " apart";
+    if (f.approved !== null) title += " \u00b7 approved";
+    return [title, f.a, f.b];
+  }
+
+  function groupText(g, findings) {
+    const others = findings.map((f) => (f.a === g.part ? f.b : f.a));
+    const more = others.length > 3 ? " and " + (others.length - 3) + " more" : "";
+    return [findings.length + " " + g.status + " \u00b7 group " + g.id, g.part, "with " + others.slice(0, 3).join(", ") + more];
+  }
+
+  function createView(data, buffer) {
+    const container = document.getElementById("view");
+    const { renderer, camera, scene, overlay } = createStage(container);
+    const mats = materials();
+    const geometries = data.meshes.map((m) => buildGeometry(buffer, m));
+    const { partObjects, sceneBox } = addParts(data, geometries, mats, scene);
+    const markers = addMarkers(data, geometries, mats, scene);
+    const label = createLabel(container);
     const sceneSphere = sceneBox.getBoundingSphere(new T.Sphere());
     const radius = Math.max(sceneSphere.radius, 1e-9);
     camera.near = radius / 2000;
     camera.far = radius * 200;
-    camera.updateProjectionMatrix();
-
     const controls = new T.OrbitControls(camera, renderer.domElement);
     controls.enableDamping = false;
     controls.screenSpacePanning = true;
+    const hidden = new Set(); // findings filtered out of the table and the view
+    const state = { renderer, camera, scene, overlay, controls, container, label, radius, hidden };
 
-    let pending = false;
-    const render = () => {
-      pending = false;
-      renderer.render(scene, camera);
+    const { render, requestRender } = renderLoop(state);
+
+    const look = (centre, r, direction) => {
+      lookAt(state, centre, r, direction);
+      render(); // at once: the label and the overlay change even when the camera does not
     };
+    const home = () => look(sceneSphere.center, 0.8 * radius, new T.Vector3(1, -1.2, 0.9));
+    const select = (findings, names, text) => {
+      highlight({ mats, overlay, markers, partObjects }, findings, names);
+      const region = new T.Box3();
+      for (const f of findings) region.union(regionOf(markers.get(f.id), f, partObjects));
+      label.anchor = null;
+      if (region.isEmpty()) return render(); // nothing of it is drawn: the camera stays
+      label.ids = findings.map((f) => f.id);
+      label.anchor = region.getCenter(new T.Vector3());
+      label.radius = region.getBoundingSphere(new T.Sphere()).radius;
+      setLabel(label, text, findings[0]);
+      fit(state, region, names.filter((n) => partObjects.has(n)).map((n) => partObjects.get(n).box), look);
+    };
+    const frame = (f) => select([f], [f.a, f.b], labelText(f, data.units));
+    const frameGroup = (g, findings) => {
+      const names = [g.part, ...findings.map((f) => (f.a === g.part ? f.b : f.a))];
+      return select(findings, names, groupText(g, findings));
+    };
+    const setVisible = (id, isVisible) => {
+      const m = markers.get(id);
+      for (const o of m ? [m.solid, ...m.witness] : []) if (o) o.visible = isVisible;
+      for (const o of overlay.children) if (o.userData.id === id) o.visible = isVisible;
+      if (isVisible) hidden.delete(id);
+      else hidden.add(id);
+      if (label.ids.every((i) => hidden.has(i))) label.node.hidden = true; // as the row goes
+      requestRender();
+    };
+    resize(state);
+    home();
+    return { renderer, camera, scene, controls, frame, frameGroup, home, setVisible, render };
+  }
+
+  // Draw now (render) or on the next animation frame, once however often asked (requestRender).
+  function renderLoop(state) {
+    const render = () => drawFrame(state);
+    let pending = false;
     const requestRender = () => {
       if (!pending) {
         pending = true;
-        requestAnimationFrame(render);
+        requestAnimationFrame(() => {
+          pending = false;
+          render();
+        });
       }
     };
-    controls.addEventListener("change", requestRender);
-
-    function resize() {
-      const w = Math.max(container.clientWidth, 1);
-      const h = Math.max(container.clientHeight, 1);
-      renderer.setSize(w, h, false);
-      renderer.domElement.style.width = "100%";
-      renderer.domElement.style.height = "100%";
-      camera.aspect = w / h;
-      camera.updateProjectionMatrix();
-    }
+    state.controls.addEventListener("change", requestRender);
     window.addEventListener("resize", () => {
-      resize();
+      resize(state);
       requestRender();
     });
+    return { render, requestRender };
+  }
 
-    // Look at a sphere along the current viewing direction (or the default one).
-    function lookAt(centre, r, direction) {
-      const dir = direction || camera.position.clone().sub(controls.target);
-      if (dir.lengthSq() === 0) dir.set(1, -1.2, 0.9);
-      dir.normalize();
-      const fov = (camera.fov * Math.PI) / 180;
-      const distance = (1.6 * r) / Math.sin(Math.min(fov, fov * camera.aspect) / 2);
-      controls.target.copy(centre);
-      camera.position.copy(centre).addScaledVector(dir, distance);
-      camera.up.set(0, 0, 1);
-      controls.update();
-      render();
+  function regionOf(marker, f, partObjects) {
+    const box = marker.region.clone();
+    if (box.isEmpty()) for (const n of [f.a, f.b]) if (partObjects.has(n)) box.union(partObjects.get(n).box);
+    return box;
+  }
+
+  // Parts muted, the selection's parts tinted, and only its clashing region strong: its solid
+  // copied into the overlay scene (drawn after the depth is cleared, so no part hides it), its
+  // witness segment in the strong colour, a contact's location box outlined.
+  function highlight({ mats, overlay, markers, partObjects }, findings, names) {
+    for (const { mesh } of partObjects.values()) mesh.material = mats.part;
+    names.forEach((n, k) => {
+      if (partObjects.has(n)) partObjects.get(n).mesh.material = k === 0 ? mats.partA : mats.partB;
+    });
+    for (const m of markers.values()) {
+      if (m.witness.length) [m.witness[0].material, m.witness[1].material] = [mats.witness, mats.witnessPoints];
     }
-
-    function home() {
-      lookAt(sceneSphere.center, 0.8 * radius, new T.Vector3(1, -1.2, 0.9));
-    }
-
-    function frame(finding) {
-      const selected = [finding.a, finding.b].filter((n) => partObjects.has(n));
-      const box = new T.Box3();
-      if (finding.box) {
-        box.set(new T.Vector3(...finding.box[0]), new T.Vector3(...finding.box[1]));
+    overlay.remove(...overlay.children.filter((o) => !o.isLight));
+    for (const f of findings) {
+      const m = markers.get(f.id);
+      if (m.solid) {
+        const solid = new T.Mesh(m.solid.geometry, f.approved !== null ? mats.strongApproved : mats.clash);
+        solid.matrixAutoUpdate = false;
+        solid.matrix.copy(m.solid.matrix);
+        solid.userData.id = f.id;
+        overlay.add(solid);
       }
-      const union = new T.Box3();
-      for (const name of selected) union.union(partObjects.get(name).box);
-      if (box.isEmpty()) box.copy(union);
-      if (box.isEmpty()) return;
-      const sphere = box.getBoundingSphere(new T.Sphere());
-      // A contact point has no size: show it with some of the smaller part around it.
-      let floor = radius * 0.01;
-      for (const name of selected) {
-        const s = partObjects.get(name).box.getBoundingSphere(new T.Sphere());
-        floor = Math.max(floor, Math.min(s.radius * 0.35, radius * 0.2));
+      if (m.witness.length) [m.witness[0].material, m.witness[1].material] = [mats.strongWitness, mats.strongWitnessPoints];
+      if (!m.solid && !m.witness.length && !m.region.isEmpty()) {
+        const outline = boxOutline(m.region, mats.contact);
+        outline.userData.id = f.id;
+        overlay.add(outline);
       }
-      lookAt(sphere.center, Math.max(sphere.radius, floor));
     }
+  }
 
-    function setVisible(id, isVisible) {
-      for (const o of markers.get(id) || []) o.visible = isVisible;
-      requestRender();
+  function setLabel(label, lines, f) {
+    const title = el("div", "title", lines[0]);
+    title.dataset.status = f.approved !== null ? "approved" : f.status;
+    label.card.replaceChildren(title, ...lines.slice(1).map((t) => el("div", "part", t)));
+  }
+
+  // Fit the clashing region: a point of contact has no size, so at least some of the smaller
+  // part around it is shown.
+  function fit(state, region, partBoxes, look) {
+    const sphere = region.getBoundingSphere(new T.Sphere());
+    let floor = state.radius * 0.01;
+    if (partBoxes.length) {
+      const smallest = Math.min(...partBoxes.map((b) => b.getBoundingSphere(new T.Sphere()).radius));
+      floor = Math.max(floor, Math.min(smallest * 0.35, state.radius * 0.2));
     }
+    look(sphere.center, 1.3 * Math.max(sphere.radius, floor)); // with a margin of context
+  }
 
-    resize();
-    home();
-    return { renderer, scene, camera, controls, frame, home, setVisible, render };
+  // Look at a sphere along the current viewing direction (or the given one).
+  function lookAt({ camera, controls }, centre, r, direction) {
+    const dir = direction ? direction.clone() : camera.position.clone().sub(controls.target);
+    if (dir.lengthSq() === 0) dir.set(1, -1.2, 0.9);
+    dir.normalize();
+    const fov = (camera.fov * Math.PI) / 180;
+    const distance = (1.6 * r) / Math.sin(Math.min(fov, fov * camera.aspect) / 2);
+    controls.target.copy(centre);
+    camera.position.copy(centre).addScaledVector(dir, distance);
+    camera.up.set(0, 0, 1);
+    controls.update();
+  }
+
+  function resize({ renderer, camera, container }) {
+    const w = Math.max(container.clientWidth, 1);
+    const h = Math.max(container.clientHeight, 1);
+    renderer.setSize(w, h, false);
+    renderer.domElement.style.width = "100%";
+    renderer.domElement.style.height = "100%";
+    camera.aspect = w / h;
+    camera.updateProjectionMatrix();
+  }
+
+  function drawFrame({ renderer, camera, scene, overlay, container, label, hidden }) {
+    renderer.clear();
+    renderer.render(scene, camera);
+    if (overlay.children.some((o) => !o.isLight)) {
+      renderer.clearDepth();
+      overlay.add(camera); // its headlight lights the overlay too
+      renderer.render(overlay, camera);
+      scene.add(camera);
+    }
+    label.node.hidden = label.anchor === null || label.ids.every((id) => hidden.has(id));
+    if (label.node.hidden) return;
+    const p = label.anchor.clone().project(camera);
+    const isInView = p.z < 1 && Math.abs(p.x) <= 1 && Math.abs(p.y) <= 1;
+    label.node.hidden = !isInView;
+    const h = container.clientHeight;
+    const x = ((p.x + 1) / 2) * container.clientWidth;
+    const y = ((1 - p.y) / 2) * h;
+    label.node.style.transform = "translate(" + x.toFixed(1) + "px, " + y.toFixed(1) + "px)";
+    // The card sits up and to the right, just outside the region's outline, on a leader line.
+    const distance = Math.max(camera.position.distanceTo(label.anchor), 1e-12);
+    const half = Math.tan((camera.fov * Math.PI) / 360);
+    const reach = Math.min(Math.max((0.75 * label.radius * h) / (2 * distance * half), 12), h / 3);
+    placeCard(label, reach, x, y, container.clientWidth, h);
+  }
+
+  // Up and to the right of the pin (or the side with more room), kept inside the view, with a
+  // leader line from the pin to the card's nearest point.
+  function placeCard({ card, leader }, reach, x, y, w, h) {
+    const [cw, ch] = [card.offsetWidth, card.offsetHeight];
+    const clamp = (v, lo, hi) => Math.max(lo, Math.min(v, hi));
+    const right = x + reach + cw <= w || x < w / 2;
+    const up = y - reach - ch >= 0 || y > h / 2;
+    const left = clamp(x + (right ? reach : -reach - cw), 4, w - cw - 4) - x;
+    const top = clamp(y + (up ? -reach - ch : reach), 4, h - ch - 4) - y;
+    card.style.left = left.toFixed(1) + "px";
+    card.style.top = top.toFixed(1) + "px";
+    const nx = clamp(0, left, left + cw);
+    const ny = clamp(0, top, top + ch);
+    leader.style.width = Math.hypot(nx, ny).toFixed(1) + "px";
+    leader.style.transform = "rotate(" + ((Math.atan2(ny, nx) * 180) / Math.PI).toFixed(2) + "deg)";
   }
 
   // ------------------------------------------------------------------------------ table
 
   function buildTable(data, view) {
     const tbody = document.querySelector("#findings tbody");
-    const rows = [];
-    const units = data.units;
+    const groupOf = new Map();
+    for (const g of data.groups) for (const id of g.findings) groupOf.set(id, g);
+    const rows = new Map(); // finding id -> row
+    const mark = (ids) => {
+      for (const r of rows.values()) r.classList.toggle("selected", ids.includes(r.dataset.id));
+    };
+    const selectFinding = (f) => {
+      mark([f.id]);
+      rows.get(f.id).scrollIntoView({ block: "nearest" });
+      if (view) view.frame(f);
+    };
     for (const f of data.findings) {
-      const tr = el("tr");
-      const key = f.approved !== null ? "approved" : f.status;
-      tr.dataset.status = key;
-      tr.dataset.id = f.id;
-      tr.tabIndex = 0;
-      if (f.fails) tr.classList.add("fails");
-      const status = el("td");
-      status.append(el("span", "badge " + f.status, f.status));
-      if (f.approved !== null) status.append(" ", el("span", "badge approved", "approved"));
-      if (f.fails) status.append(" ", el("span", "fails-mark", "fails"));
-      if (f.surface_only) status.append(" ", el("span", "note", "surface only"));
-      const parts = el("td", "part");
-      parts.append(el("div", null, f.a), el("div", null, f.b));
-      tr.append(
-        el("td", "id", f.id),
-        status,
-        parts,
-        el("td", "num", f.depth === null ? "\u2014" : fmt(f.depth) + " " + units),
-        el("td", "num", f.volume === null ? "\u2014" : fmt(f.volume) + " " + units + "\u00b3"),
-        el("td", "num", fmt(f.distance) + " " + units),
-        el("td", "approved", f.approved === null ? "" : "approved: " + f.approved),
-      );
-      const select = () => {
-        for (const r of rows) r.classList.remove("selected");
-        tr.classList.add("selected");
-        if (view) view.frame(f);
-      };
-      tr.addEventListener("click", select);
-      tr.addEventListener("keydown", (e) => {
-        if (e.key === "Enter" || e.key === " ") {
-          e.preventDefault();
-          select();
-        }
-      });
-      rows.push(tr);
+      const tr = findingRow(f, data.units, groupOf.get(f.id));
+      activate(tr, () => selectFinding(f));
+      rows.set(f.id, tr);
       tbody.append(tr);
     }
     if (!data.findings.some((f) => f.approved !== null)) {
       document.getElementById("findings").classList.add("no-approved");
     }
-    if (!rows.length) {
+    if (!rows.size) {
       const tr = el("tr");
       const td = el("td", "empty", "No findings: every pair checked is clear.");
       td.colSpan = 7;
       tr.append(td);
       tbody.append(tr);
     }
+    buildFilters([...rows.values()], view);
+    const byId = new Map(data.findings.map((f) => [f.id, f]));
+    buildGroups(data.groups, byId, selectFinding, (g, members) => {
+      mark(g.findings);
+      if (view) view.frameGroup(g, members);
+    });
+    return selectFinding;
+  }
 
+  // Click, Enter or Space selects.
+  function activate(node, select) {
+    node.tabIndex = 0;
+    node.addEventListener("click", select);
+    node.addEventListener("keydown", (e) => {
+      if (e.key === "Enter" || e.key === " ") {
+        e.preventDefault();
+        select();
+      }
+    });
+  }
+
+  function findingRow(f, units, group) {
+    const tr = el("tr");
+    tr.dataset.status = f.approved !== null ? "approved" : f.status;
+    tr.dataset.id = f.id;
+    if (f.fails) tr.classList.add("fails");
+    const status = el("td");
+    status.append(el("span", "badge " + f.status, f.status));
+    if (f.approved !== null) status.append(" ", el("span", "badge approved", "approved"));
+    if (f.fails) status.append(" ", el("span", "fails-mark", "fails"));
+    if (f.surface_only) status.append(" ", el("span", "note", "surface only"));
+    if (group) status.append(" ", el("span", "note group-ref", "group " + group.id));
+    const parts = el("td", "part");
+    parts.append(el("div", null, f.a), el("div", null, f.b));
+    tr.append(
+      el("td", "id", f.id),
+      status,
+      parts,
+      el("td", "num", f.depth === null ? "\u2014" : fmt(f.depth) + " " + units),
+      el("td", "num", f.volume === null ? "\u2014" : fmt(f.volume) + " " + units + "\u00b3"),
+      el("td", "num", fmt(f.distance) + " " + units),
+      el("td", "approved", f.approved === null ? "" : "approved: " + f.approved),
+    );
+    return tr;
+  }
+
+  function buildFilters(rows, view) {
     const filters = document.getElementById("filters");
     const counts = {};
     for (const r of rows) counts[r.dataset.status] = (counts[r.dataset.status] || 0) + 1;
@@ -377,21 +585,60 @@
     }
   }
 
+  // Clash groups (findings of one status sharing a part): a line per group, its members below;
+  // the line frames the whole group, a member frames that finding.
+  function buildGroups(groups, byId, selectFinding, selectGroup) {
+    const box = document.getElementById("groups");
+    if (!groups.length) return;
+    box.append(el("h2", null, "Clash groups"));
+    for (const g of groups) {
+      const members = g.findings.map((id) => byId.get(id));
+      const node = el("div", "group");
+      node.dataset.id = g.id;
+      const head = el("div", "group-head");
+      head.append(el("span", "id", g.id), " ", el("span", "badge " + g.status, g.status), " ");
+      head.append(el("span", "part", g.part), " " + members.length + " findings");
+      activate(head, () => selectGroup(g, members));
+      const list = el("ul");
+      for (const f of members) {
+        const item = el("li");
+        item.dataset.id = f.id;
+        item.append(el("span", "id", f.id), " ", el("span", "part", f.a === g.part ? f.b : f.a));
+        activate(item, () => selectFinding(f));
+        list.append(item);
+      }
+      node.append(head, list);
+      box.append(node);
+    }
+  }
+
   // ------------------------------------------------------------------------------ start
+
+  function showNoView(text) {
+    const view = document.getElementById("view");
+    view.classList.add("unavailable");
+    view.append(el("p", "no-view", text));
+  }
 
   async function main() {
     const data = JSON.parse(document.getElementById("meshcheck-data").textContent);
     buildHeader(data);
     let view = null;
-    try {
-      const buffer = await decodeGeometry(document.getElementById("meshcheck-geometry").textContent);
-      view = createView(data, buffer);
-      document.getElementById("home").addEventListener("click", () => view.home());
-    } catch (err) {
-      const msg = el("p", "no-view", "The 3D view is not available in this browser: " + err.message);
-      document.getElementById("view").append(msg);
+    if (!hasWebGL()) {
+      showNoView("WebGL is unavailable in this browser, so the 3D view cannot be shown. The findings are listed in the table.");
+    } else {
+      try {
+        const buffer = await decodeGeometry(document.getElementById("meshcheck-geometry").textContent);
+        view = createView(data, buffer);
+        document.getElementById("home").addEventListener("click", () => view.home());
+      } catch (err) {
+        showNoView("The 3D view could not be started in this browser (" + err.message + "). The findings are listed in the table.");
+      }
     }
-    buildTable(data, view);
+    const selectFinding = buildTable(data, view);
+    // Frame the worst failing finding (the table's order is most severe first).
+    const worst = data.findings.find((f) => f.fails);
+    if (worst) selectFinding(worst);
     window.meshcheckView = view && {
       camera: view.camera,
       controls: view.controls,
