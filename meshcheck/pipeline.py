@@ -118,6 +118,7 @@ def check(
                     paths,
                     split=settings.split,
                     units=settings.units,
+                    file_units=settings.file_units,
                     limits=limits,
                     cache_dir=settings.cache_dir,
                     step_deflection=settings.step_deflection,
