@@ -212,6 +212,7 @@ def test_one_bracket_clipping_many_bolts_is_one_group_in_every_human_and_json_fo
     assert doc["groups"] == [
         {
             "id": group.id,
+            "kind": "part",
             "part": "bracket.stl",
             "status": "interference",
             "findings": [f.id for f in group.members],

@@ -1,0 +1,123 @@
+"""Patterns: findings between copies of one pair of geometries at one relative placement.
+
+Forty brackets, each with its bolt clipping it the same way, are one design error repeated forty
+times (IfcClash's smart groups, Navisworks' grouping). Two findings belong to one pattern when
+their parts have the same geometries (``local_geometry``'s digest: the mesh content up to
+translation) and the second part sits in the first's frame at the same relative placement, within
+the touching tolerance: every vertex of it lies within the tolerance of where it lies in the
+other finding. The verify stage decided each finding alone; this stage only labels them
+(``Finding.pattern``), and ``results.clash_groups`` groups the labels.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..results import GROUPED_STATUSES, Finding
+from .duplicates import clusters
+
+
+def with_patterns(
+    bodies: Sequence,
+    findings: Sequence[Finding],
+    geometry: dict,
+    *,
+    tolerance: float | None,
+) -> list[Finding]:
+    """``findings`` with ``pattern`` set on the interference and clearance findings that repeat.
+
+    Parameters
+    ----------
+    bodies : sequence of load.Body
+    findings : sequence of Finding
+    geometry : dict
+        ``load.local_geometries(bodies)``.
+    tolerance : float or None
+        The user's touching tolerance, model units; None: the smallest tolerance that decided a
+        finding of the candidate pattern (``Finding.tolerance``).
+
+    Returns
+    -------
+    list of Finding
+        In the same order; a finding of a pattern of two or more gets the pattern's 12-hex-digit
+        key (hashing the two geometries and one member's relative placement), others keep ``""``.
+    """
+    index = {b.name: k for k, b in enumerate(bodies)}
+    by_pair: dict[tuple[str, str, str], list[int]] = {}
+    for n, f in enumerate(findings):
+        if f.status in GROUPED_STATUSES:
+            a, b = (geometry[id(bodies[index[name]].mesh)][3] for name in (f.a, f.b))
+            by_pair.setdefault((str(f.status), *sorted((a, b))), []).append(n)
+    keys = [""] * len(findings)
+    for (_, first, second), members in sorted(by_pair.items()):
+        if len(members) < 2:
+            continue
+        points, owner = [], []
+        for n in members:
+            for point in _relative(bodies, index, geometry, findings[n], first, second):
+                points.append(point)
+                owner.append(n)
+        tol = tolerance
+        if tol is None:
+            tol = min((findings[n].tolerance or 0.0) for n in members)
+        for rows in _joined(np.array(points), np.array(owner), tol):
+            representative = min(points[k].tobytes() for k in rows)
+            h = hashlib.sha256(f"pattern\0{first}\0{second}\0".encode())
+            h.update(representative)
+            key = h.hexdigest()[:12]
+            for k in rows:
+                keys[owner[k]] = key
+    return [
+        dataclasses.replace(f, pattern=key) if key else f
+        for f, key in zip(findings, keys, strict=True)
+    ]
+
+
+def _relative(bodies, index, geometry, finding: Finding, first: str, second: str):
+    """Where the part of geometry ``second`` sits in the frame of the part of geometry
+    ``first``, as 12 numbers in model units (the rotation times the second geometry's size,
+    then the origin); both ways round when the two geometries are one."""
+    parts = [bodies[index[finding.a]], bodies[index[finding.b]]]
+    if geometry[id(parts[0].mesh)][3] != first:
+        parts.reverse()
+    frames = []
+    for body in parts:
+        local, _, corner, _ = geometry[id(body.mesh)]
+        frame = np.asarray(body.transform, dtype=np.float64).copy()
+        frame[:3, 3] = frame[:3, :3] @ corner + frame[:3, 3]  # the local geometry's frame
+        size = float(np.linalg.norm(local.max(axis=0))) if len(local) else 0.0
+        frames.append((frame, size))
+    orders = [(0, 1), (1, 0)] if first == second else [(0, 1)]
+    out = []
+    for i, j in orders:
+        (frame_i, _), (frame_j, size_j) = frames[i], frames[j]
+        scale = abs(float(np.linalg.det(frame_i[:3, :3]))) ** (1.0 / 3.0)
+        relative = np.linalg.solve(frame_i, frame_j)
+        out.append(scale * np.concatenate([relative[:3, :3].ravel() * size_j, relative[:3, 3]]))
+    return out
+
+
+def _joined(points: np.ndarray, owner: np.ndarray, tol: float) -> list[list[int]]:
+    """Rows of ``points`` in groups of two or more findings: points within the radius are
+    linked (``duplicates.clusters``), and so are the points of one finding."""
+    linked = clusters(points, tol)
+    parent = {int(n): int(n) for n in owner}
+
+    def root(n: int) -> int:
+        while parent[n] != n:
+            parent[n] = parent[parent[n]]
+            n = parent[n]
+        return n
+
+    for rows in linked:
+        for k in rows[1:]:
+            a, b = root(int(owner[rows[0]])), root(int(owner[k]))
+            parent[max(a, b)] = min(a, b)
+    groups: dict[int, list[int]] = {}
+    for k, n in enumerate(owner):
+        groups.setdefault(root(int(n)), []).append(k)
+    return [rows for rows in groups.values() if len({int(owner[k]) for k in rows}) > 1]
