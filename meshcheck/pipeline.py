@@ -80,6 +80,7 @@ def check(
     **options
         Keyword options of ``Settings.from_options``: ``clearance``, ``tolerance``,
         ``threshold``, ``fail_on``, ``approvals``, ``groups``, ``split``, ``units``,
+        ``file_units`` (``{"engine.glb": "mm"}``: a file's unit, whatever it declares),
         ``cache_dir`` (default: the user's cache directory, as on the command line),
         ``use_cache``, ``jobs``.
 

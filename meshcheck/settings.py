@@ -251,12 +251,7 @@ class Settings:
             Keyword options of ``motion.motion_from_options`` (``pose``, ``package_paths``,
             ``adjacent``, ``sweep``, ``resolution``), merged with the file's.
         file_units : mapping or sequence, optional
-            Units of input files, whatever they declare: ``{"engine.glb": "mm"}``, ``FILE=UNIT``
-            strings or ``units.UnitRule``s; paths and globs relative to the working directory.
-            They come after the configuration file's ``[units]`` rules (the last rule naming a
-            file wins).
-        quiet, hide_touching : bool, optional
-            What the text and Markdown reports list; default the file's, else False.
+            Input files' units (``checked_file_units``), after the file's ``[units]``.
 
         Raises
         ------
@@ -264,17 +259,9 @@ class Settings:
             An invalid value or configuration file.
         """
         file = _config(config)
-
-        def pick(value, from_file):
-            return from_file if value is None else value
-
+        pick = _pick
         clearance = pick(clearance, file.clearance)
-        words = parse_fail_on(fail_on) if fail_on is not None else None
-        if words is None and file.fail_on is not None:
-            words = parse_fail_on(file.fail_on, path=file.path)
-        fail_on_new = bool(words) and "new" in words
-        if fail_on_new:  # "new" narrows which findings fail; the statuses resolve as without it
-            words = tuple(w for w in words if w != "new") or None
+        words, fail_on_new = _fail_on_words(fail_on, file)
         cache = _cache_dir(cache_dir, use_cache=use_cache)
         return cls(
             clearance=clearance,
@@ -337,9 +324,26 @@ __all__ = [
 ]
 
 
+def _pick(value, from_file):
+    """An option's value, or the configuration file's when the option is None."""
+    return from_file if value is None else value
+
+
+def _fail_on_words(fail_on, file: Config) -> tuple[tuple[str, ...] | None, bool]:
+    """The ``--fail-on`` words (else the file's) without ``new``, and whether ``new`` was one."""
+    words = parse_fail_on(fail_on) if fail_on is not None else None
+    if words is None and file.fail_on is not None:
+        words = parse_fail_on(file.fail_on, path=file.path)
+    fail_on_new = bool(words) and "new" in words
+    if fail_on_new:  # "new" narrows which findings fail; the statuses resolve as without it
+        words = tuple(w for w in words if w != "new") or None
+    return words, fail_on_new
+
+
 def checked_file_units(rules) -> tuple:
-    """``file_units`` as a tuple of ``units.UnitRule``: from a mapping (pattern -> unit), or a
-    sequence of rules, ``FILE=UNIT`` strings or (pattern, unit) pairs.
+    """``file_units`` as a tuple of ``units.UnitRule``: from a mapping (pattern -> unit, e.g.
+    ``{"engine.glb": "mm"}``), or a sequence of rules, ``FILE=UNIT`` strings or (pattern, unit)
+    pairs; paths and globs relative to the working directory (the last rule naming a file wins).
 
     Raises
     ------

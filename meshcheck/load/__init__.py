@@ -232,14 +232,10 @@ def load_bodies(
     InputError
         An input cannot be checked; see the module docstring.
     ConfigError
-        ``units`` is not a known unit; a command-line ``file_units`` rule names no input file,
-        or names a URDF robot (in metres by ROS convention; its meshes carry their own scale).
+        ``units`` is not a known unit; a command-line ``file_units`` rule names no input file
+        or a URDF robot (``_given_units``).
     """
-    if units is not None:
-        try:
-            units = units_.unit_name(units)
-        except ValueError as exc:
-            raise ConfigError(None, str(exc)) from None
+    units = _checked_unit(units)
     budget = Budget(limits or Limits())
     files = _expand(paths)
     given = _given_units([path for path, _ in files], file_units)
@@ -253,8 +249,17 @@ def load_bodies(
     )
     declared = [given.get(path, r.declared) for (path, _), r in zip(files, reads, strict=True)]
     report = units_.report_unit(declared, units)
-
     return _placed_bodies(files, reads, report, units, budget.limits, split=split, given=given)
+
+
+def _checked_unit(units: str | None) -> str | None:
+    """The canonical name of ``units`` (None stays None); ConfigError for an unknown unit."""
+    if units is None:
+        return None
+    try:
+        return units_.unit_name(units)
+    except ValueError as exc:
+        raise ConfigError(None, str(exc)) from None
 
 
 def _given_units(paths: list[str], rules: Sequence[units_.UnitRule]) -> dict[str, str]:

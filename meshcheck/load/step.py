@@ -154,9 +154,8 @@ def read_step(
     deflection_unit : str, optional
         Unit of ``deflection``, a key of ``meshcheck.units.METRES``; default the file's own unit.
     unit : str, optional
-        The unit the file's lengths really are in, when the user says it is not the one the
-        file declares (``--units FILE=UNIT``): deflections (given and default) are meant in it.
-        The assembly stays in the file's numbers and ``StepAssembly.unit`` the declared unit.
+        The unit the file's lengths really are in (``--units FILE=UNIT``): deflections are
+        meant in it; the assembly keeps the file's numbers and declared unit.
     angular_deflection : float, optional
         Largest angle between neighbouring facets, radians; default
         ``DEFAULT_ANGULAR_DEFLECTION``.
@@ -195,24 +194,14 @@ def read_step(
     real_unit = unit
     unit = declared or "mm"
     scale = UNIT_METRES[unit]  # metres per file unit
-    # OpenCASCADE's millimetres per real millimetre: not 1 when the user gives another unit
-    ratio = 1.0 if real_unit is None else scale / UNIT_METRES[units_.unit_name(real_unit)]
-    if deflection is None:
-        deflection_mm = None  # the default, at least DEFAULT_RELATIVE_DEFLECTION of the parts
-    else:
-        given_unit = (real_unit or unit) if deflection_unit is None else deflection_unit
-        deflection_mm = float(deflection) * UNIT_METRES[given_unit] / 1e-3 * ratio
+    deflection_mm, ratio = _deflection_mm(deflection, deflection_unit, unit, real_unit)
     budget = MAX_STEP_TRIANGLES if max_triangles is None else min(max_triangles, MAX_STEP_TRIANGLES)
 
-    key = ""
-    if cache is not None:
-        key = tessellation_key(data, deflection_mm, angular, default_scale=ratio)
+    key = tessellation_key(data, deflection_mm, angular, default_scale=ratio) if cache else ""
     assembly = cache.get(key) if cache is not None else None
     if assembly is None or assembly.unit != unit:
         instances = _document(data, path).instances
-        used_mm = _tessellate(
-            instances, path, deflection_mm, angular, budget, unit, default_scale=ratio
-        )
+        used_mm = _tessellate(instances, path, deflection_mm, angular, budget, unit, ratio)
         items = _items(instances, path, 1e-3 / scale, used_mm * 1e-3 / scale)
         assembly = StepAssembly(items, unit, used_mm * 1e-3 / scale, angular)
         if cache is not None:
@@ -220,6 +209,19 @@ def read_step(
     if declared is None and real_unit is None:
         _warn_no_unit(path)
     return assembly
+
+
+def _deflection_mm(deflection, deflection_unit, unit: str, real_unit: str | None):
+    """(the deflection in OpenCASCADE's millimetres or None for the default, OpenCASCADE's
+    millimetres per real millimetre): the ratio is not 1 when the user says the file's lengths
+    are in ``real_unit``, not the ``unit`` it declares."""
+    ratio = (
+        1.0 if real_unit is None else UNIT_METRES[unit] / UNIT_METRES[units_.unit_name(real_unit)]
+    )
+    if deflection is None:
+        return None, ratio  # the default, at least DEFAULT_RELATIVE_DEFLECTION of the parts
+    given_unit = (real_unit or unit) if deflection_unit is None else deflection_unit
+    return float(deflection) * UNIT_METRES[given_unit] / 1e-3 * ratio, ratio
 
 
 def _check_deflections(deflection, deflection_unit, angular_deflection) -> None:
@@ -522,7 +524,6 @@ def _tessellate(
     angular: float,
     budget: int,
     unit: str,
-    *,
     default_scale: float = 1.0,
 ) -> float:
     """Mesh every distinct product at ``deflection_mm`` (None: the default for their size,
