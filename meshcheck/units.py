@@ -202,12 +202,13 @@ class UnitRule:
     base: str | None = None
     source: str | None = None
 
-    def matches(self, path: str) -> bool:
+    def matches(self, path: str, names: Sequence[str] | None = None) -> bool:
         """Whether the input file ``path`` (as meshcheck names it) is one this rule names.
 
         A file is named by its path as given, its absolute path or its real path (links
-        resolved); the pattern, made absolute against ``base`` (or the working directory), is
-        matched as a glob against each, and a pattern that is a path to the same file matches.
+        resolved): ``names``, computed when not given (``file_names``). The pattern, made
+        absolute against ``base`` (or the working directory), is matched as a glob against each;
+        a pattern that is a path to the same file, or to a directory above it, matches too.
 
         Examples
         --------
@@ -216,15 +217,20 @@ class UnitRule:
         >>> UnitRule("engine.glb", "mm", base="/proj").matches("/proj/engine.glb")
         True
         """
+        names = file_names(path) if names is None else names
         pattern = self.pattern
-        if self.base is not None and not os.path.isabs(pattern):
-            pattern = os.path.join(self.base, pattern)
-        patterns = {os.path.abspath(pattern)} if self.base is not None else {pattern}
-        patterns.add(os.path.abspath(pattern))
-        names = {path, os.path.abspath(path), os.path.realpath(path)}
+        if self.base is not None:
+            pattern = os.path.join(self.base, pattern)  # unchanged when the pattern is absolute
+        patterns = {os.path.abspath(pattern)} | ({pattern} if self.base is None else set())
         if any(fnmatch.fnmatchcase(n, p) for n in names for p in patterns):
             return True
-        return os.path.realpath(pattern) == os.path.realpath(path)
+        real = os.path.realpath(pattern)
+        return real == names[-1] or names[-1].startswith(os.path.join(real, ""))
+
+
+def file_names(path: str) -> tuple[str, str, str]:
+    """The names a ``UnitRule`` matches a file by: as given, absolute, real (last)."""
+    return path, os.path.abspath(path), os.path.realpath(path)
 
 
 def unit_rule(text: str) -> UnitRule:
@@ -257,12 +263,14 @@ def given_units(paths: Sequence[str], rules: Sequence[UnitRule]) -> dict[str, st
     """
     out = {}
     for path in paths:
+        names = file_names(path)
         for rule in rules:
-            if rule.matches(path):
+            if rule.matches(path, names):
                 out[path] = rule.unit
     return out
 
 
 def unmatched_rules(paths: Sequence[str], rules: Sequence[UnitRule]) -> list[UnitRule]:
     """The rules that name none of ``paths``, in order."""
-    return [rule for rule in rules if not any(rule.matches(path) for path in paths)]
+    names = [file_names(path) for path in paths]
+    return [r for r in rules if not any(r.matches(p, n) for p, n in zip(paths, names, strict=True))]

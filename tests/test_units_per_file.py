@@ -122,6 +122,11 @@ def test_files_are_named_by_path_real_path_or_glob_and_the_last_rule_wins(tmp_pa
         # configuration rules are relative to the configuration file's folder
         base = UnitRule("a.glb", "cm", base=str(tmp_path / "cad"))
         assert given_units(["cad/a.glb", "cad/b.glb"], [base]) == {"cad/a.glb": "cm"}
+        # a directory names every file below it, as a directory argument does
+        assert given_units(["cad/a.glb", str(link)], [UnitRule("cad", "m")]) == {
+            "cad/a.glb": "m",
+            str(link): "m",  # its real path is below cad/
+        }
     finally:
         os.chdir(old)
 
@@ -219,6 +224,16 @@ def test_a_mm_gltf_beside_a_mm_stl_at_196x_now_warns(tmp_path):
     (message,) = [str(w.message) for w in caught]
     assert message.startswith(f"{small}: is 196 times the size of {frame}")
     assert "read in m and mm" in message and "--units FILE=UNIT" in message
+
+
+def test_a_file_whose_unit_is_given_is_never_warned_about(tmp_path):
+    small = tmp_path / "pin.glb"
+    scene = trimesh.Scene()
+    scene.add_geometry(box((11.316, 11.316, 11.316)), node_name="pin")
+    scene.export(small)
+    frame = tmp_path / "frame.stl"
+    box((57.735, 57.735, 57.735)).export(frame)
+    load_bodies([str(small), str(frame)], file_units=[UnitRule(str(small), "m")])  # no warning
 
 
 def test_same_unit_files_keep_the_500x_rule(tmp_path):

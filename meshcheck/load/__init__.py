@@ -374,8 +374,8 @@ def _place(
 
 
 def _warn_sizes(sizes: list[tuple[float, str, str]], report: str, given: dict) -> None:
-    """Warn about files of implausible size (``LARGE_METRES``, ``SMALL_METRES``) whose unit the
-    user did not give, then about mixed units (``_warn_mixed_units``).
+    """Warn about files of implausible size (``LARGE_METRES``, ``SMALL_METRES``), then about
+    mixed units (``_warn_mixed_units``); never about a file whose unit the user gave.
 
     Parameters
     ----------
@@ -394,7 +394,7 @@ def _warn_sizes(sizes: list[tuple[float, str, str]], report: str, given: dict) -
         )
         warn(path, message + _suggestion(path, metres, unit))
         warned.add(path)
-    _warn_mixed_units([s for s in sizes if s[1] not in warned], report)
+    _warn_mixed_units([s for s in sizes if s[1] not in warned and s[1] not in given], report)
 
 
 def _suggestion(path: str, metres: float, unit: str) -> str:
