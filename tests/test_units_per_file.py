@@ -283,6 +283,19 @@ def test_bad_file_units_are_one_line_and_exit_2(tmp_path, units, line):
     assert len(err) == 1 and err[0].startswith(line), err
 
 
+def test_a_urdf_robot_takes_no_unit(tmp_path):
+    (tmp_path / "robot.urdf").write_text(
+        '<robot name="r"><link name="base"><collision><geometry><box size="1 1 1"/>'
+        "</geometry></collision></link></robot>"
+    )
+    code, err = capped(["robot.urdf", "--units", "robot.urdf=mm"], tmp_path)
+    assert code == 2
+    assert err == [
+        "error: robot.urdf: a URDF robot takes no unit (--units, [units]): it is in metres "
+        "(ROS); give its meshes' unit with their scale attribute"
+    ]
+
+
 def test_bad_units_tables_are_config_errors(tmp_path):
     from meshcheck.config import load_config
 

@@ -278,8 +278,8 @@ def _given_units(paths: list[str], rules: Sequence[units_.UnitRule]) -> dict[str
         if os.path.splitext(path)[1].lower() in (".urdf",):
             raise ConfigError(
                 path,
-                "--units: a URDF robot is in metres (ROS); give its meshes' unit with their "
-                "scale attribute",
+                "a URDF robot takes no unit (--units, [units]): it is in metres (ROS); give its "
+                "meshes' unit with their scale attribute",
             )
     return given
 
@@ -294,7 +294,8 @@ def _placed_bodies(files, reads, report, units, limits, *, split: bool, given) -
         file_bodies, diagonal = _place(
             path, rel, file_read, report, units, limits, given=given.get(path)
         )
-        sizes.append((diagonal, path, given.get(path) or file_read.declared or units or "mm"))
+        read_in = given.get(path) or file_read.declared or units or units_.DEFAULT_UNIT
+        sizes.append((diagonal, path, read_in))
         for body in file_bodies:
             for part in split_body(body) if split else [body]:
                 if part.name in seen:
