@@ -145,3 +145,25 @@ def test_instances_in_a_glb_make_a_pattern_end_to_end(tmp_path):
     assert out.exit_code == 1, out.output
     lines = [line for line in out.stdout.splitlines() if line.startswith("group ")]
     assert len(lines) == 1 and "pattern: 4 interference" in lines[0], out.stdout
+
+
+def test_copies_written_to_files_at_other_places_are_one_geometry(tmp_path):
+    """An array of STL exports: each copy's coordinates went through float32 at its own place,
+    so the copies' bits differ, and they are one geometry all the same (one pattern of 6)."""
+    from meshcheck.load import load_bodies, local_geometries
+
+    paths = []
+    for k in range(6):
+        offset = np.array([123.456 * k, 77.7 * k, 0.0])
+        bracket = BRACKET.copy().apply_translation(offset)
+        bolt = BOLT.copy().apply_translation(offset + np.array([18.0, 0.0, 0.0]))
+        for name, mesh in (("bracket", bracket), ("bolt", bolt)):
+            path = tmp_path / f"{name}_{k}.stl"
+            mesh.export(path)
+            paths.append(str(path))
+    bodies = load_bodies(paths)
+    digests = {local_geometries(bodies)[id(b.mesh)][3] for b in bodies if "bolt" in b.name}
+    assert len(digests) > 1  # the bits differ: a digest alone would split the pattern
+    result = check_bodies(bodies, cache_dir=None, jobs=1)
+    (group,) = clash_groups(result.findings)
+    assert group.kind == "pattern" and len(group.members) == 6

@@ -18,7 +18,10 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..results import GROUPED_STATUSES, Finding
+from ..settings import FLOAT32_ULPS, TOLERANCE_FRACTION
 from .duplicates import clusters
+
+_EPS32 = float(np.finfo(np.float32).eps)
 
 
 def with_patterns(
@@ -29,6 +32,9 @@ def with_patterns(
     tolerance: float | None,
 ) -> list[Finding]:
     """``findings`` with ``pattern`` set on the interference and clearance findings that repeat.
+
+    The two parts of each are replaced by their geometry classes (``geometry_classes``), then
+    the placements of the second in the first's frame are clustered within the tolerance.
 
     Parameters
     ----------
@@ -47,10 +53,13 @@ def with_patterns(
         key (hashing the two geometries and one member's relative placement), others keep ``""``.
     """
     index = {b.name: k for k, b in enumerate(bodies)}
+    grouped = [f for f in findings if f.status in GROUPED_STATUSES]
+    used = [bodies[index[name]] for f in grouped for name in (f.a, f.b)]
+    kind = geometry_classes(used, geometry, tolerance=tolerance)
     by_pair: dict[tuple[str, str, str], list[int]] = {}
     for n, f in enumerate(findings):
         if f.status in GROUPED_STATUSES:
-            a, b = (geometry[id(bodies[index[name]].mesh)][3] for name in (f.a, f.b))
+            a, b = (kind[id(bodies[index[name]].mesh)] for name in (f.a, f.b))
             by_pair.setdefault((str(f.status), *sorted((a, b))), []).append(n)
     keys = [""] * len(findings)
     for (_, first, second), members in sorted(by_pair.items()):
@@ -58,7 +67,7 @@ def with_patterns(
             continue
         points, owner = [], []
         for n in members:
-            for point in _relative(bodies, index, geometry, findings[n], first, second):
+            for point in _relative(bodies, index, geometry, kind, findings[n], first, second):
                 points.append(point)
                 owner.append(n)
         tol = tolerance
@@ -77,12 +86,65 @@ def with_patterns(
     ]
 
 
-def _relative(bodies, index, geometry, finding: Finding, first: str, second: str):
+def geometry_classes(bodies: Sequence, geometry: dict, *, tolerance: float | None) -> dict:
+    """A class for each distinct mesh of ``bodies``: meshes with the same faces whose vertices,
+    up to translation, agree within the tolerance share one (see the module docstring).
+
+    Parameters
+    ----------
+    bodies : sequence of load.Body
+    geometry : dict
+        ``load.local_geometries`` of (at least) ``bodies``.
+    tolerance : float or None
+        The user's touching tolerance, model units; None: each mesh's own, as for a pair
+        (``TOLERANCE_FRACTION`` of its size, at least the float32 rounding of its coordinates).
+
+    Returns
+    -------
+    dict
+        ``id(mesh)`` -> the class: the ``local_geometry`` digest of its first member, meshes
+        taken in digest order (so the classes are a function of the meshes alone).
+    """
+    meshes = {id(b.mesh): b for b in bodies}
+    by_faces: dict[tuple[int, bytes], list[tuple[str, int]]] = {}
+    for key in meshes:
+        local, faces, _, digest = geometry[key]
+        shape = (len(local), hashlib.sha256(faces.tobytes()).digest())
+        by_faces.setdefault(shape, []).append((digest, key))
+    out = {}
+    for members in by_faces.values():
+        firsts: list[tuple[str, int, float]] = []  # (digest, mesh id, tolerance)
+        for digest, key in sorted(members):
+            tol = _mesh_tolerance(meshes[key], geometry[key], tolerance)
+            local = geometry[key][0]
+            for first, other, other_tol in firsts:
+                gap = np.abs(local - geometry[other][0]).max(initial=0.0)
+                if digest == first or gap <= min(tol, other_tol):
+                    out[key] = first
+                    break
+            else:
+                firsts.append((digest, key, tol))
+                out[key] = digest
+    return out
+
+
+def _mesh_tolerance(body, local_geometry: tuple, tolerance: float | None) -> float:
+    """How far two copies' local vertices may differ and be one geometry, the mesh's units."""
+    local, _, corner, _ = local_geometry
+    scale = abs(float(np.linalg.det(np.asarray(body.transform)[:3, :3]))) ** (1.0 / 3.0)
+    if tolerance is not None:
+        return tolerance / scale if scale > 0 else 0.0
+    size = float(np.linalg.norm(local.max(axis=0))) if len(local) else 0.0
+    magnitude = float(np.abs(local + corner).max(initial=0.0))
+    return max(TOLERANCE_FRACTION * size, FLOAT32_ULPS * _EPS32 * magnitude)
+
+
+def _relative(bodies, index, geometry, kind, finding: Finding, first: str, second: str):
     """Where the part of geometry ``second`` sits in the frame of the part of geometry
     ``first``, as 12 numbers in model units (the rotation times the second geometry's size,
     then the origin); both ways round when the two geometries are one."""
     parts = [bodies[index[finding.a]], bodies[index[finding.b]]]
-    if geometry[id(parts[0].mesh)][3] != first:
+    if kind[id(parts[0].mesh)] != first:
         parts.reverse()
     frames = []
     for body in parts:
