@@ -113,19 +113,40 @@ def geometry_classes(bodies: Sequence, geometry: dict, *, tolerance: float | Non
         by_faces.setdefault(shape, []).append((digest, key))
     out = {}
     for members in by_faces.values():
-        firsts: list[tuple[str, int, float]] = []  # (digest, mesh id, tolerance)
-        for digest, key in sorted(members):
-            tol = _mesh_tolerance(meshes[key], geometry[key], tolerance)
-            local = geometry[key][0]
-            for first, other, other_tol in firsts:
-                gap = np.abs(local - geometry[other][0]).max(initial=0.0)
-                if digest == first or gap <= min(tol, other_tol):
-                    out[key] = first
-                    break
-            else:
-                firsts.append((digest, key, tol))
-                out[key] = digest
+        tols = {key: _mesh_tolerance(meshes[key], geometry[key], tolerance) for _, key in members}
+        out.update(_classes(sorted(members), geometry, tols))
     return out
+
+
+def _classes(members: list[tuple[str, int]], geometry: dict, tols: dict) -> dict:
+    """``geometry_classes`` of meshes with the same triangles, in digest order: each joins the
+    first earlier class whose first mesh agrees with it within both tolerances. Classes are
+    found by the box of their local vertices on a grid of the largest tolerance, so a mesh is
+    compared with the classes in its cell and the 26 around it only."""
+    cell = max(tols.values())
+    grid: dict[tuple, list[tuple[int, str, int]]] = {}  # cell -> (class number, digest, mesh)
+    out: dict[int, str] = {}
+    count = 0
+    for digest, key in members:
+        local = geometry[key][0]
+        extent = local.max(axis=0) if len(local) else np.zeros(3)
+        home = tuple(np.floor(extent / cell).astype(np.int64)) if cell > 0 else (digest,)
+        near = [home] if cell <= 0 else [tuple(np.add(home, d)) for d in _NEIGHBOURS]
+        match = None
+        for _number, first, other in sorted(c for n in near for c in grid.get(n, ())):
+            gap = np.abs(local - geometry[other][0]).max(initial=0.0)
+            if digest == first or gap <= min(tols[key], tols[other]):
+                match = first
+                break
+        if match is None:
+            grid.setdefault(home, []).append((count, digest, key))
+            count += 1
+            match = digest
+        out[key] = match
+    return out
+
+
+_NEIGHBOURS = [(i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1)]
 
 
 def _mesh_tolerance(body, local_geometry: tuple, tolerance: float | None) -> float:
