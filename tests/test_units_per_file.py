@@ -324,3 +324,13 @@ def test_a_step_file_given_another_unit_is_rescaled_and_left_out_of_the_brep_che
     assert deep_cm.depth == pytest.approx(7.0, abs=0.1)  # ten times: the file is in cm
     extents = [np.ptp(b.world.vertices, axis=0) for b in (mm.bodies[0], cm.bodies[0])]
     np.testing.assert_allclose(extents[1], 10 * extents[0], rtol=1e-3)
+
+
+def test_pyproject_units_table(tmp_path):
+    from meshcheck.config import load_config
+
+    path = tmp_path / "pyproject.toml"
+    path.write_text('[tool.meshcheck]\nquiet = true\n[tool.meshcheck.units]\n"cad/*.glb" = "mm"\n')
+    config = load_config(path)
+    assert config.units is None and config.quiet is True
+    assert config.file_units == (UnitRule("cad/*.glb", "mm", str(tmp_path), str(path)),)
