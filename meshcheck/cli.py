@@ -63,6 +63,32 @@ def _report_option(ctx, param, values):
     return pairs
 
 
+def _units(values) -> tuple[str | None, tuple]:
+    """``--units`` values as (the unit of undeclared files and the report, or None; the
+    ``FILE=UNIT`` rules), checked: one plain unit at most, every unit known.
+
+    Raises
+    ------
+    ConfigError
+        An unknown unit, a ``FILE=`` without a unit, two different plain units.
+    """
+    from .units import unit_name, unit_rule
+
+    plain, rules = [], []
+    for value in values:
+        pattern = value.rpartition("=")[0]
+        try:
+            if "=" in value:
+                rules.append(unit_rule(value))
+            else:
+                plain.append(unit_name(value))
+        except ValueError as exc:
+            raise ConfigError(pattern or None, f"--units: {exc}") from None
+    if len(set(plain)) > 1:
+        raise ConfigError("--units", f"give one report unit, not {' and '.join(plain)}")
+    return (plain[0] if plain else None), tuple(rules)
+
+
 @click.command(context_settings={"help_option_names": ["-h", "--help"]})
 @click.argument("files", nargs=-1, required=True)
 @click.option(
@@ -94,16 +120,17 @@ def _report_option(ctx, param, values):
     "--report junit:meshcheck.xml --report sarif:meshcheck.sarif --report github:-.",
 )
 @click.option(
-    "--quiet",
+    "--quiet/--no-quiet",
     "-q",
-    is_flag=True,
-    help="List only the findings that fail the run, then the summary (text and markdown).",
+    default=None,
+    help="List only the findings that fail the run, then the summary (text and markdown). "
+    "Default: the config file's quiet, else off.",
 )
 @click.option(
-    "--hide-touching",
-    is_flag=True,
+    "--hide-touching/--show-touching",
+    default=None,
     help="Leave touching findings out of the table; the summary still counts them (text and "
-    "markdown).",
+    "markdown). Default: the config file's hide_touching, else shown.",
 )
 @click.option(
     "--baseline",
@@ -144,11 +171,14 @@ def _report_option(ctx, param, values):
 )
 @click.option(
     "--units",
-    default=None,
-    metavar="UNIT",
-    help="Unit of mesh files that declare none (STL, OBJ, PLY, OFF), and of the report: um, mm, "
-    "cm, m, in, ft. Default: the unit every input declares, else mm. Files that declare a unit "
-    "(glTF: metres, 3MF, STEP) are converted.",
+    "units",
+    multiple=True,
+    metavar="UNIT|FILE=UNIT",
+    help="UNIT: unit of mesh files that declare none (STL, OBJ, PLY, OFF), and of the report: "
+    "um, mm, cm, m, in, ft. Default: the unit every input declares, else mm. Files that declare "
+    "a unit (glTF: metres, 3MF, STEP) are converted. FILE=UNIT (repeatable): the unit of the "
+    "input files FILE names (a path, or a glob such as 'cad/*.glb'), whatever they declare, "
+    "e.g. --units engine.glb=mm for a glTF exported in millimetres.",
 )
 @click.option(
     "--step-deflection",
@@ -299,8 +329,9 @@ def _run(
     adjacent=None,
     sweep=False,
     sweep_joints=None,
-    quiet=False,
-    hide_touching=False,
+    quiet=None,
+    hide_touching=None,
+    units=(),
     **options,
 ):
     """Refuse what can be refused, check, write the reports, exit with the run's status."""
@@ -315,7 +346,15 @@ def _run(
             "adjacent": adjacent,
             "sweep": sweep_joints or ("" if sweep or srdf_path else None),
         }
-        settings = _settings(motion=motion, **options)
+        report_unit, file_units = _units(units)
+        settings = _settings(
+            motion=motion,
+            units=report_unit,
+            file_units=file_units,
+            quiet=quiet,
+            hide_touching=hide_touching,
+            **options,
+        )
         inputs = [*files, baseline_path, settings.config_path]
         outputs = [p for _, p in targets] + [export_path, srdf_path]
         _refuse_inputs_as_outputs(inputs, outputs)
@@ -323,7 +362,10 @@ def _run(
     except MeshcheckError as exc:
         _fail(exc)
     result = _check(files, settings, baseline, export_path)
-    view_options = {"is_quiet": quiet, "is_touching_listed": not hide_touching}
+    view_options = {
+        "is_quiet": settings.quiet,
+        "is_touching_listed": not settings.hide_touching,
+    }
     written = _write_reports(result, targets, files, srdf_path, view_options)
     if written:
         noun = "report" if len(written) == 1 else "reports"

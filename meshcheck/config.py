@@ -112,6 +112,7 @@ def approval_reason(
 CONFIG_NAMES = ("meshcheck.toml", "pyproject.toml")  # in one directory, meshcheck.toml wins
 _KEYS = ("tolerance", "clearance", "threshold", "units", "fail_on", "ignore", "groups", "scheduler")
 _KEYS += ("pose", "adjacent", "package_paths")  # mechanisms (meshcheck.motion)
+_KEYS += ("quiet", "hide_touching")  # what the text and Markdown reports list
 
 
 @dataclass(frozen=True)
@@ -132,7 +133,13 @@ class Config:
     groups : Groups or None
         Check only pairs across two groups of parts.
     units : str or None
-        Unit of mesh files that declare none, and of the report (``meshcheck.units``).
+        Unit of mesh files that declare none, and of the report (``meshcheck.units``): the
+        ``units`` key when it is a string.
+    file_units : tuple of units.UnitRule
+        The ``[units]`` table (``units`` as a table): path or glob, relative to the file's
+        folder -> the unit of the input files it names, whatever they declare.
+    quiet, hide_touching : bool or None
+        Defaults for ``--quiet`` and ``--hide-touching``.
     scheduler : str or None
         Address of a Dask scheduler to run on (``--scheduler``).
     """
@@ -145,6 +152,9 @@ class Config:
     approvals: tuple[Approval, ...] = ()
     groups: Groups | None = None
     units: str | None = None
+    file_units: tuple = ()
+    quiet: bool | None = None
+    hide_touching: bool | None = None
     scheduler: str | None = None
     motion: dict | None = None  # pose, adjacent, package_paths, validated (meshcheck.motion)
 
@@ -305,8 +315,40 @@ def load_config(path: str | os.PathLike) -> Config:
         approvals=_approvals(doc.get("ignore", []), fail),
         groups=_groups(doc.get("groups"), fail),
         scheduler=_scheduler(doc.get("scheduler"), fail),
-        units=_unit(doc.get("units"), fail),
+        units=_unit(doc.get("units"), fail) if not isinstance(doc.get("units"), dict) else None,
+        file_units=_file_units(doc.get("units"), path, fail),
+        quiet=_flag(doc, "quiet", fail),
+        hide_touching=_flag(doc, "hide_touching", fail),
     )
+
+
+def _flag(doc: dict, key: str, fail) -> bool | None:
+    """A true/false key, or None when absent."""
+    value = doc.get(key)
+    if value is not None and not isinstance(value, bool):
+        fail(f"{key} must be true or false, not {value!r}")
+    return value
+
+
+def _file_units(value, path: str, fail) -> tuple:
+    """The ``[units]`` table as ``UnitRule``s in file order (relative to the file's folder), or
+    () when ``units`` is absent or a string."""
+    if not isinstance(value, dict):
+        return ()
+    from .units import UnitRule, unit_name
+
+    base = os.path.dirname(os.path.abspath(path))
+    rules = []
+    for pattern, unit in value.items():
+        if not pattern.strip():
+            fail("units: a file pattern must not be empty")
+        if not isinstance(unit, str):
+            fail(f'units.{pattern!r} must be a unit such as "mm", not {type(unit).__name__}')
+        try:
+            rules.append(UnitRule(pattern, unit_name(unit), base=base, source=path))
+        except ValueError as exc:
+            fail(f"units.{pattern!r}: {exc}")
+    return tuple(rules)
 
 
 def _motion(doc: dict, path: str) -> dict | None:
@@ -456,7 +498,10 @@ def _unit(value, fail) -> str | None:
     from .units import unit_name
 
     if not isinstance(value, str):
-        fail(f'units must be a string such as "mm", not {type(value).__name__}')
+        fail(
+            f'units must be a unit such as "mm", or a table of file patterns and units, not '
+            f"{type(value).__name__}"
+        )
     try:
         return unit_name(value)
     except ValueError as exc:

@@ -50,6 +50,7 @@ from .units import DEFAULT_UNIT
 from .verify import verify_pairs
 from .verify.brep import confirm_on_brep
 from .verify.duplicates import duplicate_findings, duplicate_sets, without_duplicate_pairs
+from .verify.patterns import with_patterns
 from .verify.shells import warn_nothing_to_compare, warn_overlapping_shells
 
 _EPS32 = float(np.finfo(np.float32).eps)
@@ -79,6 +80,7 @@ def check(
     **options
         Keyword options of ``Settings.from_options``: ``clearance``, ``tolerance``,
         ``threshold``, ``fail_on``, ``approvals``, ``groups``, ``split``, ``units``,
+        ``file_units`` (``{"engine.glb": "mm"}``: a file's unit, whatever it declares),
         ``cache_dir`` (default: the user's cache directory, as on the command line),
         ``use_cache``, ``jobs``.
 
@@ -118,6 +120,7 @@ def check(
                     paths,
                     split=settings.split,
                     units=settings.units,
+                    file_units=settings.file_units,
                     limits=limits,
                     cache_dir=settings.cache_dir,
                     step_deflection=settings.step_deflection,
@@ -202,6 +205,7 @@ def check_bodies(
     findings = sorted(
         [*duplicate_findings(bodies, copies, geometry), *findings], key=lambda f: (f.a, f.b)
     )
+    findings = with_patterns(bodies, findings, geometry, tolerance=settings.tolerance)
     findings = approve(
         findings, settings.approvals, dict(zip([b.name for b in bodies], names, strict=True))
     )

@@ -159,6 +159,10 @@ class Finding:
     members : tuple of str
         A ``DUPLICATE`` finding's whole set of copies (sorted names, ``a`` and ``b`` the first
         two); empty otherwise.
+    pattern : str
+        Key of the pattern the finding repeats (``verify.patterns``): findings of one status
+        with the same key are between copies of the same two geometries at the same relative
+        placement; ``""`` when it repeats no other. Grouping data, not in ``to_dict``.
     """
 
     a: str
@@ -168,6 +172,7 @@ class Finding:
     approval_reason: str | None = None
     tolerance: float | None = None
     members: tuple[str, ...] = ()
+    pattern: str = ""
 
     @property
     def status(self) -> Verdict:
@@ -365,27 +370,33 @@ def _name(part: tuple) -> tuple[str, str]:
 
 @dataclass(frozen=True)
 class ClashGroup:
-    """Findings of one status that share a part: one bracket clipping many bolts.
+    """Findings of one status with one cause: a part they share (one bracket clipping many
+    bolts), or a pattern they repeat (forty brackets, each clipped by its bolt the same way).
 
     Attributes
     ----------
     id : str
-        Stable 12-hex-digit ID: the shared part's name and the status (``group_id``).
-    part : str
-        The part every member names.
+        Stable 12-hex-digit ID (``group_id``): the shared part's name and the status, or the
+        pattern's key (the two geometries' content and a relative placement) and the status.
+    kind : str
+        ``"part"`` or ``"pattern"``.
+    part : str or None
+        The part every member names (``"part"`` groups); None for a pattern.
     status : Verdict
     members : tuple of Finding
         Most severe first, as the reports list findings.
     """
 
     id: str
-    part: str
+    part: str | None
     status: Verdict
     members: tuple[Finding, ...]
+    kind: str = "part"
 
     def to_dict(self) -> dict:
         return {
             "id": self.id,
+            "kind": self.kind,
             "part": self.part,
             "status": str(self.status),
             "findings": [f.id for f in self.members],
@@ -397,11 +408,12 @@ GROUPED_STATUSES = (Verdict.INTERFERENCE, Verdict.CLEARANCE)
 
 
 def clash_groups(findings: Sequence[Finding]) -> list[ClashGroup]:
-    """Group unapproved interference (and clearance) findings by a part they share.
+    """Group unapproved interference (and clearance) findings by a pattern, then by a part.
 
-    The part named by most findings of one status makes the first group, its findings leave the
-    pool, and so on while a part is named twice; each finding is in at most one group. Groups
-    come largest first, ties by part name, so the same findings always give the same groups.
+    Findings of one status with one ``Finding.pattern`` key (two or more) make a pattern group
+    each, largest first. Of the rest, the part named by most findings of one status makes the
+    next group, its findings leave the pool, and so on while a part is named twice. Each finding
+    is in at most one group; ties go by names, so the same findings always give the same groups.
 
     Examples
     --------
@@ -411,7 +423,9 @@ def clash_groups(findings: Sequence[Finding]) -> list[ClashGroup]:
     [('plate', 3)]
     """
     pool = [f for f in findings if f.status in GROUPED_STATUSES and not f.is_approved]
-    groups = []
+    groups = _pattern_groups(pool)
+    taken = {id(f) for g in groups for f in g.members}
+    pool = [f for f in pool if id(f) not in taken]
     while True:
         counts: dict[tuple[str, Verdict], int] = {}
         for f in pool:
@@ -422,13 +436,37 @@ def clash_groups(findings: Sequence[Finding]) -> list[ClashGroup]:
             return groups
         (part, status), _ = best
         members = [f for f in pool if f.status == status and part in (f.a, f.b)]
-        members.sort(key=lambda f: (-(f.depth or 0.0), f.distance, f.a, f.b))
-        groups.append(ClashGroup(group_id(part, status), part, status, tuple(members)))
+        groups.append(ClashGroup(group_id(part, status), part, status, _by_severity(members)))
         taken = {id(f) for f in members}
         pool = [f for f in pool if id(f) not in taken]
 
 
+def _pattern_groups(pool: Sequence[Finding]) -> list[ClashGroup]:
+    """A group per pattern key and status held by two findings or more, largest first."""
+    by_key: dict[tuple[str, Verdict], list[Finding]] = {}
+    for f in pool:
+        if f.pattern:
+            by_key.setdefault((f.pattern, f.status), []).append(f)
+    groups = [
+        ClashGroup(
+            group_id(f"pattern\0{key}", status),
+            None,
+            status,
+            _by_severity(members),
+            kind="pattern",
+        )
+        for (key, status), members in by_key.items()
+        if len(members) > 1
+    ]
+    return sorted(groups, key=lambda g: (-len(g.members), g.members[0].a, g.members[0].b))
+
+
+def _by_severity(members: list[Finding]) -> tuple[Finding, ...]:
+    return tuple(sorted(members, key=lambda f: (-(f.depth or 0.0), f.distance, f.a, f.b)))
+
+
 def group_id(part: str, status: str) -> str:
-    """Stable 12-hex-digit ID of a clash group: its shared part's name and its status."""
+    """Stable 12-hex-digit ID of a clash group: its shared part's name (or ``pattern\\0KEY``
+    for a pattern) and its status."""
     text = "\0".join(("group", str(status), part))
     return hashlib.sha256(text.encode("utf-8", "surrogateescape")).hexdigest()[:12]

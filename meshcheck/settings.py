@@ -133,6 +133,9 @@ class Settings:
         Each disconnected shell of a mesh is a part.
     units : str or None
         Unit of files that declare none, and of the report; None: see ``meshcheck.units``.
+    file_units : tuple of units.UnitRule
+        Units the user gave input files, whatever they declare: the configuration's rules, then
+        the command line's (the last rule naming a file wins).
     cache_dir : str or None
         Cache directory; None neither reads nor writes a cache.
     jobs : int or None
@@ -150,6 +153,10 @@ class Settings:
         without a baseline every finding is new.
     motion : Motion
         The pose of URDF robots, their package paths, adjacent-link approval, the sweep.
+    quiet : bool
+        The text and Markdown reports list only the findings that fail the run.
+    hide_touching : bool
+        The text and Markdown reports leave touching findings out of their tables.
     """
 
     clearance: float | None = None
@@ -160,6 +167,7 @@ class Settings:
     groups: Groups | None = None
     split: bool = False
     units: str | None = None
+    file_units: tuple = ()
     cache_dir: str | None = None
     jobs: int | None = None
     scheduler: str | None = None
@@ -168,6 +176,8 @@ class Settings:
     max_triangles: int | None = None
     step_deflection: float | None = None
     motion: Motion = dataclasses.field(default_factory=Motion)
+    quiet: bool = False
+    hide_touching: bool = False
 
     def __post_init__(self):
         for name in NUMBER_RANGES:
@@ -193,6 +203,7 @@ class Settings:
             object.__setattr__(self, "scheduler", checked_scheduler(self.scheduler))
         object.__setattr__(self, "fail_on", tuple(Verdict(s) for s in self.fail_on))
         object.__setattr__(self, "approvals", tuple(self.approvals))
+        object.__setattr__(self, "file_units", checked_file_units(self.file_units))
 
     @classmethod
     def from_options(
@@ -207,6 +218,7 @@ class Settings:
         groups: Groups | None = None,
         split: bool = False,
         units: str | None = None,
+        file_units=(),
         cache_dir: str | os.PathLike | None = None,
         use_cache: bool = True,
         jobs: int | None = None,
@@ -214,6 +226,8 @@ class Settings:
         step_deflection: float | None = None,
         scheduler: str | None = None,
         motion: dict | None = None,
+        quiet: bool | None = None,
+        hide_touching: bool | None = None,
     ) -> Settings:
         """Merge options (None: not given) with a configuration file, and validate.
 
@@ -236,6 +250,8 @@ class Settings:
         motion : dict, optional
             Keyword options of ``motion.motion_from_options`` (``pose``, ``package_paths``,
             ``adjacent``, ``sweep``, ``resolution``), merged with the file's.
+        file_units : mapping or sequence, optional
+            Input files' units (``checked_file_units``), after the file's ``[units]``.
 
         Raises
         ------
@@ -243,17 +259,9 @@ class Settings:
             An invalid value or configuration file.
         """
         file = _config(config)
-
-        def pick(value, from_file):
-            return from_file if value is None else value
-
+        pick = _pick
         clearance = pick(clearance, file.clearance)
-        words = parse_fail_on(fail_on) if fail_on is not None else None
-        if words is None and file.fail_on is not None:
-            words = parse_fail_on(file.fail_on, path=file.path)
-        fail_on_new = bool(words) and "new" in words
-        if fail_on_new:  # "new" narrows which findings fail; the statuses resolve as without it
-            words = tuple(w for w in words if w != "new") or None
+        words, fail_on_new = _fail_on_words(fail_on, file)
         cache = _cache_dir(cache_dir, use_cache=use_cache)
         return cls(
             clearance=clearance,
@@ -264,6 +272,7 @@ class Settings:
             groups=pick(groups, file.groups),
             split=split,
             units=pick(units, file.units),
+            file_units=(*file.file_units, *checked_file_units(file_units)),
             cache_dir=cache,
             jobs=jobs,
             scheduler=pick(scheduler, os.environ.get(SCHEDULER_VARIABLE) or file.scheduler) or None,
@@ -272,6 +281,8 @@ class Settings:
             max_triangles=max_triangles,
             step_deflection=step_deflection,
             motion=motion_from_options(file.motion, **(motion or {})),
+            quiet=bool(pick(quiet, file.quiet)),
+            hide_touching=bool(pick(hide_touching, file.hide_touching)),
         )
 
     def replace(self, **changes) -> Settings:
@@ -311,6 +322,51 @@ __all__ = [
     "part_sizes",
     "resolve_fail_on",
 ]
+
+
+def _pick(value, from_file):
+    """An option's value, or the configuration file's when the option is None."""
+    return from_file if value is None else value
+
+
+def _fail_on_words(fail_on, file: Config) -> tuple[tuple[str, ...] | None, bool]:
+    """The ``--fail-on`` words (else the file's) without ``new``, and whether ``new`` was one."""
+    words = parse_fail_on(fail_on) if fail_on is not None else None
+    if words is None and file.fail_on is not None:
+        words = parse_fail_on(file.fail_on, path=file.path)
+    fail_on_new = bool(words) and "new" in words
+    if fail_on_new:  # "new" narrows which findings fail; the statuses resolve as without it
+        words = tuple(w for w in words if w != "new") or None
+    return words, fail_on_new
+
+
+def checked_file_units(rules) -> tuple:
+    """``file_units`` as a tuple of ``units.UnitRule``: from a mapping (pattern -> unit, e.g.
+    ``{"engine.glb": "mm"}``), or a sequence of rules, ``FILE=UNIT`` strings or (pattern, unit)
+    pairs; paths and globs relative to the working directory (the last rule naming a file wins).
+
+    Raises
+    ------
+    ConfigError
+        A rule that is none of those, or an unknown unit.
+    """
+    from .units import UnitRule, unit_name, unit_rule
+
+    if isinstance(rules, dict):
+        rules = list(rules.items())
+    out = []
+    for rule in rules or ():
+        try:
+            if isinstance(rule, UnitRule):
+                out.append(dataclasses.replace(rule, unit=unit_name(rule.unit)))
+            elif isinstance(rule, str):
+                out.append(unit_rule(rule))
+            else:
+                pattern, unit = rule
+                out.append(unit_rule(f"{pattern}={unit}"))
+        except (TypeError, ValueError) as exc:
+            raise ConfigError(None, f"--units: {exc}") from None
+    return tuple(out)
 
 
 def _config(config) -> Config:

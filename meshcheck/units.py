@@ -11,6 +11,10 @@ Every part is converted at load to one *report unit*, the unit of every length m
 Files that declare a unit: glTF/GLB (always metres, by the glTF specification), 3MF (its
 ``unit`` attribute, millimetre when absent), STEP (the unit in its header).
 
+A file's own unit can be given (``UnitRule``: ``--units FILE=UNIT``, the configuration's
+``[units]`` table): it wins over what the file declares (a glTF exported in millimetres, a 3MF
+or STEP whose unit is wrong) and counts as that file's declared unit in the rule above.
+
 Examples
 --------
 >>> unit_name("Millimeter"), unit_name("inch")
@@ -23,7 +27,10 @@ Examples
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+import fnmatch
+import os
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
 
 #: Size of each unit in metres, by canonical name: every length unit a STEP file can declare
 #: (an SI metre with any prefix ISO 10303-41 allows, or a conversion-based inch, foot, yard,
@@ -167,3 +174,103 @@ def report_unit(declared: Iterable[str | None], units: str | None = None) -> str
     if names and None not in names and len(set(names)) == 1:
         return names[0]
     return DEFAULT_UNIT
+
+
+# ---------------------------------------------------------------------------------------------
+# A file's unit, given by the user
+
+
+@dataclass(frozen=True)
+class UnitRule:
+    """The unit of the input files a path or glob names (``--units FILE=UNIT``, ``[units]``).
+
+    Attributes
+    ----------
+    pattern : str
+        A file's path or a shell glob (``fnmatch``: case-sensitive, ``*`` also crosses ``/``).
+    unit : str
+        A canonical unit name (a key of ``METRES``).
+    base : str or None
+        The folder a relative ``pattern`` is relative to: the configuration file's; None: the
+        working directory (a pattern from the command line).
+    source : str or None
+        The configuration file the rule comes from; None: the command line (or the Python API).
+    """
+
+    pattern: str
+    unit: str
+    base: str | None = None
+    source: str | None = None
+
+    def matches(self, path: str, names: Sequence[str] | None = None) -> bool:
+        """Whether the input file ``path`` (as meshcheck names it) is one this rule names.
+
+        A file is named by its path as given, its absolute path or its real path (links
+        resolved): ``names``, computed when not given (``file_names``). The pattern, made
+        absolute against ``base`` (or the working directory), is matched as a glob against each;
+        a pattern that is a path to the same file, or to a directory above it, matches too.
+
+        Examples
+        --------
+        >>> UnitRule("cad/*.glb", "mm").matches("cad/sub/engine.glb")
+        True
+        >>> UnitRule("engine.glb", "mm", base="/proj").matches("/proj/engine.glb")
+        True
+        """
+        names = file_names(path) if names is None else names
+        pattern = self.pattern
+        if self.base is not None:
+            pattern = os.path.join(self.base, pattern)  # unchanged when the pattern is absolute
+        patterns = {os.path.abspath(pattern)} | ({pattern} if self.base is None else set())
+        if any(fnmatch.fnmatchcase(n, p) for n in names for p in patterns):
+            return True
+        real = os.path.realpath(pattern)
+        return real == names[-1] or names[-1].startswith(os.path.join(real, ""))
+
+
+def file_names(path: str) -> tuple[str, str, str]:
+    """The names a ``UnitRule`` matches a file by: as given, absolute, real (last)."""
+    return path, os.path.abspath(path), os.path.realpath(path)
+
+
+def unit_rule(text: str) -> UnitRule:
+    """A command-line ``FILE=UNIT`` as a ``UnitRule`` (split at the last ``=``: no unit has one).
+
+    Raises
+    ------
+    ValueError
+        Not ``FILE=UNIT``, or an unknown unit.
+
+    Examples
+    --------
+    >>> unit_rule("cad/engine.glb=millimetre")
+    UnitRule(pattern='cad/engine.glb', unit='mm', base=None, source=None)
+    """
+    pattern, sep, unit = str(text).rpartition("=")
+    if not sep or not pattern or not unit.strip():
+        raise ValueError(f"{text!r} is not FILE=UNIT (e.g. engine.glb=mm)")
+    return UnitRule(pattern, unit_name(unit))
+
+
+def given_units(paths: Sequence[str], rules: Sequence[UnitRule]) -> dict[str, str]:
+    """The unit the user gave each of ``paths`` that a rule names: the last matching rule wins
+    (configuration rules come first, the command line's after them).
+
+    Returns
+    -------
+    dict
+        Path -> canonical unit, for the paths some rule names.
+    """
+    out = {}
+    for path in paths:
+        names = file_names(path)
+        for rule in rules:
+            if rule.matches(path, names):
+                out[path] = rule.unit
+    return out
+
+
+def unmatched_rules(paths: Sequence[str], rules: Sequence[UnitRule]) -> list[UnitRule]:
+    """The rules that name none of ``paths``, in order."""
+    names = [file_names(path) for path in paths]
+    return [r for r in rules if not any(r.matches(p, n) for p, n in zip(paths, names, strict=True))]

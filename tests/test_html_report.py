@@ -619,6 +619,43 @@ def test_clash_groups_are_listed_and_framed(browser_page, tmp_path):
     assert errors == []
 
 
+@pytest.mark.slow
+def test_pattern_group_names_both_parts_of_each_copy(browser_page, tmp_path):
+    """Two brackets each clipped by their peg the same way: one pattern group (no shared part);
+    the list and the label name both parts of each copy, the line frames both clashes."""
+    page, errors = browser_page
+    bodies = [
+        box("bracket_a.stl", [0, 0, 0], [10, 10, 2]),
+        box("peg_a.stl", [2, 2, 1.5], [4, 4, 5]),
+        box("bracket_b.stl", [40, 0, 0], [50, 10, 2]),
+        box(PEG3, [42, 2, 1.5], [44, 4, 5]),
+    ]
+    result = check_bodies(bodies, jobs=1)
+    path = tmp_path / "pattern.html"
+    path.write_text(render_html(result, bodies, version="0.1.0"), encoding="utf-8")
+    open_report(page, path)
+    data, buffer = embedded(path.read_text(encoding="utf-8"))
+    (group,) = data["groups"]
+    assert group["kind"] == "pattern" and group["part"] is None
+    node = page.locator(f"#groups .group[data-id='{group['id']}']")
+    head = node.locator(".group-head").inner_text()
+    assert group["id"] in head and "pattern" in head and "2 findings" in head
+    members = node.locator("li .part").all_text_contents()
+    by_id = {f["id"]: f for f in data["findings"]}
+    assert members == [
+        f"{printable(by_id[i]['a'])} \u00b7 {printable(by_id[i]['b'])}" for i in group["findings"]
+    ]
+    node.locator(".group-head").click()
+    boxes = [solid_box(data, buffer, f) for f in data["findings"]]
+    union = np.array([np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)])
+    target = np.array(page.evaluate("window.meshcheckView.controls.target.toArray()"))
+    np.testing.assert_allclose(target, union.mean(axis=0), atol=1e-3)
+    assert label_lines(page)[0] == f"2 interference \u00b7 pattern group {group['id']}"
+    assert page.locator("img").count() == 0
+    assert page.evaluate("window.__pwned") is None
+    assert errors == []
+
+
 # Runs in its own process: one process drives one Playwright at a time, and the module's
 # browser (with WebGL) is open while these tests run.
 WITHOUT_WEBGL_PROBE = """

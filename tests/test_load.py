@@ -544,8 +544,9 @@ def test_unknown_units_are_a_config_error(tmp_path):
 
 
 def test_parts_a_thousand_times_apart_in_size_warn_of_mixed_units(tmp_path):
-    mm = write_stl(tmp_path / "frame_mm.stl", box((40, 40, 40)))
-    m = write_stl(tmp_path / "pin_in_metres.stl", box((0.01, 0.01, 0.01), at=(0.01, 0, 0)))
+    mm = write_stl(tmp_path / "frame_mm.stl", box((400, 400, 400)))
+    # 0.1 m in metres: 0.17 mm across read in mm, not small enough for the micrometre warning
+    m = write_stl(tmp_path / "pin_in_metres.stl", box((0.1, 0.1, 0.1), at=(0.1, 0, 0)))
     with pytest.warns(MeshcheckWarning, match="mixed units") as caught:
         load_bodies([mm, m])
     (message,) = [str(w.message) for w in caught]

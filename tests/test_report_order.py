@@ -212,6 +212,7 @@ def test_one_bracket_clipping_many_bolts_is_one_group_in_every_human_and_json_fo
     assert doc["groups"] == [
         {
             "id": group.id,
+            "kind": "part",
             "part": "bracket.stl",
             "status": "interference",
             "findings": [f.id for f in group.members],
@@ -225,3 +226,16 @@ def test_one_bracket_clipping_many_bolts_is_one_group_in_every_human_and_json_fo
         r'<script type="application/json" id="meshcheck-data">(.*?)</script>', html, re.S
     )
     assert json.loads(data.group(1))["groups"] == doc["groups"]
+
+
+def test_config_quiet_and_hide_touching_and_their_command_line_opposites(tmp_path):
+    config = tmp_path / "meshcheck.toml"
+    config.write_text("quiet = true\nhide_touching = true\n")
+    base = [*SAMPLE, "--no-cache", "-j", "1", "--config", str(config)]
+    runner = CliRunner()
+    quiet = runner.invoke(main, base)
+    shown = runner.invoke(main, [*base, "--no-quiet", "--show-touching"])
+    assert quiet.exit_code == shown.exit_code == 1
+    assert "4 findings not listed (--quiet" in quiet.stdout
+    assert re.search(r"[0-9a-f]{12}  touching", shown.stdout), shown.stdout
+    assert "not listed" not in shown.stdout

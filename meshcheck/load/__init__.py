@@ -38,8 +38,11 @@ Every body is converted to one report unit (``Body.units``) by a scale folded in
 ``Body.transform``; ``Body.mesh`` stays in the file's unit. The rule is ``meshcheck.units``'s:
 ``units`` names the unit of files that declare none and the report unit; without it undeclared
 files are millimetres and the report unit is the one all files declare, when all declare the same,
-else millimetres. Files whose sizes differ by ``MIXED_UNITS_RATIO`` or more raise a warning
-(likely mixed units).
+else millimetres. ``file_units`` (``units.UnitRule``: ``--units FILE=UNIT``) give files their
+unit whatever they declare, and then count as what those files declare. Files whose sizes differ
+by ``MIXED_UNITS_RATIO`` or more raise a warning (likely mixed units), and so does a file whose
+size is implausible for mechanical parts (``LARGE_METRES`` across or more, ``SMALL_METRES`` or
+less), each suggesting the ``--units FILE=UNIT`` that would make it plausible.
 
 Validation
 ----------
@@ -93,8 +96,24 @@ __all__ = [
     "split_shells",
 ]
 
-#: Files whose bounding-box diagonals differ by this factor or more get a "mixed units?" warning.
+#: Files whose bounding-box diagonals differ by this factor or more get a "mixed units?" warning:
+#: a metre file among millimetre ones is 1000 times off, and parts of one machine rarely differ
+#: by more than a few hundred times (a 1 m frame and its 2 mm pins).
 MIXED_UNITS_RATIO = 500.0
+#: ... and by this factor or more when the two files are read in different units (a glTF, in
+#: metres by its specification, beside a millimetre STL): a glTF exported in millimetres is 1000
+#: times too large, and comes out 100 to 500 times the size of a part a few times larger.
+MIXED_DECLARED_RATIO = 100.0
+#: A file this many metres across or more warns: mechanical assemblies are not hundreds of
+#: metres across (a 0.74 m engine in a millimetre glTF reads as 743 m).
+LARGE_METRES = 100.0
+#: A file this many metres across or less warns: a part of micrometres is a file in metres (or
+#: inches) read in millimetres (a 20 mm bolt written in metres reads as 0.02 mm).
+SMALL_METRES = 1e-4
+#: Units a size warning may suggest, in this order: the first that makes the file between
+#: ``PLAUSIBLE_METRES`` across.
+SUGGESTED_UNITS = ("mm", "m", "in", "cm")
+PLAUSIBLE_METRES = (1e-3, 10.0)
 
 # --------------------------------------------------------------------------------------------
 # Paths
@@ -161,6 +180,7 @@ def load_bodies(
     *,
     split: bool = False,
     units: str | None = None,
+    file_units: Sequence[units_.UnitRule] = (),
     limits: Limits | None = None,
     cache_dir: str | None = None,
     step_deflection: float | None = None,
@@ -180,6 +200,10 @@ def load_bodies(
         shell around them).
     units : str, optional
         Unit of the files that declare none, and the report unit (``meshcheck.units``).
+    file_units : sequence of units.UnitRule, optional
+        Units of the files they name, whatever those declare (the last rule naming a file wins).
+        A rule from the command line (``source`` None) that names no file is an error; one from
+        a configuration file, a warning.
     limits : Limits, optional
         Budgets for the run; default ``Limits()``.
     cache_dir : str, optional
@@ -209,44 +233,77 @@ def load_bodies(
     InputError
         An input cannot be checked; see the module docstring.
     ConfigError
-        ``units`` is not a known unit.
+        ``units`` is not a known unit; a command-line ``file_units`` rule names no input file
+        or a URDF robot (``_given_units``).
     """
-    if units is not None:
-        try:
-            units = units_.unit_name(units)
-        except ValueError as exc:
-            raise ConfigError(None, str(exc)) from None
+    units = _checked_unit(units)
     budget = Budget(limits or Limits())
     files = _expand(paths)
+    given = _given_units([path for path, _ in files], file_units)
     reads = read_files(
         [path for path, _ in files],
         budget,
-        StepOptions(cache_dir, step_deflection, units, motion),
+        StepOptions(cache_dir, step_deflection, units, motion, tuple(sorted(given.items()))),
         executor=executor,
         progress=progress,
         parallel=parallel,
     )
-    report = units_.report_unit([r.declared for r in reads], units)
+    declared = [given.get(path, r.declared) for (path, _), r in zip(files, reads, strict=True)]
+    report = units_.report_unit(declared, units)
+    return _placed_bodies(files, reads, report, units, budget.limits, split=split, given=given)
 
-    return _placed_bodies(files, reads, report, units, budget.limits, split=split)
+
+def _checked_unit(units: str | None) -> str | None:
+    """The canonical name of ``units`` (None stays None); ConfigError for an unknown unit."""
+    if units is None:
+        return None
+    try:
+        return units_.unit_name(units)
+    except ValueError as exc:
+        raise ConfigError(None, str(exc)) from None
 
 
-def _placed_bodies(files, reads, report, units, limits, *, split: bool) -> list[Body]:
+def _given_units(paths: list[str], rules: Sequence[units_.UnitRule]) -> dict[str, str]:
+    """The unit the user gave each file (``units.given_units``), after refusing a command-line
+    rule that names no input file or names a URDF file, and warning about a configuration rule
+    that names none."""
+    for rule in units_.unmatched_rules(paths, rules):
+        if rule.source is None:
+            shown = ", ".join(paths[:3]) + (" ..." if len(paths) > 3 else "")
+            raise ConfigError(
+                rule.pattern, f"--units: names no input file (the inputs are {shown})"
+            )
+        warn(rule.source, f"[units] {rule.pattern!r} names no input file (a stale entry?)")
+    given = units_.given_units(paths, rules)
+    for path in given:
+        if os.path.splitext(path)[1].lower() in (".urdf",):
+            raise ConfigError(
+                path,
+                "a URDF robot takes no unit (--units, [units]): it is in metres (ROS); give its "
+                "meshes' unit with their scale attribute",
+            )
+    return given
+
+
+def _placed_bodies(files, reads, report, units, limits, *, split: bool, given) -> list[Body]:
     """Every file's bodies placed in the report unit, split into shells when asked; a name
-    given twice is refused, and sizes that differ by ``MIXED_UNITS_RATIO`` warn."""
+    given twice is refused, and implausible sizes warn (``_warn_sizes``)."""
     bodies: list[Body] = []
     seen: set[str] = set()
     sizes = []
     for (path, rel), file_read in zip(files, reads, strict=True):
-        file_bodies, diagonal = _place(path, rel, file_read, report, units, limits)
-        sizes.append((diagonal, path))
+        file_bodies, diagonal = _place(
+            path, rel, file_read, report, units, limits, given=given.get(path)
+        )
+        read_in = given.get(path) or file_read.declared or units or units_.DEFAULT_UNIT
+        sizes.append((diagonal, path, read_in))
         for body in file_bodies:
             for part in split_body(body) if split else [body]:
                 if part.name in seen:
                     raise InputError(part.name, "given more than once")
                 seen.add(part.name)
                 bodies.append(part)
-    _warn_mixed_units(sizes, report)
+    _warn_sizes(sizes, report, given)
     return bodies
 
 
@@ -280,10 +337,14 @@ def _place(
     report: str,
     units: str | None,
     limits: Limits,
+    *,
+    given: str | None = None,
 ) -> tuple[list[Body], float]:
-    """Bodies of one file, placed in world coordinates in the report unit, and the diagonal of
-    their bounding box."""
-    file_unit = file_read.declared or units or units_.DEFAULT_UNIT
+    """Bodies of one file, placed in world coordinates in the report unit (the file's unit is
+    ``given`` when the user gave one), and the diagonal of their bounding box."""
+    read_as = file_read.declared or units or units_.DEFAULT_UNIT
+    file_unit = given or read_as
+    is_rescaled = units_.METRES[file_unit] != units_.METRES[read_as]
     factor = units_.scale(file_unit, report)
     to_report = np.diag([factor, factor, factor, 1.0])
     multi = is_multi(path, file_read.items)
@@ -307,24 +368,64 @@ def _place(
             units=report,
             deflection=file_read.deflection * factor,
             is_float32=file_read.is_float32,
+            is_rescaled=is_rescaled,
         )
         bodies.append(body)
     corners = np.vstack(corners)
     return bodies, float(np.linalg.norm(corners.max(axis=0) - corners.min(axis=0)))
 
 
-def _warn_mixed_units(sizes: list[tuple[float, str]], report: str) -> None:
-    """Warn when the largest file is ``MIXED_UNITS_RATIO`` times the smallest or more."""
+def _warn_sizes(sizes: list[tuple[float, str, str]], report: str, given: dict) -> None:
+    """Warn about files of implausible size (``LARGE_METRES``, ``SMALL_METRES``), then about
+    mixed units (``_warn_mixed_units``); never about a file whose unit the user gave.
+
+    Parameters
+    ----------
+    sizes : list of (float, str, str)
+        Each file's diagonal (report units), path, and the unit its lengths were read in.
+    """
+    warned = set()
+    for diagonal, path, unit in sizes:
+        metres = diagonal * units_.METRES[report]
+        if path in given or diagonal <= 0.0 or SMALL_METRES < metres < LARGE_METRES:
+            continue
+        what = "hundreds of metres" if metres >= LARGE_METRES else "micrometres"
+        message = (
+            f"is {diagonal:.4g} {report} across, read in {unit}: {what} across is implausible "
+            "for mechanical parts"
+        )
+        warn(path, message + _suggestion(path, metres, unit))
+        warned.add(path)
+    _warn_mixed_units([s for s in sizes if s[1] not in warned and s[1] not in given], report)
+
+
+def _suggestion(path: str, metres: float, unit: str) -> str:
+    """``; if it is in mm, give --units PATH=mm``: the first of ``SUGGESTED_UNITS`` that makes
+    a file of ``metres`` read in ``unit`` plausible, or ``""``."""
+    low, high = PLAUSIBLE_METRES
+    for other in SUGGESTED_UNITS:
+        size = metres * units_.METRES[other] / units_.METRES[unit]
+        if other != unit and low <= size <= high:
+            return f"; if the file is in {other}, give --units {path}={other}"
+    return ""
+
+
+def _warn_mixed_units(sizes: list[tuple[float, str, str]], report: str) -> None:
+    """Warn when the largest file is ``MIXED_UNITS_RATIO`` times the smallest or more
+    (``MIXED_DECLARED_RATIO`` when the two are read in different units)."""
     sizes = [s for s in sizes if s[0] > 0.0]
     if len(sizes) < 2:
         return
     small, big = min(sizes), max(sizes)
-    if big[0] >= MIXED_UNITS_RATIO * small[0]:
+    ratio = MIXED_UNITS_RATIO if small[2] == big[2] else MIXED_DECLARED_RATIO
+    if big[0] >= ratio * small[0]:
+        units = f"read in {big[2]} and {small[2]}" if small[2] != big[2] else f"both {big[2]}"
         warn(
             big[1],
             f"is {big[0] / small[0]:.0f} times the size of {small[1]} "
-            f"({big[0]:.4g} against {small[0]:.4g} {report} across): mixed units? "
-            "(files that declare no unit are read in --units, default mm)",
+            f"({big[0]:.4g} against {small[0]:.4g} {report} across, {units}): mixed units? "
+            "(files that declare no unit are read in --units, default mm; give a file's own "
+            "unit with --units FILE=UNIT)",
         )
 
 
@@ -347,6 +448,7 @@ def split_body(body: Body) -> list[Body]:
             units=body.units,
             deflection=body.deflection,
             is_float32=body.is_float32,
+            is_rescaled=body.is_rescaled,
         )
         for k, shell in enumerate(shells, start=1)
     ]

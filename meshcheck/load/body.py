@@ -42,6 +42,10 @@ class Body:
         STEP through its GLB), so coincident faces far from the origin can be float32 rounding
         apart (``settings.pair_tolerances``). False for coordinates read in double (ASCII STL,
         OBJ, OFF, double PLY, 3MF). Default True: a body built in Python claims nothing.
+    is_rescaled : bool
+        Whether the user gave its file a unit other than the one it was read in (``--units
+        FILE=UNIT``): its lengths are not what the file says, so the file's own B-rep (a STEP
+        solid, in the declared unit) is not this part (``verify.brep`` leaves it alone).
     """
 
     name: str
@@ -52,6 +56,7 @@ class Body:
     units: str = "mm"
     deflection: float = 0.0
     is_float32: bool = True
+    is_rescaled: bool = False
 
     def __post_init__(self):
         if not self.relative_name:

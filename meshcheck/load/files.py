@@ -69,6 +69,8 @@ class StepOptions:
     deflection: float | None
     units: str | None
     motion: object = None  # motion.Motion: the pose and package paths of URDF files
+    #: (path, unit) of the files whose unit the user gave (``--units FILE=UNIT``), sorted
+    given_units: tuple[tuple[str, str], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -222,6 +224,7 @@ def _read_step(path: str, options: StepOptions, budget: Budget):
             deflection_unit=(options.units or units_.DEFAULT_UNIT)
             if options.deflection is not None
             else None,
+            unit=dict(options.given_units).get(path),
             cache=cache,
             max_triangles=budget.limits.max_triangles - budget.triangles,
         )

@@ -136,6 +136,7 @@ def read_step(
     *,
     deflection: float | None = None,
     deflection_unit: str | None = None,
+    unit: str | None = None,
     angular_deflection: float | None = None,
     cache: TessellationCache | None = None,
     max_triangles: int | None = None,
@@ -152,6 +153,9 @@ def read_step(
         the largest solid's diagonal when that is more.
     deflection_unit : str, optional
         Unit of ``deflection``, a key of ``meshcheck.units.METRES``; default the file's own unit.
+    unit : str, optional
+        The unit the file's lengths really are in (``--units FILE=UNIT``): deflections are
+        meant in it; the assembly keeps the file's numbers and declared unit.
     angular_deflection : float, optional
         Largest angle between neighbouring facets, radians; default
         ``DEFAULT_ANGULAR_DEFLECTION``.
@@ -187,27 +191,37 @@ def read_step(
     )
     data = _read_bytes(path)
     declared = _declared_unit(data)
+    real_unit = unit
     unit = declared or "mm"
     scale = UNIT_METRES[unit]  # metres per file unit
-    if deflection is None:
-        deflection_mm = None  # the default, at least DEFAULT_RELATIVE_DEFLECTION of the parts
-    else:
-        given_unit = unit if deflection_unit is None else deflection_unit
-        deflection_mm = float(deflection) * UNIT_METRES[given_unit] / 1e-3
+    deflection_mm, ratio = _deflection_mm(deflection, deflection_unit, unit, real_unit)
     budget = MAX_STEP_TRIANGLES if max_triangles is None else min(max_triangles, MAX_STEP_TRIANGLES)
 
-    key = tessellation_key(data, deflection_mm, angular) if cache is not None else ""
+    key = tessellation_key(data, deflection_mm, angular, default_scale=ratio) if cache else ""
     assembly = cache.get(key) if cache is not None else None
     if assembly is None or assembly.unit != unit:
         instances = _document(data, path).instances
-        used_mm = _tessellate(instances, path, deflection_mm, angular, budget, unit)
+        used_mm = _tessellate(instances, path, deflection_mm, angular, budget, unit, ratio)
         items = _items(instances, path, 1e-3 / scale, used_mm * 1e-3 / scale)
         assembly = StepAssembly(items, unit, used_mm * 1e-3 / scale, angular)
         if cache is not None:
             cache.put(key, assembly)
-    if declared is None:
+    if declared is None and real_unit is None:
         _warn_no_unit(path)
     return assembly
+
+
+def _deflection_mm(deflection, deflection_unit, unit: str, real_unit: str | None):
+    """(the deflection in OpenCASCADE's millimetres or None for the default, OpenCASCADE's
+    millimetres per real millimetre): the ratio is not 1 when the user says the file's lengths
+    are in ``real_unit``, not the ``unit`` it declares."""
+    ratio = (
+        1.0 if real_unit is None else UNIT_METRES[unit] / UNIT_METRES[units_.unit_name(real_unit)]
+    )
+    if deflection is None:
+        return None, ratio  # the default, at least DEFAULT_RELATIVE_DEFLECTION of the parts
+    given_unit = (real_unit or unit) if deflection_unit is None else deflection_unit
+    return float(deflection) * UNIT_METRES[given_unit] / 1e-3 * ratio, ratio
 
 
 def _check_deflections(deflection, deflection_unit, angular_deflection) -> None:
@@ -510,9 +524,11 @@ def _tessellate(
     angular: float,
     budget: int,
     unit: str,
+    default_scale: float = 1.0,
 ) -> float:
-    """Mesh every distinct product at ``deflection_mm`` (None: the default for their size) once
-    its cost is known to fit; return the deflection used, mm."""
+    """Mesh every distinct product at ``deflection_mm`` (None: the default for their size,
+    ``DEFAULT_DEFLECTION_MM`` times ``default_scale``, OpenCASCADE's millimetres per real one)
+    once its cost is known to fit; return the deflection used, mm."""
     from OCP.BRepMesh import BRepMesh_IncrementalMesh
     from OCP.BRepTools import BRepTools
 
@@ -520,7 +536,9 @@ def _tessellate(
     diagonal = max(shape_diagonal(shape) for shape in products)
     floor = max(MIN_DEFLECTION_MM, MIN_RELATIVE_DEFLECTION * diagonal)
     if deflection_mm is None:
-        deflection_mm = max(DEFAULT_DEFLECTION_MM, DEFAULT_RELATIVE_DEFLECTION * diagonal)
+        deflection_mm = max(
+            DEFAULT_DEFLECTION_MM * default_scale, DEFAULT_RELATIVE_DEFLECTION * diagonal
+        )
     to_unit = 1e-3 / UNIT_METRES[unit]
     if deflection_mm < floor:
         raise InputError(
@@ -836,8 +854,11 @@ def _one_line(text) -> str:
 FORMAT_VERSION = 2  # 2: read through OCP's XCAF reader (double-precision placements)
 
 
-def tessellation_key(data: bytes, deflection_mm: float | None, angular: float) -> str:
-    """Key of a tessellation: hex SHA-256 of the file's content, settings and library versions."""
+def tessellation_key(
+    data: bytes, deflection_mm: float | None, angular: float, *, default_scale: float = 1.0
+) -> str:
+    """Key of a tessellation: hex SHA-256 of the file's content, settings and library versions
+    (and, for a file whose unit the user gave, the scale of the default deflection)."""
     payload = {
         "format": FORMAT_VERSION,
         "ocp": _version("cadquery-ocp-novtk"),
@@ -846,6 +867,8 @@ def tessellation_key(data: bytes, deflection_mm: float | None, angular: float) -
         "deflection_mm": None if deflection_mm is None else float(deflection_mm).hex(),
         "angular": float(angular).hex(),
     }
+    if default_scale != 1.0 and deflection_mm is None:
+        payload["default_scale"] = float(default_scale).hex()
     text = json.dumps(payload, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()
 

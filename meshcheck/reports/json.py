@@ -1,7 +1,8 @@
 """The JSON report: ``results``, ``groups``, ``parts`` and ``summary``; names kept whole.
 
-``groups`` are the clash groups (``results.clash_groups``): each names its shared part, its
-status and its findings' IDs.
+``groups`` are the clash groups (``results.clash_groups``): each has its ``kind`` (``part``: a
+part its findings share, named in ``part``; ``pattern``: copies of two parts at one relative
+placement, ``part`` null), its status and its findings' IDs.
 
 Every finding carries ``baseline`` (``"new"``, ``"active"``, or null without a baseline); with a
 baseline the document also has ``resolved``, the baseline's findings this run no longer has.

@@ -22,6 +22,7 @@ from .common import (
     summary_line,
     unlisted,
 )
+from .text import group_lines
 
 #: Rows shown in the table; the rest are counted (a step summary is limited to 1 MiB).
 MAX_ROWS = 1000
@@ -80,10 +81,9 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
     if groups:
         lines += ["Clash groups:", ""]
         for g in groups:
-            lines.append(f"- `{g.id}` {escape(g.part)}: {len(g.members)} {g.status}")
-            for f in g.members:
-                other = f.b if f.a == g.part else f.a
-                lines.append(f"  - `{f.id}` {escape(other)}")
+            head, members = group_lines(g, escape)
+            lines.append(f"- `{g.id}` {head}")
+            lines += [f"  - `{finding_id}` {names}" for finding_id, names in members]
         lines.append("")
     note = unlisted(result, view, len(rows))
     if note:

@@ -178,15 +178,10 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
     if rows:
         lines.extend(_table(rows, width=width, has_baseline=has_baseline))
     for group in clash_groups(shown):
-        lines.extend(
-            wrap(
-                f"group {group.id}  {short(group.part)}: {len(group.members)} {group.status}",
-                _INDENT,
-            )
-        )
-        for f in group.members:
-            other = f.b if f.a == group.part else f.a
-            lines.extend(wrap(f"  {f.id}  {short(other)}", _INDENT))
+        head, rows_below = group_lines(group, short)
+        lines.extend(wrap(f"group {group.id}  {head}", _INDENT))
+        for finding_id, names in rows_below:
+            lines.extend(wrap(f"  {finding_id}  {names}", _INDENT))
     note = unlisted(result, view, len(shown))
     if note:
         lines.extend(wrap(note, "  "))
@@ -199,6 +194,32 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
         lines.extend(wrap(f"configuration: {printable(result.settings.config_path)}", "  "))
     lines.extend(wrap(summary_line(result), "  "))
     return "\n".join(lines) + "\n"
+
+
+def group_lines(group, name) -> tuple[str, list[tuple[str, str]]]:
+    """A clash group's line (after its ID) and its members' (ID, names), names through ``name``.
+
+    A part group names the shared part and each member's other part; a pattern group says what
+    repeats and names both parts of each member.
+
+    Examples
+    --------
+    >>> from meshcheck.results import ClashGroup, Finding, PairVerdict
+    >>> v = PairVerdict("interference", 0.0, depth=1.0)
+    >>> g = ClashGroup("0123456789ab", None, v.status, (Finding("a1", "b1", v, id="f1"),
+    ...     Finding("a2", "b2", v, id="f2")), kind="pattern")
+    >>> head, rows = group_lines(g, str)
+    >>> head
+    'pattern: 2 interference, copies of two parts at one relative placement'
+    >>> rows
+    [('f1', 'a1 and b1'), ('f2', 'a2 and b2')]
+    """
+    count = f"{len(group.members)} {group.status}"
+    if group.kind == "pattern":
+        head = f"pattern: {count}, copies of two parts at one relative placement"
+        return head, [(f.id, f"{name(f.a)} and {name(f.b)}") for f in group.members]
+    rows = [(f.id, name(f.b if f.a == group.part else f.a)) for f in group.members]
+    return f"{name(group.part)}: {count}", rows
 
 
 def _table(rows: list[tuple], *, width: int, has_baseline: bool) -> list[str]:

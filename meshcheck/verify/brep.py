@@ -162,7 +162,9 @@ def _is_near(finding: Finding, a: Body, b: Body) -> bool:
 
 
 def _is_step(body: Body) -> bool:
-    return os.path.splitext(body.path)[1].lower() in STEP_EXTENSIONS and body.deflection > 0
+    """A STEP solid whose B-rep is the part (not rescaled by ``--units FILE=UNIT``)."""
+    is_step = os.path.splitext(body.path)[1].lower() in STEP_EXTENSIONS
+    return is_step and body.deflection > 0 and not body.is_rescaled
 
 
 def _own_tolerance(a: Body, b: Body, settings: Settings) -> float:

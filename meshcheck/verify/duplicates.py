@@ -48,7 +48,7 @@ def duplicate_sets(
         diagonal = float(np.linalg.norm(local.max(axis=0))) if len(local) else 0.0
         tol = tolerance if tolerance is not None else fraction * diagonal
         features = np.array([_placement(bodies[k], geometry, diagonal) for k in members])
-        sets += [[members[i] for i in group] for group in _clusters(features, tol)]
+        sets += [[members[i] for i in group] for group in clusters(features, tol)]
     return sorted(sets)
 
 
@@ -60,7 +60,7 @@ def _placement(body, geometry: dict, diagonal: float) -> np.ndarray:
     return np.concatenate([(rotation * diagonal).ravel(), rotation @ corner + shift])
 
 
-def _clusters(features: np.ndarray, tol: float) -> list[list[int]]:
+def clusters(features: np.ndarray, tol: float) -> list[list[int]]:
     """Groups (two or more rows) of ``features`` linked by distances within the radius."""
     unique, inverse = np.unique(features, axis=0, return_inverse=True)
     inverse = inverse.reshape(-1)

@@ -284,8 +284,25 @@
     return [title, f.a, f.b];
   }
 
+  // The other part of each member: a part group's shared part left out; a pattern group (no
+  // shared part, copies of one pair) names both parts of each member.
+  function memberName(g, f) {
+    if (g.part === null) return f.a + " \u00b7 " + f.b;
+    return f.a === g.part ? f.b : f.a;
+  }
+
+  function groupNames(g, findings) {
+    if (g.part === null) return findings.flatMap((f) => [f.a, f.b]);
+    return [g.part, ...findings.map((f) => memberName(g, f))];
+  }
+
   function groupText(g, findings) {
-    const others = findings.map((f) => (f.a === g.part ? f.b : f.a));
+    if (g.part === null) {
+      const title = findings.length + " " + g.status + " \u00b7 pattern group " + g.id;
+      const more = findings.length > 1 ? " and " + (findings.length - 1) + " more alike" : "";
+      return [title, memberName(g, findings[0]), "the same clash" + more];
+    }
+    const others = findings.map((f) => memberName(g, f));
     const more = others.length > 3 ? " and " + (others.length - 3) + " more" : "";
     return [findings.length + " " + g.status + " \u00b7 group " + g.id, g.part, "with " + others.slice(0, 3).join(", ") + more];
   }
@@ -329,8 +346,7 @@
     };
     const frame = (f) => select([f], [f.a, f.b], labelText(f, data.units));
     const frameGroup = (g, findings) => {
-      const names = [g.part, ...findings.map((f) => (f.a === g.part ? f.b : f.a))];
-      return select(findings, names, groupText(g, findings));
+      return select(findings, groupNames(g, findings), groupText(g, findings));
     };
     const setVisible = (id, isVisible) => {
       const m = markers.get(id);
@@ -585,8 +601,8 @@
     }
   }
 
-  // Clash groups (findings of one status sharing a part): a line per group, its members below;
-  // the line frames the whole group, a member frames that finding.
+  // Clash groups (findings of one status sharing a part, or copies of one clash): a line per
+  // group, its members below; the line frames the whole group, a member frames that finding.
   function buildGroups(groups, byId, selectFinding, selectGroup) {
     const box = document.getElementById("groups");
     if (!groups.length) return;
@@ -597,13 +613,13 @@
       node.dataset.id = g.id;
       const head = el("div", "group-head");
       head.append(el("span", "id", g.id), " ", el("span", "badge " + g.status, g.status), " ");
-      head.append(el("span", "part", g.part), " " + members.length + " findings");
+      head.append(el("span", "part", g.part === null ? "pattern" : g.part), " " + members.length + " findings");
       activate(head, () => selectGroup(g, members));
       const list = el("ul");
       for (const f of members) {
         const item = el("li");
         item.dataset.id = f.id;
-        item.append(el("span", "id", f.id), " ", el("span", "part", f.a === g.part ? f.b : f.a));
+        item.append(el("span", "id", f.id), " ", el("span", "part", memberName(g, f)));
         activate(item, () => selectFinding(f));
         list.append(item);
       }
