@@ -53,6 +53,7 @@ from ..geometry.constants import (
     MIN_BISECTOR,
     RAY_SKIP_REL,
 )
+from ..geometry.lp import largest_ball
 from ..geometry.triangles import (
     closest_points_on_triangles,
     inscribed_ball,
@@ -290,10 +291,9 @@ def _hull_inradius(points: np.ndarray) -> tuple[float, np.ndarray | None]:
     """Upper bound on the inradius of the convex hull of ``points`` (``inf`` when unknown), and
     the centre the solver found (None when it failed).
 
-    The Chebyshev-centre linear program is solved in coordinates scaled to the points' box, and
-    the bound is read from its dual (any dual-feasible point bounds the maximum, whatever the
-    solver's tolerances), not from the primal objective."""
-    from scipy.optimize import linprog
+    The Chebyshev-centre linear program is solved in coordinates scaled to the points' box
+    (``geometry.lp.largest_ball``), and the bound is the one its dual multipliers prove (valid
+    whatever the solver's tolerances), not the primal objective."""
     from scipy.spatial import ConvexHull, QhullError
 
     centre = 0.5 * (points.min(axis=0) + points.max(axis=0))
@@ -305,25 +305,11 @@ def _hull_inradius(points: np.ndarray) -> tuple[float, np.ndarray | None]:
         eq = ConvexHull(unit).equations  # n . x + o <= 0 inside, |n| = 1
     except (QhullError, ValueError):
         return math.inf, None
-    normal, offset = eq[:, :3], eq[:, 3]
-    lp = linprog(
-        [0.0, 0.0, 0.0, -1.0],
-        A_ub=np.c_[normal, np.ones(len(eq))],
-        b_ub=-offset,
-        bounds=[(None, None)] * 4,
-        method="highs",
-    )
-    if lp.status != 0:
+    # Every ball in the hull has its centre in it, so within the box |x_k| <= 1 of ``unit``.
+    ball = largest_ball(eq[:, :3], -eq[:, 3], box=1.0)
+    if ball is None:
         return math.inf, None
-    centre = centre + scale * lp.x[:3]
-    y = np.maximum(-np.asarray(lp.ineqlin.marginals), 0.0)
-    if y.sum() <= 0.0:
-        return math.inf, centre
-    y /= y.sum()
-    # For every feasible (x, r): r = sum y_i r <= sum y_i (-o_i - n_i . x)
-    #                                          <= -y . o + |N^T y| |x|, and |x| <= sqrt(3).
-    bound = float(-y @ offset + np.linalg.norm(normal.T @ y) * math.sqrt(3.0))
-    return max(bound, 0.0) * scale * (1.0 + BOUND_SAFETY_REL), centre
+    return max(ball.bound, 0.0) * scale * (1.0 + BOUND_SAFETY_REL), centre + scale * ball.centre
 
 
 # ---------------------------------------------------------------------------------------------
@@ -706,20 +692,13 @@ def _ascent_step(v: np.ndarray, f: np.ndarray, x: np.ndarray, r: float) -> np.nd
     it) and ``|y - x|_inf <= r``. Each constraint bounds the distance from ``y`` to triangle ``i``
     from below (the triangle lies behind the plane through ``q_i`` normal to ``u_i``), and every
     triangle the step could reach is among them, so ``y`` stays inside. None when it fails."""
-    from scipy.optimize import linprog
-
     dist, q = closest_points_on_triangles(x, v, f)
     keep = (dist <= r * (1.0 + 2.0 * math.sqrt(3.0))) & (dist > 0.0)
-    if not keep.any():
+    if not keep.any() or not r > 0.0:
         return None
     u = (x - q[keep]) / dist[keep, None]
-    lp = linprog(
-        [0.0, 0.0, 0.0, -1.0],
-        A_ub=np.c_[-u, np.ones(len(u))],
-        b_ub=np.einsum("ij,ij->i", u, x - q[keep]),
-        bounds=[(-r, r)] * 3 + [(None, None)],
-        method="highs",
-    )
-    if lp.status != 0:
+    # In the step d = y - x: -u_i . d + rho <= u_i . (x - q_i), |d_k| <= r.
+    ball = largest_ball(-u, np.einsum("ij,ij->i", u, x - q[keep]), box=r)
+    if ball is None:
         return None
-    return x + lp.x[:3]
+    return x + ball.centre

@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "epa.hpp"
+#include "lp.hpp"
 #include "topology.hpp"
 #include "triangles.hpp"
 
@@ -391,6 +392,32 @@ PyObject* inscribed_ball_py(PyObject*, PyObject* args) {
     return Py_BuildValue("dN", r, tuple3(x));
 }
 
+// ball_lp(p (m, 3), h (m,), R, max_iter) -> (status, x (3,) , t, y (m + 6,)); see lp.hpp.
+PyObject* ball_lp_py(PyObject*, PyObject* args) {
+    PyObject *po, *ho;
+    double R;
+    long long max_iter;
+    if (!PyArg_ParseTuple(args, "OOdL", &po, &ho, &R, &max_iter)) return nullptr;
+    Array p, h, x, y;
+    if (!as_array(po, NPY_DOUBLE, 2, 3, "p", p) || !as_array(ho, NPY_DOUBLE, 1, 0, "h", h))
+        return nullptr;
+    if (h.len() != p.len()) {
+        PyErr_SetString(PyExc_ValueError, "h: expected one value per row of p");
+        return nullptr;
+    }
+    npy_intp n = p.len() + 6, three = 3;
+    x.a = reinterpret_cast<PyArrayObject*>(PyArray_SimpleNew(1, &three, NPY_DOUBLE));
+    if (x.a == nullptr) return nullptr;
+    y.a = reinterpret_cast<PyArrayObject*>(PyArray_SimpleNew(1, &n, NPY_DOUBLE));
+    if (y.a == nullptr) return nullptr;
+    double t;
+    int status;
+    Py_BEGIN_ALLOW_THREADS;
+    status = ball_lp(p.f8(), h.f8(), p.len(), R, max_iter, x.f8(), t, y.f8());
+    Py_END_ALLOW_THREADS;
+    return Py_BuildValue("iNdN", status, x.release(), t, y.release());
+}
+
 // closest_points_on_triangles(p, v, f) -> (distance (m,), points (m, 3))
 PyObject* closest_points_on_triangles_py(PyObject*, PyObject* args) {
     PyObject *po, *vo, *fo;
@@ -536,6 +563,7 @@ PyMethodDef METHODS[] = {
     {"winding_numbers", per_point<winding_number_fn>, METH_VARARGS, nullptr},
     {"point_distances", per_point<point_distance_fn>, METH_VARARGS, nullptr},
     {"inscribed_ball", inscribed_ball_py, METH_VARARGS, nullptr},
+    {"ball_lp", ball_lp_py, METH_VARARGS, nullptr},
     {"closest_points_on_triangles", closest_points_on_triangles_py, METH_VARARGS, nullptr},
     {"group_rows", group_rows_py, METH_VARARGS, nullptr},
     {"degenerate_triangles", degenerate_triangles_py, METH_VARARGS, nullptr},
