@@ -95,16 +95,18 @@ def _checked(p, h, box, x, y) -> Ball | None:
     """The answer ``x`` (clipped to the box) with its slack, and the bound the multipliers ``y``
     (rows, then ``x_k <= box``, ``-x_k <= box``) prove; None when they prove nothing."""
     x = np.clip(np.asarray(x, dtype=np.float64), -box, box)
-    rows = np.maximum(np.asarray(y[: len(p)], dtype=np.float64), 0.0)
-    boxes = np.maximum(np.asarray(y[len(p) :], dtype=np.float64), 0.0)
-    total = float(rows.sum())
-    if not total > 0.0 or not np.all(np.isfinite(rows)) or not np.all(np.isfinite(boxes)):
+    y = np.maximum(np.asarray(y, dtype=np.float64), 0.0)
+    total = float(y[: len(p)].sum())
+    if not (total > 0.0 and math.isfinite(total)):
         return None
-    rows, boxes = rows / total, boxes / total
+    y = y / total
+    rows, boxes = y[: len(p)], y[len(p) :]
     # Weak duality: for feasible (x, t), t = sum y_i t <= y . h + box sum(w) - g . x with
     # g = p^T y + (w_0 - w_1, w_2 - w_3, w_4 - w_5), and |g . x| <= |g| sqrt(3) box.
     g = p.T @ rows + (boxes[0::2] - boxes[1::2])
-    bound = float(rows @ h + box * boxes.sum() + np.linalg.norm(g) * math.sqrt(3.0) * box)
+    bound = float(rows @ h + box * boxes.sum() + math.sqrt(float(g @ g)) * math.sqrt(3.0) * box)
+    if not math.isfinite(bound):
+        return None
     slack = float((h - p @ x).min())
     return Ball(x, slack, bound, rows)
 

@@ -392,6 +392,28 @@ PyObject* inscribed_ball_py(PyObject*, PyObject* args) {
     return Py_BuildValue("dN", r, tuple3(x));
 }
 
+// ray_hits(o (r, 3), d (r, 3), v, f, beyond) -> (r,) float64: each ray's first hit beyond `beyond`.
+PyObject* ray_hits_py(PyObject*, PyObject* args) {
+    PyObject *oo, *dobj, *vo, *fo;
+    double beyond;
+    if (!PyArg_ParseTuple(args, "OOOOd", &oo, &dobj, &vo, &fo, &beyond)) return nullptr;
+    Array o, d, v, f, res;
+    if (!as_array(oo, NPY_DOUBLE, 2, 3, "o", o) || !as_array(dobj, NPY_DOUBLE, 2, 3, "d", d) ||
+        !as_array(vo, NPY_DOUBLE, 2, 3, "v", v) || !faces_of(fo, v.len(), "f", f))
+        return nullptr;
+    if (o.len() != d.len()) {
+        PyErr_SetString(PyExc_ValueError, "d: expected one direction per origin");
+        return nullptr;
+    }
+    if (!new_array(1, o.len(), NPY_DOUBLE, res)) return nullptr;
+    Py_BEGIN_ALLOW_THREADS;
+    for (npy_intp i = 0; i < o.len(); ++i)
+        res.f8()[i] = ray_first_hit(row(o.f8(), i), row(d.f8(), i), v.f8(), f.i8(), f.len(), -1,
+                                    beyond);
+    Py_END_ALLOW_THREADS;
+    return res.release();
+}
+
 // ball_lp(p (m, 3), h (m,), R, max_iter) -> (status, x (3,) , t, y (m + 6,)); see lp.hpp.
 PyObject* ball_lp_py(PyObject*, PyObject* args) {
     PyObject *po, *ho;
@@ -564,6 +586,7 @@ PyMethodDef METHODS[] = {
     {"point_distances", per_point<point_distance_fn>, METH_VARARGS, nullptr},
     {"inscribed_ball", inscribed_ball_py, METH_VARARGS, nullptr},
     {"ball_lp", ball_lp_py, METH_VARARGS, nullptr},
+    {"ray_hits", ray_hits_py, METH_VARARGS, nullptr},
     {"closest_points_on_triangles", closest_points_on_triangles_py, METH_VARARGS, nullptr},
     {"group_rows", group_rows_py, METH_VARARGS, nullptr},
     {"degenerate_triangles", degenerate_triangles_py, METH_VARARGS, nullptr},

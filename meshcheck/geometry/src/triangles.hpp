@@ -308,9 +308,10 @@ inline double distance_beyond(V3 p, const double* v, const int64_t* f, int64_t m
     return std::sqrt(best);
 }
 
-// Smallest t > 0 where the ray o + t d meets a triangle other than `skip`.
+// Smallest t > beyond where the ray o + t d meets a triangle other than `skip`
+// (Moller-Trumbore; INF when none).
 inline double ray_first_hit(V3 o, V3 d, const double* v, const int64_t* f, int64_t m,
-                            int64_t skip) {
+                            int64_t skip, double beyond = 0.0) {
     double best = INF;
     for (int64_t k = 0; k < m; ++k) {
         if (k == skip) continue;
@@ -327,7 +328,7 @@ inline double ray_first_hit(V3 o, V3 d, const double* v, const int64_t* f, int64
         double w = dot(d, q) * inv;
         if (w < 0.0 || u + w > 1.0) continue;
         double tt = dot(e2, q) * inv;
-        if (0.0 < tt && tt < best) best = tt;
+        if (beyond < tt && tt < best) best = tt;
     }
     return best;
 }
