@@ -407,9 +407,9 @@ PyObject* ray_hits_py(PyObject*, PyObject* args) {
     }
     if (!new_array(1, o.len(), NPY_DOUBLE, res)) return nullptr;
     Py_BEGIN_ALLOW_THREADS;
+    const MeshBvh bvh(v.f8(), f.i8(), f.len());
     for (npy_intp i = 0; i < o.len(); ++i)
-        res.f8()[i] = ray_first_hit(row(o.f8(), i), row(d.f8(), i), v.f8(), f.i8(), f.len(), -1,
-                                    beyond);
+        res.f8()[i] = bvh_ray_first_hit(bvh, row(o.f8(), i), row(d.f8(), i), -1, beyond);
     Py_END_ALLOW_THREADS;
     return res.release();
 }
@@ -505,6 +505,27 @@ double point_distance_fn(V3 p, const double* v, const int64_t* f, int64_t m) {
     return point_mesh_distance(p, v, f, m);
 }
 
+// point_distances(points (k, 3), v, f) -> (k,) float64: through a BVH when there are enough points
+// to repay building it (the same values, bit for bit; see MeshBvh).
+PyObject* point_distances_py(PyObject* self, PyObject* args) {
+    PyObject *po, *vo, *fo;
+    if (!PyArg_ParseTuple(args, "OOO", &po, &vo, &fo)) return nullptr;
+    Array pts, v, f, res;
+    if (!as_array(po, NPY_DOUBLE, 2, 3, "points", pts) || !as_array(vo, NPY_DOUBLE, 2, 3, "v", v) ||
+        !faces_of(fo, v.len(), "f", f))
+        return nullptr;
+    if (pts.len() < 8 || f.len() < 64) return per_point<point_distance_fn>(self, args);
+    if (!new_array(1, pts.len(), NPY_DOUBLE, res)) return nullptr;
+    Py_BEGIN_ALLOW_THREADS;
+    const MeshBvh bvh(v.f8(), f.i8(), f.len());
+    for (npy_intp i = 0; i < pts.len(); ++i) {
+        int64_t no_hint = -1;
+        res.f8()[i] = bvh_distance_beyond(bvh, row(pts.f8(), i), -1.0, no_hint);
+    }
+    Py_END_ALLOW_THREADS;
+    return res.release();
+}
+
 // group_rows(keys (n, c) int64, by_sorting) -> (first (g,) int64, inverse (n,) int64)
 PyObject* group_rows_py(PyObject*, PyObject* args) {
     PyObject* ko;
@@ -583,7 +604,7 @@ PyMethodDef METHODS[] = {
     {"pair_distances", pair_distances_py, METH_VARARGS, nullptr},
     {"triangle_distance", triangle_distance_py, METH_VARARGS, nullptr},
     {"winding_numbers", per_point<winding_number_fn>, METH_VARARGS, nullptr},
-    {"point_distances", per_point<point_distance_fn>, METH_VARARGS, nullptr},
+    {"point_distances", point_distances_py, METH_VARARGS, nullptr},
     {"inscribed_ball", inscribed_ball_py, METH_VARARGS, nullptr},
     {"ball_lp", ball_lp_py, METH_VARARGS, nullptr},
     {"ray_hits", ray_hits_py, METH_VARARGS, nullptr},
