@@ -71,8 +71,8 @@ def main(argv=None) -> None:
     for path in args.files:
         cost, seconds = measure(path)
         classes = {
-            "solid": cost >= batch.SOLID_SECONDS,
-            "near": (cost < batch.SOLID_SECONDS) & (cost >= batch.PAIR_SECONDS),
+            "solid": cost > batch.PAIR_SECONDS,
+            "near": cost == batch.PAIR_SECONDS,
             "apart": cost < batch.PAIR_SECONDS,
         }
         for name, mask in classes.items():
