@@ -20,6 +20,7 @@ __all__ = [
     "inscribed_ball",
     "pair_distances",
     "point_distances",
+    "ray_hits",
     "triangle_boxes",
     "triangle_distance",
     "winding_numbers",
@@ -131,6 +132,13 @@ def inscribed_ball(v, f, max_seeds: int) -> tuple[float, tuple[float, float, flo
     step never exceeds the current radius, so every accepted point stays inside the solid.
     """
     return _kernels.inscribed_ball(_f8(v), _i8(f), int(max_seeds))
+
+
+def ray_hits(o, d, v, f, beyond: float) -> np.ndarray:
+    """Distance along each ray ``o + t d`` (origins and directions ``(r, 3)``) to the first
+    triangle of ``(v, f)`` it meets at ``t > beyond`` (Moller-Trumbore), ``inf`` when none:
+    ``(r,) float64``."""
+    return _kernels.ray_hits(_f8(o), _f8(d), _f8(v), _i8(f), float(beyond))
 
 
 def closest_points_on_triangles(p, v, f) -> tuple[np.ndarray, np.ndarray]:

@@ -27,9 +27,11 @@ from .pair import verify_pair
 #: quiet 2-core machine.
 PAIR_SECONDS = 0.007
 #: Expected extra seconds of a pair that may interfere (both meshes closed, hulls penetrating):
-#: the shared solid (manifold3d) and its certified depth (``verify.depth``). The cold PR2
-#: (``bench/real_assemblies.py``, cProfile) spent 25 s on 17 such pairs on a loaded machine.
-SOLID_SECONDS = 1.0
+#: the shared solid (manifold3d) and its certified depth (``verify.depth``).
+#: ``python bench/verify_costs.py`` (CPU seconds per pair of such pairs, ``PAIR_SECONDS``'s part
+#: included, cold, loaded machine): 0.028 on the cycloidal gearbox (189 pairs), 0.016 on the PR2
+#: (26 pairs).
+SOLID_SECONDS = 0.02
 #: Serial seconds a fresh pool must save to repay its start (imports, compiled kernels, shipping
 #: the meshes): ``bench/verify_parallel.py`` put the 2-process crossover at about 300 plain
 #: pairs (1.63x the serial time at 100 pairs, 1.12x at 200, 0.87x at 400, 0.74x at 720).

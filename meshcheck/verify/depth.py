@@ -53,10 +53,12 @@ from ..geometry.constants import (
     MIN_BISECTOR,
     RAY_SKIP_REL,
 )
+from ..geometry.lp import largest_ball
 from ..geometry.triangles import (
     closest_points_on_triangles,
     inscribed_ball,
     point_distances,
+    ray_hits,
     winding_numbers,
 )
 
@@ -203,16 +205,20 @@ def _upper_radius(v: np.ndarray, f: np.ndarray) -> tuple[float, list[np.ndarray]
     graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
     count, label = connected_components(graph, directed=False)
     face_label = label[f[:, 0]]
+    # The faces of each piece, in their order in ``f``: one stable sort instead of a pass over all
+    # faces per piece (a shared solid can have thousands of pieces).
+    order = np.argsort(face_label, kind="stable")
+    starts = np.searchsorted(face_label[order], np.arange(count + 1))
     best = 0.0
     centres = []
     for piece in range(count):
-        pf = f[face_label == piece]
+        pf = f[order[starts[piece] : starts[piece + 1]]]
         if len(pf) == 0:
             continue
         pv = v[np.unique(pf)]
         extent = float((pv.max(axis=0) - pv.min(axis=0)).min())
         a, b, c = (v[pf[:, k]] - pv[0] for k in range(3))
-        volume = max(float(np.einsum("ij,ij->", a, np.cross(b, c))) / 6.0, 0.0)
+        volume = max(float(np.einsum("ij,ij->", a, _cross(b, c))) / 6.0, 0.0)
         radius = min(0.5 * extent, (0.75 * volume / math.pi) ** (1.0 / 3.0))
         if radius > best:
             inradius, centre = _hull_inradius(pv)
@@ -220,6 +226,14 @@ def _upper_radius(v: np.ndarray, f: np.ndarray) -> tuple[float, list[np.ndarray]
             if centre is not None:
                 centres.append(centre)
     return best, centres
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``np.cross`` of ``(k, 3)`` rows, the same operations (so the same bits) without its
+    per-call overhead."""
+    a0, a1, a2 = a[:, 0], a[:, 1], a[:, 2]
+    b0, b1, b2 = b[:, 0], b[:, 1], b[:, 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=1)
 
 
 def _is_thinner_than(v: np.ndarray, f: np.ndarray, radius: float, max_pieces: int) -> bool:
@@ -290,10 +304,9 @@ def _hull_inradius(points: np.ndarray) -> tuple[float, np.ndarray | None]:
     """Upper bound on the inradius of the convex hull of ``points`` (``inf`` when unknown), and
     the centre the solver found (None when it failed).
 
-    The Chebyshev-centre linear program is solved in coordinates scaled to the points' box, and
-    the bound is read from its dual (any dual-feasible point bounds the maximum, whatever the
-    solver's tolerances), not from the primal objective."""
-    from scipy.optimize import linprog
+    The Chebyshev-centre linear program is solved in coordinates scaled to the points' box
+    (``geometry.lp.largest_ball``), and the bound is the one its dual multipliers prove (valid
+    whatever the solver's tolerances), not the primal objective."""
     from scipy.spatial import ConvexHull, QhullError
 
     centre = 0.5 * (points.min(axis=0) + points.max(axis=0))
@@ -305,25 +318,11 @@ def _hull_inradius(points: np.ndarray) -> tuple[float, np.ndarray | None]:
         eq = ConvexHull(unit).equations  # n . x + o <= 0 inside, |n| = 1
     except (QhullError, ValueError):
         return math.inf, None
-    normal, offset = eq[:, :3], eq[:, 3]
-    lp = linprog(
-        [0.0, 0.0, 0.0, -1.0],
-        A_ub=np.c_[normal, np.ones(len(eq))],
-        b_ub=-offset,
-        bounds=[(None, None)] * 4,
-        method="highs",
-    )
-    if lp.status != 0:
+    # Every ball in the hull has its centre in it, so within the box |x_k| <= 1 of ``unit``.
+    ball = largest_ball(eq[:, :3], -eq[:, 3], box=1.0)
+    if ball is None:
         return math.inf, None
-    centre = centre + scale * lp.x[:3]
-    y = np.maximum(-np.asarray(lp.ineqlin.marginals), 0.0)
-    if y.sum() <= 0.0:
-        return math.inf, centre
-    y /= y.sum()
-    # For every feasible (x, r): r = sum y_i r <= sum y_i (-o_i - n_i . x)
-    #                                          <= -y . o + |N^T y| |x|, and |x| <= sqrt(3).
-    bound = float(-y @ offset + np.linalg.norm(normal.T @ y) * math.sqrt(3.0))
-    return max(bound, 0.0) * scale * (1.0 + BOUND_SAFETY_REL), centre
+    return max(ball.bound, 0.0) * scale * (1.0 + BOUND_SAFETY_REL), centre + scale * ball.centre
 
 
 # ---------------------------------------------------------------------------------------------
@@ -386,7 +385,7 @@ class _Search:
         ok = length > MIN_BISECTOR
         o = 0.5 * (self.v[e[pair, 0]] + self.v[e[pair, 1]])[ok]
         d = bisector[ok] / length[ok, None]
-        t = _ray_hits(o, d, self.tri, RAY_SKIP_REL * size)
+        t = ray_hits(o, d, self.v, self.f, RAY_SKIP_REL * size)
         hit = np.isfinite(t)
         points = o[hit] + 0.5 * t[hit, None] * d[hit]
         if len(points) == 0:
@@ -677,49 +676,19 @@ def _strided(items: np.ndarray, limit: int) -> np.ndarray:
     return items if len(items) <= limit else items[:: -(-len(items) // limit)]
 
 
-def _ray_hits(o: np.ndarray, d: np.ndarray, tri: np.ndarray, skip: float) -> np.ndarray:
-    """Distance along each ray ``o + t d`` to the first triangle it meets beyond ``skip``
-    (``inf`` when none): Moller-Trumbore, rays in chunks against all triangles."""
-    a = tri[:, 0]
-    e1, e2 = tri[:, 1] - a, tri[:, 2] - a
-    out = np.full(len(o), np.inf)
-    chunk = max(1, 2_000_000 // max(len(tri), 1))
-    for s in range(0, len(o), chunk):
-        oo, dd = o[s : s + chunk, None, :], d[s : s + chunk, None, :]
-        h = np.cross(dd, e2)
-        det = np.einsum("rtj,tj->rt", h, e1)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            inv = 1.0 / det
-            sv = oo - a
-            u = np.einsum("rtj,rtj->rt", sv, h) * inv
-            q = np.cross(sv, e1)
-            w = np.einsum("rtj,rtj->rt", dd, q) * inv
-            t = np.einsum("tj,rtj->rt", e2, q) * inv
-            ok = (det != 0.0) & (u >= 0.0) & (w >= 0.0) & (u + w <= 1.0) & (t > skip)
-        out[s : s + chunk] = np.where(ok, t, np.inf).min(axis=1)
-    return out
-
-
 def _ascent_step(v: np.ndarray, f: np.ndarray, x: np.ndarray, r: float) -> np.ndarray | None:
     """One linear program: maximise ``rho`` subject to ``(y - q_i) . u_i >= rho`` for every
     triangle ``i`` near ``x`` (``q_i`` its closest point to ``x``, ``u_i`` the unit direction from
     it) and ``|y - x|_inf <= r``. Each constraint bounds the distance from ``y`` to triangle ``i``
     from below (the triangle lies behind the plane through ``q_i`` normal to ``u_i``), and every
     triangle the step could reach is among them, so ``y`` stays inside. None when it fails."""
-    from scipy.optimize import linprog
-
     dist, q = closest_points_on_triangles(x, v, f)
     keep = (dist <= r * (1.0 + 2.0 * math.sqrt(3.0))) & (dist > 0.0)
-    if not keep.any():
+    if not keep.any() or not r > 0.0:
         return None
     u = (x - q[keep]) / dist[keep, None]
-    lp = linprog(
-        [0.0, 0.0, 0.0, -1.0],
-        A_ub=np.c_[-u, np.ones(len(u))],
-        b_ub=np.einsum("ij,ij->i", u, x - q[keep]),
-        bounds=[(-r, r)] * 3 + [(None, None)],
-        method="highs",
-    )
-    if lp.status != 0:
+    # In the step d = y - x: -u_i . d + rho <= u_i . (x - q_i), |d_k| <= r.
+    ball = largest_ball(-u, np.einsum("ij,ij->i", u, x - q[keep]), box=r)
+    if ball is None:
         return None
-    return x + lp.x[:3]
+    return x + ball.centre

@@ -131,9 +131,9 @@ def _recentred(a: trimesh.Trimesh, b: trimesh.Trimesh, memo: dict) -> _Pair:
     va, vb = va - origin, vb - origin
     flipped = (False, False)
     if is_closed:
-        oa, ob = outward_faces(va, fa), outward_faces(vb, fb)
-        flipped = (oa is not fa, ob is not fb)
-        fa, fb = oa, ob
+        flipped = (_is_inward(a, memo), _is_inward(b, memo))
+        fa = fa[:, ::-1].copy() if flipped[0] else fa
+        fb = fb[:, ::-1].copy() if flipped[1] else fb
     keys = ((id(a), flipped[0]), (id(b), flipped[1]))
     return _Pair(va, fa, vb, fb, origin, keys, memo, is_closed)
 
@@ -165,6 +165,20 @@ class _Near:
 
 def _is_closed(mesh: trimesh.Trimesh) -> bool:
     return is_closed(mesh)
+
+
+def _is_inward(mesh: trimesh.Trimesh, memo: dict) -> bool:
+    """True when a closed mesh is wound inward (negative signed volume), decided once per mesh
+    and kept in ``memo``: in the mesh's own frame (re-centred on its box), so the answer is the
+    mesh's alone, whichever pair asks first and in whichever process."""
+    key = ("inward", id(mesh))
+    inward = memo.get(key)
+    if inward is None:
+        v = np.asarray(mesh.vertices, dtype=np.float64)
+        f = np.asarray(mesh.faces, dtype=np.int64)
+        centre = 0.5 * (v.min(axis=0) + v.max(axis=0)) if len(v) else np.zeros(3)
+        inward = memo[key] = outward_faces(v - centre, f) is not f
+    return inward
 
 
 def outward_faces(v: np.ndarray, f: np.ndarray) -> np.ndarray:

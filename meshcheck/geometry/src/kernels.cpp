@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "epa.hpp"
+#include "lp.hpp"
 #include "topology.hpp"
 #include "triangles.hpp"
 
@@ -391,6 +392,54 @@ PyObject* inscribed_ball_py(PyObject*, PyObject* args) {
     return Py_BuildValue("dN", r, tuple3(x));
 }
 
+// ray_hits(o (r, 3), d (r, 3), v, f, beyond) -> (r,) float64: each ray's first hit beyond `beyond`.
+PyObject* ray_hits_py(PyObject*, PyObject* args) {
+    PyObject *oo, *dobj, *vo, *fo;
+    double beyond;
+    if (!PyArg_ParseTuple(args, "OOOOd", &oo, &dobj, &vo, &fo, &beyond)) return nullptr;
+    Array o, d, v, f, res;
+    if (!as_array(oo, NPY_DOUBLE, 2, 3, "o", o) || !as_array(dobj, NPY_DOUBLE, 2, 3, "d", d) ||
+        !as_array(vo, NPY_DOUBLE, 2, 3, "v", v) || !faces_of(fo, v.len(), "f", f))
+        return nullptr;
+    if (o.len() != d.len()) {
+        PyErr_SetString(PyExc_ValueError, "d: expected one direction per origin");
+        return nullptr;
+    }
+    if (!new_array(1, o.len(), NPY_DOUBLE, res)) return nullptr;
+    Py_BEGIN_ALLOW_THREADS;
+    const MeshBvh bvh(v.f8(), f.i8(), f.len());
+    for (npy_intp i = 0; i < o.len(); ++i)
+        res.f8()[i] = bvh_ray_first_hit(bvh, row(o.f8(), i), row(d.f8(), i), -1, beyond);
+    Py_END_ALLOW_THREADS;
+    return res.release();
+}
+
+// ball_lp(p (m, 3), h (m,), R, max_iter) -> (status, x (3,) , t, y (m + 6,)); see lp.hpp.
+PyObject* ball_lp_py(PyObject*, PyObject* args) {
+    PyObject *po, *ho;
+    double R;
+    long long max_iter;
+    if (!PyArg_ParseTuple(args, "OOdL", &po, &ho, &R, &max_iter)) return nullptr;
+    Array p, h, x, y;
+    if (!as_array(po, NPY_DOUBLE, 2, 3, "p", p) || !as_array(ho, NPY_DOUBLE, 1, 0, "h", h))
+        return nullptr;
+    if (h.len() != p.len()) {
+        PyErr_SetString(PyExc_ValueError, "h: expected one value per row of p");
+        return nullptr;
+    }
+    npy_intp n = p.len() + 6, three = 3;
+    x.a = reinterpret_cast<PyArrayObject*>(PyArray_SimpleNew(1, &three, NPY_DOUBLE));
+    if (x.a == nullptr) return nullptr;
+    y.a = reinterpret_cast<PyArrayObject*>(PyArray_SimpleNew(1, &n, NPY_DOUBLE));
+    if (y.a == nullptr) return nullptr;
+    double t;
+    int status;
+    Py_BEGIN_ALLOW_THREADS;
+    status = ball_lp(p.f8(), h.f8(), p.len(), R, max_iter, x.f8(), t, y.f8());
+    Py_END_ALLOW_THREADS;
+    return Py_BuildValue("iNdN", status, x.release(), t, y.release());
+}
+
 // closest_points_on_triangles(p, v, f) -> (distance (m,), points (m, 3))
 PyObject* closest_points_on_triangles_py(PyObject*, PyObject* args) {
     PyObject *po, *vo, *fo;
@@ -454,6 +503,27 @@ double winding_number_fn(V3 p, const double* v, const int64_t* f, int64_t m) {
 }
 double point_distance_fn(V3 p, const double* v, const int64_t* f, int64_t m) {
     return point_mesh_distance(p, v, f, m);
+}
+
+// point_distances(points (k, 3), v, f) -> (k,) float64: through a BVH when there are enough points
+// to repay building it (the same values, bit for bit; see MeshBvh).
+PyObject* point_distances_py(PyObject* self, PyObject* args) {
+    PyObject *po, *vo, *fo;
+    if (!PyArg_ParseTuple(args, "OOO", &po, &vo, &fo)) return nullptr;
+    Array pts, v, f, res;
+    if (!as_array(po, NPY_DOUBLE, 2, 3, "points", pts) || !as_array(vo, NPY_DOUBLE, 2, 3, "v", v) ||
+        !faces_of(fo, v.len(), "f", f))
+        return nullptr;
+    if (pts.len() < 8 || f.len() < 64) return per_point<point_distance_fn>(self, args);
+    if (!new_array(1, pts.len(), NPY_DOUBLE, res)) return nullptr;
+    Py_BEGIN_ALLOW_THREADS;
+    const MeshBvh bvh(v.f8(), f.i8(), f.len());
+    for (npy_intp i = 0; i < pts.len(); ++i) {
+        int64_t no_hint = -1;
+        res.f8()[i] = bvh_distance_beyond(bvh, row(pts.f8(), i), -1.0, no_hint);
+    }
+    Py_END_ALLOW_THREADS;
+    return res.release();
 }
 
 // group_rows(keys (n, c) int64, by_sorting) -> (first (g,) int64, inverse (n,) int64)
@@ -534,8 +604,10 @@ PyMethodDef METHODS[] = {
     {"pair_distances", pair_distances_py, METH_VARARGS, nullptr},
     {"triangle_distance", triangle_distance_py, METH_VARARGS, nullptr},
     {"winding_numbers", per_point<winding_number_fn>, METH_VARARGS, nullptr},
-    {"point_distances", per_point<point_distance_fn>, METH_VARARGS, nullptr},
+    {"point_distances", point_distances_py, METH_VARARGS, nullptr},
     {"inscribed_ball", inscribed_ball_py, METH_VARARGS, nullptr},
+    {"ball_lp", ball_lp_py, METH_VARARGS, nullptr},
+    {"ray_hits", ray_hits_py, METH_VARARGS, nullptr},
     {"closest_points_on_triangles", closest_points_on_triangles_py, METH_VARARGS, nullptr},
     {"group_rows", group_rows_py, METH_VARARGS, nullptr},
     {"degenerate_triangles", degenerate_triangles_py, METH_VARARGS, nullptr},

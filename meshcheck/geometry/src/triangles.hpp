@@ -288,46 +288,146 @@ inline double point_mesh_distance(V3 p, const double* v, const int64_t* f, int64
     return std::sqrt(best);
 }
 
-// The distance from p to the mesh when it exceeds r, else -1 (as soon as one triangle is within
-// r, trying triangle `hint` first and leaving there the one found). The value returned is
-// point_mesh_distance's, bit for bit: sqrt is monotonic, so sqrt(min d2) > r exactly when every
-// sqrt(d2) > r, and a minimum does not depend on the order it is taken in.
-inline double distance_beyond(V3 p, const double* v, const int64_t* f, int64_t m, double r,
-                              int64_t& hint) {
-    if (hint >= 0 && hint < m && std::sqrt(dist2(p, closest_on_tri(p, triangle(v, f, hint)))) <= r)
-        return -1.0;
+// Moller-Trumbore: the ray o + t d meets triangle t at `tt` (true), or misses it (false).
+inline bool ray_triangle(V3 o, V3 d, const Tri& t, double& tt) {
+    V3 e1 = t.p[1] - t.p[0], e2 = t.p[2] - t.p[0];
+    V3 h = cross(d, e2);
+    double det = dot(e1, h);
+    if (det == 0.0) return false;
+    double inv = 1.0 / det;
+    V3 s = o - t.p[0];
+    double u = dot(s, h) * inv;
+    if (u < 0.0 || u > 1.0) return false;
+    V3 q = cross(s, e1);
+    double w = dot(d, q) * inv;
+    if (w < 0.0 || u + w > 1.0) return false;
+    tt = dot(e2, q) * inv;
+    return true;
+}
+
+// Smallest t > beyond where the ray o + t d meets a triangle other than `skip`
+// (Moller-Trumbore; INF when none).
+inline double ray_first_hit(V3 o, V3 d, const double* v, const int64_t* f, int64_t m,
+                            int64_t skip, double beyond = 0.0) {
     double best = INF;
     for (int64_t k = 0; k < m; ++k) {
-        double d2 = dist2(p, closest_on_tri(p, triangle(v, f, k)));
-        if (std::sqrt(d2) <= r) {
-            hint = k;
-            return -1.0;
+        double tt;
+        if (k != skip && ray_triangle(o, d, triangle(v, f, k), tt) && beyond < tt && tt < best)
+            best = tt;
+    }
+    return best;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The same point and ray queries through a BVH over the triangles, for many queries of one mesh.
+// Each answer is the brute-force one, bit for bit: a minimum does not depend on the order it is
+// taken in, and a node is skipped only when its box, grown by a margin far above rounding (so a
+// triangle's computed closest point or hit point cannot fall outside it), proves that none of
+// its triangles can beat the best so far.
+
+struct MeshBvh {
+    const double* v;
+    const int64_t* f;
+    int64_t m;
+    Bvh t;
+    double pad;
+    MeshBvh(const double* v_, const int64_t* f_, int64_t m_) : v(v_), f(f_), m(m_) {
+        std::vector<double> lo(3 * std::max<int64_t>(m, 1)), hi(3 * std::max<int64_t>(m, 1));
+        triangle_boxes(v, f, m, lo.data(), hi.data());
+        t = build_bvh(lo.data(), hi.data(), m);
+        double size = 0.0;
+        for (size_t k = 0; k < 3 && m > 0; ++k)
+            size = std::max({size, t.hi[k] - t.lo[k], std::fabs(t.hi[k]), std::fabs(t.lo[k])});
+        pad = 1e-9 * size;
+        for (auto& x : t.lo) x -= pad;
+        for (auto& x : t.hi) x += pad;
+    }
+    bool leaf(int64_t node) const { return t.child[node] < 0; }
+};
+
+inline double box_dist2(V3 p, const double* lo, const double* hi) {
+    double c[3] = {p.x, p.y, p.z}, s = 0.0;
+    for (int d = 0; d < 3; ++d) {
+        double e = std::max({lo[d] - c[d], 0.0, c[d] - hi[d]});
+        s += e * e;
+    }
+    return s;
+}
+
+// The distance from p to the mesh when it exceeds r, else -1 (as soon as one triangle is within
+// r, trying triangle `hint` first and leaving there the one found); r < 0: the plain distance.
+// The value returned is point_mesh_distance's, bit for bit: sqrt is monotonic, so sqrt(min d2) >
+// r exactly when every sqrt(d2) > r, and a minimum does not depend on the order it is taken in.
+inline double bvh_distance_beyond(const MeshBvh& b, V3 p, double r, int64_t& hint) {
+    if (r >= 0.0 && hint >= 0 && hint < b.m &&
+        std::sqrt(dist2(p, closest_on_tri(p, triangle(b.v, b.f, hint)))) <= r)
+        return -1.0;
+    double best = INF;
+    std::vector<int64_t> stack{0};
+    while (!stack.empty() && b.m > 0) {
+        int64_t node = stack.back();
+        stack.pop_back();
+        if (box_dist2(p, &b.t.lo[3 * node], &b.t.hi[3 * node]) > best) continue;
+        if (b.leaf(node)) {
+            for (int64_t i = b.t.start[node]; i < b.t.start[node] + b.t.count[node]; ++i) {
+                int64_t k = b.t.order[i];
+                double d2 = dist2(p, closest_on_tri(p, triangle(b.v, b.f, k)));
+                if (r >= 0.0 && std::sqrt(d2) <= r) {
+                    hint = k;
+                    return -1.0;
+                }
+                best = std::min(best, d2);
+            }
+            continue;
         }
-        best = std::min(best, d2);
+        int64_t c = b.t.child[node];
+        bool near_first = box_dist2(p, &b.t.lo[3 * c], &b.t.hi[3 * c]) <=
+                          box_dist2(p, &b.t.lo[3 * c + 3], &b.t.hi[3 * c + 3]);
+        stack.push_back(near_first ? c + 1 : c);
+        stack.push_back(near_first ? c : c + 1);
     }
     return std::sqrt(best);
 }
 
-// Smallest t > 0 where the ray o + t d meets a triangle other than `skip`.
-inline double ray_first_hit(V3 o, V3 d, const double* v, const int64_t* f, int64_t m,
-                            int64_t skip) {
+// Entry and exit of the ray o + t d in a box (slab test): false when it misses.
+inline bool ray_box(V3 o, V3 d, const double* lo, const double* hi, double& enter, double& leave) {
+    double oc[3] = {o.x, o.y, o.z}, dc[3] = {d.x, d.y, d.z};
+    enter = -INF, leave = INF;
+    for (int k = 0; k < 3; ++k) {
+        if (dc[k] == 0.0) {
+            if (oc[k] < lo[k] || oc[k] > hi[k]) return false;
+            continue;
+        }
+        double a = (lo[k] - oc[k]) / dc[k], c = (hi[k] - oc[k]) / dc[k];
+        enter = std::max(enter, std::min(a, c));
+        leave = std::min(leave, std::max(a, c));
+    }
+    return enter <= leave;
+}
+
+// ray_first_hit through the BVH.
+inline double bvh_ray_first_hit(const MeshBvh& b, V3 o, V3 d, int64_t skip, double beyond) {
     double best = INF;
-    for (int64_t k = 0; k < m; ++k) {
-        if (k == skip) continue;
-        Tri t = triangle(v, f, k);
-        V3 e1 = t.p[1] - t.p[0], e2 = t.p[2] - t.p[0];
-        V3 h = cross(d, e2);
-        double det = dot(e1, h);
-        if (det == 0.0) continue;
-        double inv = 1.0 / det;
-        V3 s = o - t.p[0];
-        double u = dot(s, h) * inv;
-        if (u < 0.0 || u > 1.0) continue;
-        V3 q = cross(s, e1);
-        double w = dot(d, q) * inv;
-        if (w < 0.0 || u + w > 1.0) continue;
-        double tt = dot(e2, q) * inv;
-        if (0.0 < tt && tt < best) best = tt;
+    const double pad = b.pad / std::sqrt(dot(d, d));  // the margin along the ray, in t
+    std::vector<int64_t> stack{0};
+    while (!stack.empty() && b.m > 0) {
+        int64_t node = stack.back();
+        stack.pop_back();
+        double enter, leave;
+        if (!ray_box(o, d, &b.t.lo[3 * node], &b.t.hi[3 * node], enter, leave)) continue;
+        if (leave < beyond - pad || enter > best + pad) continue;
+        if (!b.leaf(node)) {
+            stack.push_back(b.t.child[node] + 1);
+            stack.push_back(b.t.child[node]);
+            continue;
+        }
+        for (int64_t i = b.t.start[node]; i < b.t.start[node] + b.t.count[node]; ++i) {
+            int64_t k = b.t.order[i];
+            double tt;
+            if (k != skip && ray_triangle(o, d, triangle(b.v, b.f, k), tt) && beyond < tt &&
+                tt < best)
+                best = tt;
+        }
     }
     return best;
 }
@@ -346,6 +446,7 @@ inline double inscribed_ball(const double* v, const int64_t* f, int64_t m, int64
     int64_t n_seeds = (m + stride - 1) / stride;
     std::vector<V3> centres(n_seeds, V3{0.0, 0.0, 0.0});
     std::vector<double> radii(n_seeds, 0.0);
+    const MeshBvh bvh(v, f, m);
     for (int64_t s = 0; s < n_seeds; ++s) {
         int64_t k = s * stride;
         Tri t = triangle(v, f, k);
@@ -354,10 +455,11 @@ inline double inscribed_ball(const double* v, const int64_t* f, int64_t m, int64
         if (ln == 0.0) continue;
         V3 inward = n * (-1.0 / ln);
         V3 o = (t.p[0] + (t.p[1] + t.p[2])) * (1.0 / 3.0);
-        double hit = ray_first_hit(o, inward, v, f, m, k);
+        double hit = bvh_ray_first_hit(bvh, o, inward, k, 0.0);
         if (!std::isfinite(hit)) continue;
         centres[s] = o + inward * (0.5 * hit);
-        radii[s] = point_mesh_distance(centres[s], v, f, m);
+        int64_t no_hint = -1;
+        radii[s] = bvh_distance_beyond(bvh, centres[s], -1.0, no_hint);
     }
     V3 dirs[26];
     int nd = 0;
@@ -385,7 +487,7 @@ inline double inscribed_ball(const double* v, const int64_t* f, int64_t m, int64
             bool moved = false;
             for (const V3& d : dirs) {
                 V3 y = x + d * step;
-                double ry = distance_beyond(y, v, f, m, r, hint);
+                double ry = bvh_distance_beyond(bvh, y, r, hint);
                 if (ry > r) {
                     x = y, r = ry, moved = true;
                     break;
