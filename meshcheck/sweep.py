@@ -24,25 +24,37 @@ ADJACENT = "adjacent"
 
 @dataclass(frozen=True)
 class Mechanism:
-    """One robot and the parts that are its links.
+    """One robot (a URDF, or the configuration's ``[[joint]]`` tables) and its links' parts.
 
     Attributes
     ----------
     robot : Robot
     parts : dict of str -> list of int
         Each link's parts, as indices into the run's bodies.
+    units : str
+        The unit of the robot's lengths: metres for a URDF, the report unit for ``[[joint]]``.
+    adjacent : set of frozenset of str
+        Link pairs joined by a joint (``load.urdf.adjacent_links`` for a URDF).
+    is_urdf : bool
+        A URDF robot: every link pair is swept and goes to the SRDF. A mechanism of mesh parts
+        sweeps only the pairs some joint moves relative to each other (the check itself judges
+        the others at the pose).
     """
 
     robot: Robot
     parts: dict[str, list[int]]
+    units: str = "m"
+    adjacent: set = dataclasses.field(default_factory=set)
+    is_urdf: bool = True
 
     def link_of(self) -> dict[int, str]:
         """The link of each of the robot's parts (index into the run's bodies)."""
         return {k: link for link, ks in self.parts.items() for k in ks}
 
 
-def mechanisms(bodies: Sequence[Body]) -> list[Mechanism]:
-    """The robots among the bodies (every URDF file), in the order their parts come."""
+def mechanisms(bodies: Sequence[Body], joints: Sequence = ()) -> list[Mechanism]:
+    """The robots among the bodies (every URDF file, in the order their parts come), then the
+    mechanism the configuration's ``[[joint]]`` tables (``joints``) make of mesh parts."""
     out = []
     by_path: dict[str, list[int]] = {}
     for k, body in enumerate(bodies):
@@ -55,7 +67,13 @@ def mechanisms(bodies: Sequence[Body]) -> list[Mechanism]:
         for k in ks:
             node = bodies[k].name.rpartition("#")[2]
             parts.setdefault(node_link[node], []).append(k)
-        out.append(Mechanism(robot, parts))
+        out.append(Mechanism(robot, parts, adjacent=adjacent_links(robot)))
+    if joints:
+        from .load.joints import mesh_mechanism
+
+        mesh = mesh_mechanism(bodies, joints)
+        units = bodies[0].units
+        out.append(Mechanism(mesh.robot, mesh.parts, units, mesh.adjacent, is_urdf=False))
     return out
 
 
@@ -71,7 +89,7 @@ def adjacent_approvals(bodies: Sequence[Body], found: Sequence[Mechanism]) -> li
     """
     out = []
     for mech in found:
-        for pair in sorted(sorted(p) for p in adjacent_links(mech.robot)):
+        for pair in sorted(sorted(p) for p in mech.adjacent):
             a, b = pair
             for i in mech.parts.get(a, ()):
                 for j in mech.parts.get(b, ()):
@@ -87,7 +105,7 @@ def with_mechanisms(bodies: Sequence[Body], settings):
     is off."""
     if not settings.motion.adjacent:
         return settings
-    extra = adjacent_approvals(bodies, mechanisms(bodies))
+    extra = adjacent_approvals(bodies, mechanisms(bodies, settings.motion.joints))
     if not extra:
         return settings
     return settings.replace(approvals=(*settings.approvals, *extra))
@@ -531,7 +549,7 @@ def sweep_mechanism(
     robot = mech.robot
     base = joint_values(robot, motion.pose)
     swept = _swept(robot, motion.sweep)
-    scale = unit_scale("m", bodies[mech.parts[next(iter(mech.parts))][0]].units)
+    scale = unit_scale(mech.units, bodies[mech.parts[next(iter(mech.parts))][0]].units)
     links = _links(robot, mech, bodies, pieces, base, scale)
     radius = {name: link.radius for name, link in links.items()}
     names = sorted(links)
@@ -539,7 +557,6 @@ def sweep_mechanism(
     upper = np.array([links[n].pack.upper.max(axis=0) for n in names])
     diagonal, _ = part_sizes(lower, upper)
     magnitude = np.full(len(names), max(radius.values()) + _reach(robot, swept, base) * scale)
-    adjacent = adjacent_links(robot)
     out = []
     for x, a in enumerate(names):
         for y in range(x + 1, len(names)):
@@ -548,26 +565,42 @@ def sweep_mechanism(
             if tol is None:
                 tol = float(pair_tolerances(diagonal, magnitude, np.array([[x, y]]))[0])
             weights = motion_weights(robot, (a, b), radius, swept, base, scale)
+            if not weights and not mech.is_urdf:
+                continue  # nothing moves them: the check judged them at the pose
             free = sorted(weights)
             pair = _Pair(robot, a, b, free, np.array([weights[n] for n in free]), base, scale,
                          tol, links, bodies)  # fmt: skip
             lo, hi = _ranges(robot, free)
             swept_pair = sweep_pair(pair, lo, hi, motion.resolution)
-            is_adjacent = frozenset((a, b)) in adjacent
+            is_adjacent = frozenset((a, b)) in mech.adjacent
             out.append(dataclasses.replace(swept_pair, is_adjacent=is_adjacent))
     return tuple(out)
 
 
 def _swept(robot: Robot, named) -> set[str]:
+    """The joints of ``robot`` swept: every movable one when ``named`` is empty, else those of
+    ``named`` it has (``check_swept`` refused names no mechanism of the run has)."""
     from .errors import ConfigError
 
     if not named:
         return {j.name for j in robot.movable}
+    out = set()
     for name in named:
-        joint = robot.joint(name)
+        joint = next((j for j in robot.joints if j.name == name), None)
+        if joint is None:
+            continue
         if joint not in robot.movable:
             raise ConfigError(robot.path, f"--sweep {name}: not a movable joint that leads")
-    return set(named)
+        out.add(name)
+    return out
+
+
+def check_swept(found: Sequence[Mechanism], named) -> None:
+    """Refuse a joint of ``--sweep-joints`` that no mechanism of the run has (``ConfigError``
+    from the first robot, listing its joints)."""
+    for name in named or ():
+        if found and not any(name in {j.name for j in m.robot.joints} for m in found):
+            found[0].robot.joint(name)  # raises, naming the robot's movable joints
 
 
 def _ranges(robot: Robot, names: list[str]) -> tuple[np.ndarray, np.ndarray]:
@@ -611,11 +644,13 @@ def _links(robot, mech, bodies, pieces, base, scale) -> dict[str, _Link]:
 
 @dataclass(frozen=True)
 class RobotSweep:
-    """One robot's sweep: its URDF, its name, and every link pair's ``PairSweep``."""
+    """One robot's sweep: its URDF (or configuration file), its name, every link pair's
+    ``PairSweep``, and whether it is a URDF robot (the SRDF describes one)."""
 
     path: str
     name: str
     pairs: tuple[PairSweep, ...]
+    is_urdf: bool = True
 
 
 def summary(robot: RobotSweep) -> str:
@@ -639,7 +674,9 @@ def sweep_bodies(bodies: Sequence[Body], settings, *, executor=None) -> tuple[Ro
     from .decompose import decompose_bodies
 
     out: list[RobotSweep] = []
-    for mech in mechanisms(bodies):
+    found = mechanisms(bodies, settings.motion.joints)
+    check_swept(found, settings.motion.sweep)
+    for mech in found:
         ks = sorted(k for ks in mech.parts.values() for k in ks)
         piece_lists = decompose_bodies(
             [bodies[k] for k in ks],
@@ -653,5 +690,5 @@ def sweep_bodies(bodies: Sequence[Body], settings, *, executor=None) -> tuple[Ro
         )
         pieces = dict(zip(ks, piece_lists, strict=True))
         pairs = sweep_mechanism(mech, bodies, pieces, settings.motion, tolerance=settings.tolerance)
-        out.append(RobotSweep(mech.robot.path, mech.robot.name, pairs))
+        out.append(RobotSweep(mech.robot.path, mech.robot.name, pairs, mech.is_urdf))
     return tuple(out)

@@ -195,7 +195,8 @@ def load_bodies(
         Read in the executor's processes: True always, False never, None (default) when it pays
         (``files.parallel_pays``).
     motion : motion.Motion, optional
-        The pose URDF robots are placed at and where their packages are (``load.urdf``).
+        The pose URDF robots are placed at and where their packages are (``load.urdf``); the
+        configuration's ``[[joint]]`` mechanism, posed too (``load.joints``).
 
     Returns
     -------
@@ -226,8 +227,12 @@ def load_bodies(
         parallel=parallel,
     )
     report = units_.report_unit([r.declared for r in reads], units)
+    bodies = _placed_bodies(files, reads, report, units, budget.limits, split=split)
+    if motion is not None and motion.joints:  # [[joint]] tables: a mechanism of mesh parts
+        from .joints import pose_parts
 
-    return _placed_bodies(files, reads, report, units, budget.limits, split=split)
+        bodies = pose_parts(bodies, motion)
+    return bodies
 
 
 def _placed_bodies(files, reads, report, units, limits, *, split: bool) -> list[Body]:
