@@ -213,6 +213,7 @@ def motion_weights(
     swept: set[str],
     base: dict[str, float],
     scale: float = 1.0,
+    points: dict[str, np.ndarray] | None = None,
 ) -> dict[str, float]:
     """How far a unit change of each swept joint can move any point of either link of ``pair``.
 
@@ -235,6 +236,10 @@ def motion_weights(
         Every movable joint's value where it does not move (``joint_values``).
     scale : float
         Report units per metre.
+    points : dict of str -> (n, 3) float64, optional
+        Each link's geometry (hull vertices) in its own frame, report units: the joints that
+        turn a link with only fixed joints between get the exact largest distance of its points
+        from their axis line, and the joints above a bound from it (``_chain_weights``).
     """
     a_chain, b_chain = _chain(robot, pair[0]), _chain(robot, pair[1])
     common = 0
@@ -242,17 +247,50 @@ def motion_weights(
         common += 1
     out: dict[str, float] = {}
     for chain, link in ((a_chain[common:], pair[0]), (b_chain[common:], pair[1])):
-        reach = radius[link]  # bound on |p - o_k| for the joint k being visited, walking up
-        for joint in reversed(chain):
-            if joint.type in MOVABLE:
-                name, multiplier = _leader(robot, joint)
-                if name in swept:
-                    weight = scale if joint.type == "prismatic" else reach
-                    out[name] = out.get(name, 0.0) + abs(multiplier) * weight
-            reach += float(np.linalg.norm(joint.origin[:3, 3])) * scale
+        local = None if points is None else points.get(link)
+        for joint, weight in _chain_weights(robot, chain, radius[link], local, swept, base, scale):
+            name, multiplier = _leader(robot, joint)
+            out[name] = out.get(name, 0.0) + abs(multiplier) * weight
+    return out
+
+
+def _chain_weights(robot, chain, radius, local, swept, base, scale):
+    """(joint, bound on the speed of the link's points per unit of it) up one chain.
+
+    Walking up from the link, the points are either rigid in the current frame (``local``,
+    report units: only fixed joints passed) or known to lie within ``reach`` of ``anchor``, the
+    origin of the last movable joint passed, in the current frame. A revolute joint moves a
+    point at its distance from the joint's axis line per radian: the exact largest distance
+    while the points are rigid, else ``distance(anchor, axis) + reach``.
+    """
+    anchor, reach = np.zeros(3), radius
+    for joint in reversed(chain):
+        axis = joint.axis
+        if joint.type in MOVABLE and _leader(robot, joint)[0] in swept:
+            if joint.type == "prismatic":
+                yield joint, scale
+            elif local is not None:
+                yield (
+                    joint,
+                    float(np.linalg.norm(local - np.outer(local @ axis, axis), axis=1).max()),
+                )
+            else:
+                yield joint, float(np.linalg.norm(anchor - (anchor @ axis) * axis)) + reach
+        origin = joint.origin.copy()
+        origin[:3, 3] *= scale
+        if joint.type in MOVABLE:
+            if local is not None:  # the points stop being rigid here
+                reach = float(np.linalg.norm(local, axis=1).max())
+                local = None
+            else:
+                reach += float(np.linalg.norm(anchor))
             if joint.type == "prismatic":
                 reach += _extent(robot, joint, swept, base) * scale
-    return out
+            anchor = origin[:3, 3].copy()
+        elif local is not None:
+            local = local @ origin[:3, :3].T + origin[:3, 3]
+        else:
+            anchor = origin[:3, :3] @ anchor + origin[:3, 3]
 
 
 def _poses(robot: Robot, base: dict, names: list[str], values: np.ndarray) -> dict:
@@ -310,6 +348,18 @@ def _posed(pack, transforms: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nda
     return points, lower, upper
 
 
+def _spheres_within(pack_a, pack_b, ta: np.ndarray, tb: np.ndarray, reach: np.ndarray):
+    """Which of E placements bring the two links' bounding spheres within ``reach`` (the
+    others' pieces are farther apart than that: nothing need be posed)."""
+    out = []
+    for pack, t in ((pack_a, ta), (pack_b, tb)):
+        centre = 0.5 * (pack.points.min(axis=0) + pack.points.max(axis=0))
+        radius = float(np.linalg.norm(pack.points - centre, axis=1).max())
+        out.append((t[:, :3, :3] @ centre + t[:, :3, 3], radius))
+    (pa, ra), (pb, rb) = out
+    return np.linalg.norm(pa - pb, axis=1) - ra - rb <= reach
+
+
 def piece_distances(pack_a, pack_b, ta: np.ndarray, tb: np.ndarray, reach: np.ndarray):
     """Lower bounds on the distance between two links' pieces at E placements.
 
@@ -331,6 +381,13 @@ def piece_distances(pack_a, pack_b, ta: np.ndarray, tb: np.ndarray, reach: np.nd
     """
     from .geometry import ConvexPack, Status, query_pairs
 
+    lowest = np.full(len(ta), np.inf)
+    near = _spheres_within(pack_a, pack_b, ta, tb, reach)
+    if not np.any(near):
+        return lowest
+    if not np.all(near):  # pose only the placements whose links' spheres come within reach
+        lowest[near] = piece_distances(pack_a, pack_b, ta[near], tb[near], reach[near])
+        return lowest
     e_count = len(ta)
     pa, la, ua = _posed(pack_a, ta)
     pb, lb, ub = _posed(pack_b, tb)
@@ -338,7 +395,6 @@ def piece_distances(pack_a, pack_b, ta: np.ndarray, tb: np.ndarray, reach: np.nd
     gap = np.maximum(la[:, :, None, :] - ub[:, None, :, :], lb[:, None, :, :] - ua[:, :, None, :])
     box_gap = np.linalg.norm(np.maximum(gap, 0.0), axis=3)  # (E, ma, mb), a lower bound
     e, i, j = np.nonzero(box_gap <= reach[:, None, None])
-    lowest = np.full(e_count, np.inf)
     if len(e) == 0:
         return lowest
     na, nb = len(pack_a.points), len(pack_b.points)
@@ -552,6 +608,7 @@ def sweep_mechanism(
     scale = unit_scale(mech.units, bodies[mech.parts[next(iter(mech.parts))][0]].units)
     links = _links(robot, mech, bodies, pieces, base, scale)
     radius = {name: link.radius for name, link in links.items()}
+    points = {name: link.pack.points for name, link in links.items()}
     names = sorted(links)
     lower = np.array([links[n].pack.lower.min(axis=0) for n in names])
     upper = np.array([links[n].pack.upper.max(axis=0) for n in names])
@@ -564,7 +621,7 @@ def sweep_mechanism(
             tol = tolerance
             if tol is None:
                 tol = float(pair_tolerances(diagonal, magnitude, np.array([[x, y]]))[0])
-            weights = motion_weights(robot, (a, b), radius, swept, base, scale)
+            weights = motion_weights(robot, (a, b), radius, swept, base, scale, points)
             if not weights and not mech.is_urdf:
                 continue  # nothing moves them: the check judged them at the pose
             free = sorted(weights)

@@ -4,6 +4,7 @@ and random sampling; the motion bound the proof rests on; the SRDF it writes.
 
 from __future__ import annotations
 
+import itertools
 import math
 import os
 
@@ -156,7 +157,9 @@ def test_a_narrow_window_that_10000_random_poses_miss_is_found_with_its_witness(
 
 def test_no_point_moves_farther_than_the_motion_bound():
     """For random boxes of the panda's joints, every vertex of the two links moves (relative to
-    the pair's common frame) by at most sum_k w_k |q_k - c_k| between the centre and any pose."""
+    the pair's common frame) by at most sum_k w_k |q_k - c_k| between the centre and any pose:
+    with the weights from the links' radii, and with the tighter ones from their points'
+    distances to the joint axes."""
     bodies = load_bodies([PANDA])
     (mech,) = mechanisms(bodies)
     robot = mech.robot
@@ -170,8 +173,14 @@ def test_no_point_moves_farther_than_the_motion_bound():
                                  for k in ks])  # fmt: skip
     radius = {link: float(np.linalg.norm(v, axis=1).max()) for link, v in local.items()}
     rng = np.random.default_rng(1)
-    for a, b in [("panda_link0", "panda_hand"), ("panda_link2", "panda_leftfinger")]:
-        weights = motion_weights(robot, (a, b), radius, swept, base)
+    cases = [("panda_link0", "panda_hand"), ("panda_link2", "panda_leftfinger")]
+    for (a, b), points in itertools.product(cases, (None, local)):
+        weights = motion_weights(robot, (a, b), radius, swept, base, points=points)
+        if points is not None:  # distances from the axes: tighter than radii, never looser
+            loose = motion_weights(robot, (a, b), radius, swept, base)
+            assert all(weights[n] <= loose[n] + 1e-12 for n in loose)
+            if b == "panda_hand":  # turned by joint 7 about an axis through it
+                assert sum(weights.values()) < sum(loose.values())
         names = sorted(weights)
         lo = np.array([robot.joint(n).lower for n in names])
         hi = np.array([robot.joint(n).upper for n in names])
