@@ -148,7 +148,11 @@ class PairSweep:
     joints : tuple of str
         The swept joints that move the pair relative to each other.
     witness : dict of str -> float or None
-        For ``sometimes``: the leading joints' values of the witness pose (radians, metres).
+        For ``sometimes``: the free joints' values of the worst pose found, the witness
+        (radians; metres for a URDF's slide, report units for a ``[[joint]]`` slide; the other
+        joints at the run's pose): of the poses the search examined, the one with the deepest
+        overlap of the links' convex pieces that the real meshes confirm (not a proven
+        maximum of the depth). ``{}`` for ``always`` when nothing moves the pair.
     verdict : str or None
         The real meshes' status at the witness (``interference`` or ``touching``).
     boxes : int
@@ -165,6 +169,18 @@ class PairSweep:
     verdict: str | None = None
     boxes: int = 0
     is_adjacent: bool = False
+
+    def to_dict(self) -> dict:
+        """The pair as the JSON report lists it (``pose``: the witness's joint values)."""
+        return {
+            "a": self.a,
+            "b": self.b,
+            "status": self.status,
+            "adjacent": self.is_adjacent,
+            "joints": list(self.joints),
+            "pose": None if self.witness is None else dict(self.witness),
+            "verdict": self.verdict,
+        }
 
 
 @dataclass(frozen=True)
@@ -708,6 +724,15 @@ class RobotSweep:
     name: str
     pairs: tuple[PairSweep, ...]
     is_urdf: bool = True
+
+    def to_dict(self) -> dict:
+        """The robot's sweep as the JSON report lists it: counts by status, every pair."""
+        return {
+            "robot": self.path,
+            "name": self.name,
+            "counts": {s: sum(p.status == s for p in self.pairs) for s in STATUSES},
+            "pairs": [p.to_dict() for p in self.pairs],
+        }
 
 
 def summary(robot: RobotSweep) -> str:

@@ -5,6 +5,7 @@ slide into a block, and every mistake in the tables one line with exit 2.
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -127,11 +128,31 @@ def test_a_pose_moves_the_child_parts_about_the_axis(tmp_path):
     assert beyond.exit_code == ExitStatus.USAGE and "beyond its limits" in beyond.stderr
 
 
-def test_the_sweep_runs_from_the_command_line(tmp_path):
+def test_the_sweep_reports_carry_the_witness_pose_that_the_check_confirms(tmp_path):
+    """--sweep from the command line: the JSON report's sweep lists each pair with the joint
+    values of its witness; checking at that pose finds the door in the stop (exit 1). The text
+    and Markdown reports name the pair and the pose as --pose takes it."""
     files = door_files(tmp_path)
-    done = run(tmp_path, files, [hinge()], "--sweep")
+    done = run(tmp_path, files, [hinge()], "--sweep", "--format", "json")
     assert done.exit_code == 0, done.output  # the sweep does not fail the run
     assert "2 link pairs (1 adjacent): 0 never, 2 sometimes" in done.stderr
+    (robot,) = json.loads(done.stdout)["sweeps"]
+    assert robot["counts"] == {"never": 0, "sometimes": 2, "always": 0, "undecided": 0}
+    pairs = {(p["a"].rsplit("/", 1)[-1], p["b"].rsplit("/", 1)[-1]): p for p in robot["pairs"]}
+    stop = pairs["door.stl", "stop.stl"]
+    assert stop["status"] == "sometimes" and not stop["adjacent"] and stop["joints"] == ["hinge"]
+    angle = stop["pose"]["hinge"]
+    assert STOP_ANGLE <= angle <= math.radians(90)
+    at_witness = run(tmp_path, files, [hinge()], "--pose", f"hinge={angle!r}", "--format", "json")
+    assert at_witness.exit_code == ExitStatus.FAILED, at_witness.output
+    (finding,) = [f for f in json.loads(at_witness.stdout)["results"] if not f["approved"]]
+    assert finding["status"] == stop["verdict"] and finding["b"].endswith("stop.stl")
+
+    text = run(tmp_path, files, [hinge()], "--sweep").stdout
+    shown = f"door.stl / stop.stl interference at --pose hinge={angle:.9g}"
+    assert shown in " ".join(text.split())
+    markdown = run(tmp_path, files, [hinge()], "--sweep", "--format", "markdown").stdout
+    assert "| sometimes (adjacent) |" in markdown and "stop\\.stl" in markdown
 
 
 # ------------------------------------------------------------------------------------------
