@@ -150,9 +150,10 @@ class PairSweep:
     witness : dict of str -> float or None
         For ``sometimes``: the free joints' values of the worst pose found, the witness
         (radians; metres for a URDF's slide, report units for a ``[[joint]]`` slide; the other
-        joints at the run's pose): of the poses the search examined, the one with the deepest
-        overlap of the links' convex pieces that the real meshes confirm (not a proven
-        maximum of the depth). ``{}`` for ``always`` when nothing moves the pair.
+        joints at the run's pose): candidates (the seeded samples, then each batch of box
+        centres) are re-checked deepest overlap of the links' convex pieces first, and the first
+        the real meshes confirm is the witness (a bad pose, not a proven maximum of the depth).
+        ``{}`` for ``always`` when nothing moves the pair.
     verdict : str or None
         The real meshes' status at the witness (``interference`` or ``touching``).
     boxes : int
