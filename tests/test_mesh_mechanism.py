@@ -248,3 +248,17 @@ def test_a_joint_on_a_moving_part_turns_with_it(tmp_path):
     lower, upper = bodies[3].world.bounds
     np.testing.assert_allclose(lower[:2], [-100, 995], atol=1e-9)
     np.testing.assert_allclose(upper[:2], [0, 1005], atol=1e-9)
+
+
+def test_sweep_joints_names_a_joint_table_and_refuses_an_unknown_one(tmp_path):
+    files = door_files(tmp_path)
+    lever = {"name": "lever", "parent": "stop.stl", "child": "lever.stl", "type": "revolute",
+             "axis": [0, 0, 1], "origin": [2000, 0, 0], "range": [0, 1]}  # fmt: skip
+    box((10, 10, 10), (2100, 0, 0)).export(tmp_path / "lever.stl")
+    files.append(str(tmp_path / "lever.stl"))
+    only = run(tmp_path, files, [hinge(), lever], "--sweep-joints", "hinge", "--format", "json")
+    assert only.exit_code == 0, only.output
+    (robot,) = json.loads(only.stdout)["sweeps"]
+    assert {tuple(p["joints"]) for p in robot["pairs"]} == {("hinge",)}  # lever held at 0
+    unknown = run(tmp_path, files, [hinge(), lever], "--sweep-joints", "elbow")
+    assert unknown.exit_code == ExitStatus.USAGE and "no joint named 'elbow'" in unknown.stderr
