@@ -89,6 +89,20 @@ def fcl_sampling(bodies, mech, samples: int, seed: int) -> tuple[dict, float]:
     return status, seconds
 
 
+def _progress_on_stderr(module) -> None:
+    """Say on stderr every 100 link pairs how far the sweep got (the PR2's takes a while)."""
+    sweep_pair, done, start = module.sweep_pair, [0], time.perf_counter()
+
+    def counted(*args, **kwargs):
+        out = sweep_pair(*args, **kwargs)
+        done[0] += 1
+        if done[0] % 100 == 0:
+            print(f"  {done[0]} pairs swept, {time.perf_counter() - start:.0f} s", file=sys.stderr)
+        return out
+
+    module.sweep_pair = counted
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--robot", choices=sorted(ROBOTS), default="panda")
@@ -101,6 +115,7 @@ def main() -> int:
 
     if args.max_boxes is not None:
         meshcheck.sweep.MAX_BOXES = args.max_boxes
+    _progress_on_stderr(meshcheck.sweep)
 
     from meshcheck.decompose import decompose_bodies
     from meshcheck.load import load_bodies

@@ -254,3 +254,38 @@ def test_srdf_without_a_robot_is_a_usage_error(tmp_path):
     )
     assert run.exit_code == ExitStatus.USAGE
     assert "swept no robot" in run.stderr and not (tmp_path / "x.srdf").exists()
+
+
+def test_coarse_pieces_with_their_pads_never_raise_the_distance_bound():
+    """The box search poses each piece's coarse hull grown by its pad: at random placements of
+    two panda links, the padded coarse distance never exceeds the full pieces' distance, and no
+    coarse piece keeps more vertices than the icosphere has directions (162)."""
+    from meshcheck.decompose import decompose_bodies
+    from meshcheck.geometry import pack_convex
+    from meshcheck.sweep import coarse_pieces, piece_distances
+
+    bodies = load_bodies([PANDA])
+    by_name = {b.name.rpartition("#")[2]: k for k, b in enumerate(bodies)}
+    chosen = [by_name["panda_link4"], by_name["panda_hand"]]
+    pieces = decompose_bodies([bodies[k] for k in chosen], jobs=1)
+    packs = []
+    for body, ps in zip([bodies[k] for k in chosen], pieces, strict=True):
+        inverse = np.linalg.inv(body.transform)
+        local = [p @ inverse[:3, :3].T + inverse[:3, 3] for p in ps]
+        coarse, pad = coarse_pieces(local)
+        assert all(len(c) <= 162 for c in coarse) and np.all(pad >= 0.0)
+        packs.append((pack_convex(local, is_hull=True), pack_convex(coarse, is_hull=True), pad))
+    rng = np.random.default_rng(3)
+    ta = np.broadcast_to(np.eye(4), (200, 4, 4)).copy()
+    tb = ta.copy()
+    for k in range(200):
+        rotation = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+        tb[k, :3, :3] = rotation * np.sign(np.linalg.det(rotation))
+        tb[k, :3, 3] = rng.uniform(-0.3, 0.3, 3)
+    reach = np.full(200, np.inf)
+    (full_a, coarse_a, pad_a), (full_b, coarse_b, pad_b) = packs
+    exact = piece_distances(full_a, full_b, ta, tb, reach)
+    bound = piece_distances(coarse_a, coarse_b, ta, tb, reach, pad_a, pad_b)
+    apart = exact > 0.0  # in contact, GJK without depth gives some value <= 0, not the depth
+    assert np.all(bound[apart] <= exact[apart] + 1e-12) and np.all(bound[~apart] <= 0.0)
+    assert np.any(apart) and not np.all(apart)  # both sides of contact were drawn
