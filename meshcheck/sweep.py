@@ -196,15 +196,23 @@ class _Link:
 
 
 #: Directions whose extreme vertices make a piece's coarse hull (an icosphere's vertices, 2
-#: subdivisions): pieces with more hull vertices than this are coarsened for the box search.
+#: subdivisions: 162).
 COARSE_SUBDIVISIONS = 2
+#: Pieces with more hull vertices than this are coarsened for the box search: the PR2's
+#: fingers and wrists (1,000 to 4,450 per piece) are; the panda's (up to 170) are not, as their
+#: pads would cost more boxes than the fewer vertices save (bench/sweep.py: 57.6 s and 3
+#: undecided pairs with every piece over 162 coarsened, against 41.0 s and 2 without).
+COARSE_MIN_VERTICES = 500
 
 
-def coarse_pieces(pieces: list[np.ndarray]) -> tuple[list[np.ndarray], np.ndarray]:
+def coarse_pieces(
+    pieces: list[np.ndarray], *, min_vertices: int = COARSE_MIN_VERTICES
+) -> tuple[list[np.ndarray], np.ndarray]:
     """Fewer-vertex stand-ins for convex pieces, each with a padding that restores the bound.
 
-    A piece with more vertices than the icosphere has directions is replaced by its extreme
-    vertices along those directions (a hull inside it), and ``pad`` is the largest distance of
+    A piece with more than ``min_vertices`` vertices (and more than the icosphere has
+    directions) is replaced by its extreme vertices along those directions (a hull inside it),
+    and ``pad`` is the largest distance of
     its vertices from that hull (exact, by GJK): the piece lies inside the coarse hull grown by
     ``pad``, so the coarse hulls' distance minus both pads is a lower bound on the pieces'
     distance. Posing a finger of 4,000 hull vertices costs 160 instead.
@@ -222,7 +230,7 @@ def coarse_pieces(pieces: list[np.ndarray]) -> tuple[list[np.ndarray], np.ndarra
     directions = trimesh.creation.icosphere(subdivisions=COARSE_SUBDIVISIONS).vertices
     coarse, pads = [], []
     for piece in pieces:
-        if len(piece) <= len(directions):
+        if len(piece) <= max(min_vertices, len(directions)):
             coarse.append(piece)
             pads.append(0.0)
             continue
