@@ -14,7 +14,12 @@ the sweep shows colliding (with the witness) is one MoveIt would wrongly disable
 sweep proves never that sampling sees colliding would be a bug.
 
     python bench/sweep.py                      # the panda, 10,000 samples
+    python bench/sweep.py --robot pr2          # 54 links with geometry, 1,431 pairs
     python bench/sweep.py --robot fanuc --samples 2000
+    python bench/sweep.py --robot pr2 --max-boxes 20000   # a smaller per-pair box budget
+
+``--max-boxes`` sets ``meshcheck.sweep.MAX_BOXES`` (boxes one pair may evaluate before it is
+left undecided): a smaller budget trades proven pairs for time.
 """
 
 from __future__ import annotations
@@ -33,6 +38,8 @@ ROBOTS = {
                           "panda.urdf"),
     "fanuc": os.path.join(HERE, "..", "tests", "data", "robots", "fanuc_description", "urdf",
                           "fanuc.urdf"),
+    "pr2": os.path.join(HERE, "..", "tests", "data", "robots", "pr2_description", "urdf",
+                        "pr2.urdf"),
 }  # fmt: skip
 
 
@@ -82,12 +89,33 @@ def fcl_sampling(bodies, mech, samples: int, seed: int) -> tuple[dict, float]:
     return status, seconds
 
 
+def _progress_on_stderr(module) -> None:
+    """Say on stderr every 100 link pairs how far the sweep got (the PR2's takes a while)."""
+    sweep_pair, done, start = module.sweep_pair, [0], time.perf_counter()
+
+    def counted(*args, **kwargs):
+        out = sweep_pair(*args, **kwargs)
+        done[0] += 1
+        if done[0] % 100 == 0:
+            print(f"  {done[0]} pairs swept, {time.perf_counter() - start:.0f} s", file=sys.stderr)
+        return out
+
+    module.sweep_pair = counted
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--robot", choices=sorted(ROBOTS), default="panda")
     parser.add_argument("--samples", type=int, default=10_000)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--max-boxes", type=int, default=None)
     args = parser.parse_args()
+
+    import meshcheck.sweep
+
+    if args.max_boxes is not None:
+        meshcheck.sweep.MAX_BOXES = args.max_boxes
+    _progress_on_stderr(meshcheck.sweep)
 
     from meshcheck.decompose import decompose_bodies
     from meshcheck.load import load_bodies
@@ -109,6 +137,7 @@ def main() -> int:
     sampled, fcl_s = fcl_sampling(bodies, mech, args.samples, args.seed)
 
     print(f"robot: {path} ({len(mech.parts)} links with geometry, {len(robot.pairs)} pairs)")
+    print(f"box budget per pair: {meshcheck.sweep.MAX_BOXES}")
     print(f"sweep: {summary(robot)}")
     counts = {s: sum(v == s for v in sampled.values()) for s in ("never", "sometimes", "always")}
     print(f"fcl sampling ({args.samples} poses): {counts}")

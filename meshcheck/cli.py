@@ -454,6 +454,10 @@ def _write_reports(result, targets, files, srdf_path=None, view_options=None) ->
         except OutputError as exc:
             click.echo(f"error: {printable(str(exc))}", err=True)
             failed = exc
+    from .sweep import summary
+
+    for robot in result.sweeps:  # the sweep's counts, with or without --srdf
+        click.echo(f"sweep: {printable(summary(robot))}", err=True)
     if srdf_path is not None and _write_srdf(srdf_path, result):
         failed = True
     if failed is not None:
@@ -464,12 +468,9 @@ def _write_reports(result, targets, files, srdf_path=None, view_options=None) ->
 
 
 def _write_srdf(path: str, result) -> bool:
-    """Write the sweep's SRDF and say what the sweep found on stderr; True when it failed."""
+    """Write the sweep's SRDF; True when it failed."""
     from .reports.srdf import render as render_srdf
-    from .sweep import summary
 
-    for robot in result.sweeps:
-        click.echo(f"sweep: {printable(summary(robot))}", err=True)
     try:
         text = render_srdf(result)
     except MeshcheckError as exc:  # no robot, or several: a usage error

@@ -1,7 +1,9 @@
 """Mechanism settings: the pose robots are checked at, where their meshes live, what is swept.
 
-A pose is a setting like any other: the URDF reader (``load.urdf``) places every link at it, so
-the rest of the check sees ordinary placed parts. ``Motion`` rides in ``Settings.motion``.
+A pose is a setting like any other: the URDF reader (``load.urdf``) places every link at it, and
+``load.joints`` places the parts of mesh files that ``[[joint]]`` tables of the configuration
+(``JointSpec``) make into a mechanism, so the rest of the check sees ordinary placed parts.
+``Motion`` rides in ``Settings.motion``.
 """
 
 from __future__ import annotations
@@ -18,6 +20,14 @@ from .errors import ConfigError
 #: are not split further; a pair still undecided there is reported "sometimes" only with a
 #: colliding witness, else "undecided". 0.001 rad moves a point 1 m from the axis by 1 mm.
 DEFAULT_RESOLUTION = 1e-3
+
+#: Joint types a ``[[joint]]`` table may have (URDF's, less floating and planar).
+JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed")
+#: ``[[joint]]`` tables one configuration may hold: real mechanisms have a few; patterns are
+#: matched against every part for each.
+MAX_JOINTS = 1000
+#: Keys of a ``[[joint]]`` table.
+JOINT_KEYS = ("name", "parent", "child", "type", "axis", "origin", "range")
 
 _VALUE = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(deg)?\s*$")
 
@@ -42,6 +52,41 @@ class JointValue:
 
 
 @dataclass(frozen=True)
+class JointSpec:
+    """One ``[[joint]]`` table: parts of mesh files moved relative to others.
+
+    Attributes
+    ----------
+    name : str
+        The joint's name, for ``--pose`` and ``--sweep-joints``.
+    parent, child : str
+        Part-name patterns (globs, as approvals use): the parts the joint moves (``child``)
+        and the parts it is mounted on (``parent``), as they lie in the files at value 0.
+    type : str
+        One of ``JOINT_TYPES``.
+    axis : (3,) tuple of float
+        Unit axis in world coordinates as the files place the parts: the rotation axis, or the
+        slide direction.
+    origin : (3,) tuple of float
+        A point on the rotation axis, world coordinates, report units.
+    lower, upper : float
+        The range: radians (revolute), report units (prismatic); -inf/inf for continuous.
+    source : str or None
+        The configuration file, for messages.
+    """
+
+    name: str
+    parent: str
+    child: str
+    type: str
+    axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    origin: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    lower: float = -math.inf
+    upper: float = math.inf
+    source: str | None = None
+
+
+@dataclass(frozen=True)
 class Motion:
     """How mechanisms are posed and swept.
 
@@ -60,6 +105,8 @@ class Motion:
         None: no sweep; empty: sweep every movable joint; else the joints named.
     resolution : float
         Narrowest joint interval the sweep splits, radians or metres.
+    joints : tuple of JointSpec
+        The configuration's ``[[joint]]`` tables: a mechanism made of mesh-file parts.
     """
 
     pose: tuple[JointValue, ...] = ()
@@ -67,6 +114,7 @@ class Motion:
     adjacent: bool = True
     sweep: tuple[str, ...] | None = None
     resolution: float = DEFAULT_RESOLUTION
+    joints: tuple[JointSpec, ...] = ()
 
     def __post_init__(self):
         names = [v.joint for v in self.pose]
@@ -132,8 +180,11 @@ def parse_pose(
 
 def checked_motion(table: Mapping, *, path: str | None = None) -> dict:
     """A configuration file's mechanism keys, validated: ``pose`` (a table of joint values),
-    ``adjacent`` (bool), ``package_paths`` (folders, relative to the file's folder)."""
+    ``adjacent`` (bool), ``package_paths`` (folders, relative to the file's folder), ``joint``
+    (an array of ``[[joint]]`` tables, ``checked_joints``)."""
     out: dict = {}
+    if "joint" in table:
+        out["joints"] = checked_joints(table["joint"], path=path)
     if "pose" in table:
         if not isinstance(table["pose"], Mapping):
             raise ConfigError(path, "pose must be a table of joint = value")
@@ -151,6 +202,122 @@ def checked_motion(table: Mapping, *, path: str | None = None) -> dict:
         base = os.path.dirname(os.path.abspath(path)) if path else ""
         out["package_paths"] = tuple(os.path.join(base, p) for p in paths)
     return out
+
+
+def checked_joints(tables, *, path: str | None = None) -> tuple[JointSpec, ...]:
+    """The ``[[joint]]`` tables of a configuration file, validated.
+
+    Each has ``name``, ``parent`` and ``child`` (part-name patterns), ``type`` (one of
+    ``JOINT_TYPES``); a moving joint an ``axis`` (3 numbers, not all zero); a revolute or
+    continuous one may have an ``origin`` (a point on the axis, default the origin); a revolute
+    or prismatic one a ``range`` of two values, radians or ``"NUMBERdeg"`` for a revolute joint,
+    report units for a prismatic one (lower first).
+
+    Raises
+    ------
+    ConfigError
+        Naming the file, the entry and the first problem found.
+
+    Examples
+    --------
+    >>> (hinge,) = checked_joints([{"name": "hinge", "parent": "frame.stl", "child": "door.stl",
+    ...     "type": "revolute", "axis": [0, 0, 1], "range": ["0deg", "90deg"]}])
+    >>> round(hinge.upper, 4)
+    1.5708
+    """
+    if not isinstance(tables, list):
+        raise ConfigError(path, "joint must be an array of tables ([[joint]] entries)")
+    if len(tables) > MAX_JOINTS:
+        raise ConfigError(
+            path, f"{len(tables)} [[joint]] tables, over the limit of {MAX_JOINTS} (write a URDF)"
+        )
+    out: list[JointSpec] = []
+    for k, table in enumerate(tables, start=1):
+        spec = _joint_spec(table, f"joint entry {k}", path)
+        if any(j.name == spec.name for j in out):
+            raise ConfigError(path, f"joint entry {k}: a joint named {spec.name!r} comes twice")
+        out.append(spec)
+    return tuple(out)
+
+
+def _joint_spec(table, label: str, path: str | None) -> JointSpec:
+    """One ``[[joint]]`` table, validated (``checked_joints``)."""
+
+    def fail(reason: str):
+        raise ConfigError(path, f"{label}: {reason}")
+
+    if not isinstance(table, Mapping):
+        fail("must be a table with name, parent, child, type, axis and range")
+    for key in table:
+        if key not in JOINT_KEYS:
+            fail(f"unknown key {key!r} (known: {', '.join(JOINT_KEYS)})")
+    for key in ("name", "parent", "child", "type"):
+        if not isinstance(table.get(key), str) or not table[key].strip():
+            fail(f"{key} must be a non-empty string")
+    name, kind = table["name"].strip(), table["type"].strip()
+    label = f"{label} ({name!r})"
+    if not name.isprintable() or any(c in name for c in ",="):
+        fail("name must be printable, without ',' or '=' (a --pose item is NAME=VALUE)")
+    if kind not in JOINT_TYPES:
+        fail(f"unknown type {kind!r} (known: {', '.join(JOINT_TYPES)})")
+    allowed = {
+        "fixed": (),
+        "continuous": ("axis", "origin"),
+        "revolute": ("axis", "origin", "range"),
+        "prismatic": ("axis", "range"),
+    }[kind]
+    for key in ("axis", "origin", "range"):
+        if key in table and key not in allowed:
+            fail(f"a {kind} joint takes no {key}")
+        if key in ("axis", "range") and key in allowed and key not in table:
+            fail(f"a {kind} joint needs {'an axis' if key == 'axis' else 'a range'}")
+    axis = _vector(table.get("axis", [0.0, 0.0, 1.0]), "axis", fail)
+    norm = math.sqrt(sum(x * x for x in axis))
+    if norm == 0.0:
+        fail("axis must not be zero")
+    origin = _vector(table.get("origin", [0.0, 0.0, 0.0]), "origin", fail)
+    lower, upper = _range(table.get("range"), kind, name, fail, path)
+    return JointSpec(
+        name,
+        table["parent"],
+        table["child"],
+        kind,
+        tuple(x / norm for x in axis),
+        origin,
+        lower,
+        upper,
+        path,
+    )
+
+
+def _vector(value, key: str, fail) -> tuple[float, float, float]:
+    if (
+        not isinstance(value, list)
+        or len(value) != 3
+        or not all(isinstance(x, int | float) and not isinstance(x, bool) for x in value)
+        or not all(math.isfinite(x) and abs(x) < 1e15 for x in value)
+    ):
+        fail(f"{key} must be 3 finite numbers, as [x, y, z]")
+    return (float(value[0]), float(value[1]), float(value[2]))
+
+
+def _range(value, kind: str, name: str, fail, path: str | None) -> tuple[float, float]:
+    """A joint's (lower, upper) from its ``range``; +-inf for continuous, 0 for fixed."""
+    if kind == "continuous":
+        return -math.inf, math.inf
+    if kind == "fixed":
+        return 0.0, 0.0
+    if not isinstance(value, list) or len(value) != 2:
+        fail('range must be two values, as [lower, upper] (radians, or "NUMBERdeg")')
+    ends = [parse_value(name, v, where=path) for v in value]
+    if kind == "prismatic" and any(v.in_degrees for v in ends):
+        fail("is prismatic: give its range in report units, not degrees")
+    lower, upper = (v.value for v in ends)
+    if not lower <= upper:
+        fail(f"range lower end {value[0]!r} is above its upper end {value[1]!r}")
+    if max(abs(lower), abs(upper)) > 1e15:
+        fail("range ends must be below 1e15 in size")
+    return lower, upper
 
 
 def motion_from_options(
@@ -177,6 +344,7 @@ def motion_from_options(
         adjacent=file.get("adjacent", True) if adjacent is None else adjacent,
         sweep=None if sweep is None else tuple(sweep),
         resolution=DEFAULT_RESOLUTION if resolution is None else resolution,
+        joints=file.get("joints", ()),
     )
 
 
@@ -186,8 +354,11 @@ def _is_values(pose) -> bool:
 
 __all__ = [
     "DEFAULT_RESOLUTION",
+    "JOINT_TYPES",
+    "JointSpec",
     "JointValue",
     "Motion",
+    "checked_joints",
     "checked_motion",
     "motion_from_options",
     "parse_pose",

@@ -24,25 +24,37 @@ ADJACENT = "adjacent"
 
 @dataclass(frozen=True)
 class Mechanism:
-    """One robot and the parts that are its links.
+    """One robot (a URDF, or the configuration's ``[[joint]]`` tables) and its links' parts.
 
     Attributes
     ----------
     robot : Robot
     parts : dict of str -> list of int
         Each link's parts, as indices into the run's bodies.
+    units : str
+        The unit of the robot's lengths: metres for a URDF, the report unit for ``[[joint]]``.
+    adjacent : set of frozenset of str
+        Link pairs joined by a joint (``load.urdf.adjacent_links`` for a URDF).
+    is_urdf : bool
+        A URDF robot: every link pair is swept and goes to the SRDF. A mechanism of mesh parts
+        sweeps only the pairs some joint moves relative to each other (the check itself judges
+        the others at the pose).
     """
 
     robot: Robot
     parts: dict[str, list[int]]
+    units: str = "m"
+    adjacent: set = dataclasses.field(default_factory=set)
+    is_urdf: bool = True
 
     def link_of(self) -> dict[int, str]:
         """The link of each of the robot's parts (index into the run's bodies)."""
         return {k: link for link, ks in self.parts.items() for k in ks}
 
 
-def mechanisms(bodies: Sequence[Body]) -> list[Mechanism]:
-    """The robots among the bodies (every URDF file), in the order their parts come."""
+def mechanisms(bodies: Sequence[Body], joints: Sequence = ()) -> list[Mechanism]:
+    """The robots among the bodies (every URDF file, in the order their parts come), then the
+    mechanism the configuration's ``[[joint]]`` tables (``joints``) make of mesh parts."""
     out = []
     by_path: dict[str, list[int]] = {}
     for k, body in enumerate(bodies):
@@ -55,7 +67,13 @@ def mechanisms(bodies: Sequence[Body]) -> list[Mechanism]:
         for k in ks:
             node = bodies[k].name.rpartition("#")[2]
             parts.setdefault(node_link[node], []).append(k)
-        out.append(Mechanism(robot, parts))
+        out.append(Mechanism(robot, parts, adjacent=adjacent_links(robot)))
+    if joints:
+        from .load.joints import mesh_mechanism
+
+        mesh = mesh_mechanism(bodies, joints)
+        units = bodies[0].units
+        out.append(Mechanism(mesh.robot, mesh.parts, units, mesh.adjacent, is_urdf=False))
     return out
 
 
@@ -71,7 +89,7 @@ def adjacent_approvals(bodies: Sequence[Body], found: Sequence[Mechanism]) -> li
     """
     out = []
     for mech in found:
-        for pair in sorted(sorted(p) for p in adjacent_links(mech.robot)):
+        for pair in sorted(sorted(p) for p in mech.adjacent):
             a, b = pair
             for i in mech.parts.get(a, ()):
                 for j in mech.parts.get(b, ()):
@@ -87,7 +105,7 @@ def with_mechanisms(bodies: Sequence[Body], settings):
     is off."""
     if not settings.motion.adjacent:
         return settings
-    extra = adjacent_approvals(bodies, mechanisms(bodies))
+    extra = adjacent_approvals(bodies, mechanisms(bodies, settings.motion.joints))
     if not extra:
         return settings
     return settings.replace(approvals=(*settings.approvals, *extra))
@@ -130,7 +148,12 @@ class PairSweep:
     joints : tuple of str
         The swept joints that move the pair relative to each other.
     witness : dict of str -> float or None
-        For ``sometimes``: the leading joints' values of the witness pose (radians, metres).
+        For ``sometimes``: the free joints' values of the worst pose found, the witness
+        (radians; metres for a URDF's slide, report units for a ``[[joint]]`` slide; the other
+        joints at the run's pose): candidates (the seeded samples, then each batch of box
+        centres) are re-checked deepest overlap of the links' convex pieces first, and the first
+        the real meshes confirm is the witness (a bad pose, not a proven maximum of the depth).
+        ``{}`` for ``always`` when nothing moves the pair.
     verdict : str or None
         The real meshes' status at the witness (``interference`` or ``touching``).
     boxes : int
@@ -148,14 +171,78 @@ class PairSweep:
     boxes: int = 0
     is_adjacent: bool = False
 
+    def to_dict(self) -> dict:
+        """The pair as the JSON report lists it (``pose``: the witness's joint values)."""
+        return {
+            "a": self.a,
+            "b": self.b,
+            "status": self.status,
+            "adjacent": self.is_adjacent,
+            "joints": list(self.joints),
+            "pose": None if self.witness is None else dict(self.witness),
+            "verdict": self.verdict,
+        }
+
 
 @dataclass(frozen=True)
 class _Link:
     """A link's convex pieces in its own frame (report units) and its parts."""
 
-    pack: object  # ConvexPack
+    pack: object  # ConvexPack: the coarse pieces the box search poses (``coarse_pieces``)
     radius: float  # farthest piece point from the link frame's origin
     parts: tuple[tuple[int, np.ndarray], ...]  # (body index, link frame -> body placement)
+    pad: np.ndarray  # (m,) each coarse piece's padding: the piece lies within it of its hull
+    points: np.ndarray  # (n, 3) every piece's hull vertices (the motion bound's geometry)
+
+
+#: Directions whose extreme vertices make a piece's coarse hull (an icosphere's vertices, 2
+#: subdivisions: 162).
+COARSE_SUBDIVISIONS = 2
+#: Pieces with more hull vertices than this are coarsened for the box search: the PR2's
+#: fingers and wrists (1,000 to 4,450 per piece) are; the panda's (up to 170) are not, as their
+#: pads would cost more boxes than the fewer vertices save (bench/sweep.py: 57.6 s and 3
+#: undecided pairs with every piece over 162 coarsened, against 41.0 s and 2 without).
+COARSE_MIN_VERTICES = 500
+
+
+def coarse_pieces(
+    pieces: list[np.ndarray], *, min_vertices: int = COARSE_MIN_VERTICES
+) -> tuple[list[np.ndarray], np.ndarray]:
+    """Fewer-vertex stand-ins for convex pieces, each with a padding that restores the bound.
+
+    A piece with more than ``min_vertices`` vertices (and more than the icosphere has
+    directions) is replaced by its extreme vertices along those directions (a hull inside it),
+    and ``pad`` is the largest distance of
+    its vertices from that hull (exact, by GJK): the piece lies inside the coarse hull grown by
+    ``pad``, so the coarse hulls' distance minus both pads is a lower bound on the pieces'
+    distance. Posing a finger of 4,000 hull vertices costs 160 instead.
+
+    Returns
+    -------
+    coarse : list of (k_i, 3) float64
+    pad : (m,) float64
+        0 for pieces kept as they are.
+    """
+    import trimesh
+
+    from .geometry import pack_convex, query_pairs
+
+    directions = trimesh.creation.icosphere(subdivisions=COARSE_SUBDIVISIONS).vertices
+    coarse, pads = [], []
+    for piece in pieces:
+        if len(piece) <= max(min_vertices, len(directions)):
+            coarse.append(piece)
+            pads.append(0.0)
+            continue
+        kept = piece[np.unique(np.argmax(piece @ directions.T, axis=0))]
+        pack = pack_convex([kept, *piece[:, None, :]])
+        pairs = np.stack([np.zeros(len(piece), np.int64), np.arange(1, len(piece) + 1)], axis=1)
+        res = query_pairs(pack, pairs, tolerance=0.0, depth=False)
+        size = float(np.ptp(piece, axis=0).max())
+        # GJK's distances are exact to rounding; the margin covers that rounding.
+        pads.append(float(max(res.distance.max(), 0.0)) + 1e-9 * size)
+        coarse.append(kept)
+    return coarse, np.array(pads)
 
 
 def _chain(robot: Robot, link: str) -> list:
@@ -195,6 +282,7 @@ def motion_weights(
     swept: set[str],
     base: dict[str, float],
     scale: float = 1.0,
+    points: dict[str, np.ndarray] | None = None,
 ) -> dict[str, float]:
     """How far a unit change of each swept joint can move any point of either link of ``pair``.
 
@@ -217,6 +305,10 @@ def motion_weights(
         Every movable joint's value where it does not move (``joint_values``).
     scale : float
         Report units per metre.
+    points : dict of str -> (n, 3) float64, optional
+        Each link's geometry (hull vertices) in its own frame, report units: the joints that
+        turn a link with only fixed joints between get the exact largest distance of its points
+        from their axis line, and the joints above a bound from it (``_chain_weights``).
     """
     a_chain, b_chain = _chain(robot, pair[0]), _chain(robot, pair[1])
     common = 0
@@ -224,17 +316,50 @@ def motion_weights(
         common += 1
     out: dict[str, float] = {}
     for chain, link in ((a_chain[common:], pair[0]), (b_chain[common:], pair[1])):
-        reach = radius[link]  # bound on |p - o_k| for the joint k being visited, walking up
-        for joint in reversed(chain):
-            if joint.type in MOVABLE:
-                name, multiplier = _leader(robot, joint)
-                if name in swept:
-                    weight = scale if joint.type == "prismatic" else reach
-                    out[name] = out.get(name, 0.0) + abs(multiplier) * weight
-            reach += float(np.linalg.norm(joint.origin[:3, 3])) * scale
+        local = None if points is None else points.get(link)
+        for joint, weight in _chain_weights(robot, chain, radius[link], local, swept, base, scale):
+            name, multiplier = _leader(robot, joint)
+            out[name] = out.get(name, 0.0) + abs(multiplier) * weight
+    return out
+
+
+def _chain_weights(robot, chain, radius, local, swept, base, scale):
+    """(joint, bound on the speed of the link's points per unit of it) up one chain.
+
+    Walking up from the link, the points are either rigid in the current frame (``local``,
+    report units: only fixed joints passed) or known to lie within ``reach`` of ``anchor``, the
+    origin of the last movable joint passed, in the current frame. A revolute joint moves a
+    point at its distance from the joint's axis line per radian: the exact largest distance
+    while the points are rigid, else ``distance(anchor, axis) + reach``.
+    """
+    anchor, reach = np.zeros(3), radius
+    for joint in reversed(chain):
+        axis = joint.axis
+        if joint.type in MOVABLE and _leader(robot, joint)[0] in swept:
+            if joint.type == "prismatic":
+                yield joint, scale
+            elif local is not None:
+                yield (
+                    joint,
+                    float(np.linalg.norm(local - np.outer(local @ axis, axis), axis=1).max()),
+                )
+            else:
+                yield joint, float(np.linalg.norm(anchor - (anchor @ axis) * axis)) + reach
+        origin = joint.origin.copy()
+        origin[:3, 3] *= scale
+        if joint.type in MOVABLE:
+            if local is not None:  # the points stop being rigid here
+                reach = float(np.linalg.norm(local, axis=1).max())
+                local = None
+            else:
+                reach += float(np.linalg.norm(anchor))
             if joint.type == "prismatic":
                 reach += _extent(robot, joint, swept, base) * scale
-    return out
+            anchor = origin[:3, 3].copy()
+        elif local is not None:
+            local = local @ origin[:3, :3].T + origin[:3, 3]
+        else:
+            anchor = origin[:3, :3] @ anchor + origin[:3, 3]
 
 
 def _poses(robot: Robot, base: dict, names: list[str], values: np.ndarray) -> dict:
@@ -292,7 +417,19 @@ def _posed(pack, transforms: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nda
     return points, lower, upper
 
 
-def piece_distances(pack_a, pack_b, ta: np.ndarray, tb: np.ndarray, reach: np.ndarray):
+def _spheres_within(pack_a, pack_b, ta, tb, reach: np.ndarray, pad: float) -> np.ndarray:
+    """Which of E placements bring the two links' bounding spheres (grown by ``pad``) within
+    ``reach`` (the others' pieces are farther apart than that: nothing need be posed)."""
+    out = []
+    for pack, t in ((pack_a, ta), (pack_b, tb)):
+        centre = 0.5 * (pack.points.min(axis=0) + pack.points.max(axis=0))
+        radius = float(np.linalg.norm(pack.points - centre, axis=1).max())
+        out.append((t[:, :3, :3] @ centre + t[:, :3, 3], radius))
+    (pa, ra), (pb, rb) = out
+    return np.linalg.norm(pa - pb, axis=1) - ra - rb - pad <= reach
+
+
+def piece_distances(pack_a, pack_b, ta, tb, reach: np.ndarray, pad_a=None, pad_b=None):
     """Lower bounds on the distance between two links' pieces at E placements.
 
     Parameters
@@ -303,24 +440,43 @@ def piece_distances(pack_a, pack_b, ta: np.ndarray, tb: np.ndarray, reach: np.nd
         The links' placements.
     reach : (E,) float64
         Distances beyond which the exact value does not matter (answers above it are bounds).
+    pad_a, pad_b : (m_a,), (m_b,) float64, optional
+        Each piece stands for itself grown by this much (``coarse_pieces``); default 0.
 
     Returns
     -------
     lowest : (E,) float64
         For each placement, a lower bound on the distance between the two links' surfaces
-        (exact when at most ``reach``): the smallest piece-pair signed distance; ``inf`` when
-        every piece pair's boxes are farther apart than ``reach``.
+        (exact when at most ``reach`` and nothing is padded): the smallest piece-pair signed
+        distance less both pads; ``inf`` when every piece pair's boxes are farther apart than
+        ``reach``.
     """
+    ma, mb = len(pack_a.starts) - 1, len(pack_b.starts) - 1
+    pad_a = np.zeros(ma) if pad_a is None else pad_a
+    pad_b = np.zeros(mb) if pad_b is None else pad_b
+    lowest = np.full(len(ta), np.inf)
+    near = _spheres_within(pack_a, pack_b, ta, tb, reach, float(pad_a.max() + pad_b.max()))
+    if np.any(near):  # pose only the placements whose links' spheres come within reach
+        lowest[near] = _posed_distances(
+            pack_a, pack_b, ta[near], tb[near], reach[near], pad_a, pad_b
+        )
+    return lowest
+
+
+def _posed_distances(pack_a, pack_b, ta, tb, reach, pad_a, pad_b) -> np.ndarray:
+    """``piece_distances`` of placements whose links come near: every piece posed, the piece
+    pairs whose boxes come within reach (plus pads) measured by GJK."""
     from .geometry import ConvexPack, Status, query_pairs
 
     e_count = len(ta)
+    lowest = np.full(e_count, np.inf)
     pa, la, ua = _posed(pack_a, ta)
     pb, lb, ub = _posed(pack_b, tb)
     ma, mb = len(pack_a.starts) - 1, len(pack_b.starts) - 1
     gap = np.maximum(la[:, :, None, :] - ub[:, None, :, :], lb[:, None, :, :] - ua[:, :, None, :])
     box_gap = np.linalg.norm(np.maximum(gap, 0.0), axis=3)  # (E, ma, mb), a lower bound
-    e, i, j = np.nonzero(box_gap <= reach[:, None, None])
-    lowest = np.full(e_count, np.inf)
+    pads = pad_a[:, None] + pad_b[None, :]
+    e, i, j = np.nonzero(box_gap - pads[None] <= reach[:, None, None])
     if len(e) == 0:
         return lowest
     na, nb = len(pack_a.points), len(pack_b.points)
@@ -341,9 +497,9 @@ def piece_distances(pack_a, pack_b, ta: np.ndarray, tb: np.ndarray, reach: np.nd
     pack = ConvexPack(points, starts, nbr_starts, nbrs, lower, upper)
     m = ma + mb
     pairs = np.stack([e * m + i, e * m + ma + j], axis=1)
-    res = query_pairs(pack, pairs, tolerance=0.0, depth=False, max_distance=reach[e])
+    res = query_pairs(pack, pairs, tolerance=0.0, depth=False, max_distance=reach[e] + pads[i, j])
     distance = np.where(res.status == Status.UNDECIDED, np.minimum(res.distance, 0.0), res.distance)
-    np.minimum.at(lowest, e, distance)
+    np.minimum.at(lowest, e, distance - pads[i, j])
     return lowest
 
 
@@ -367,6 +523,11 @@ class _Pair:
         ta = _chain_transforms(_chain(self.robot, self.a), poses, self.scale, len(values))
         tb = _chain_transforms(_chain(self.robot, self.b), poses, self.scale, len(values))
         return ta, tb, poses
+
+    def distances(self, ta: np.ndarray, tb: np.ndarray, reach: np.ndarray) -> np.ndarray:
+        """``piece_distances`` of the two links' coarse pieces at placements ``ta``, ``tb``."""
+        a, b = self.links[self.a], self.links[self.b]
+        return piece_distances(a.pack, b.pack, ta, tb, reach, a.pad, b.pad)
 
     def verdict(self, ta: np.ndarray, tb: np.ndarray, *, surfaces_apart: bool = False) -> str:
         """The real meshes' worst status at one placement of the two links."""
@@ -422,7 +583,7 @@ def sweep_pair(pair: _Pair, lower: np.ndarray, upper: np.ndarray, resolution: fl
         centre, half = 0.5 * (blo + bhi), 0.5 * (bhi - blo)
         bound = half @ w + pair.tolerance
         ta, tb, poses = pair.placements(centre)
-        lowest = piece_distances(pair.links[pair.a].pack, pair.links[pair.b].pack, ta, tb, bound)
+        lowest = pair.distances(ta, tb, bound)
         evaluated += len(centre)
         for e in np.argsort(lowest, kind="stable"):
             if lowest[e] > pair.tolerance or checks >= MAX_WITNESS_CHECKS:
@@ -471,9 +632,7 @@ def _sampled_witness(pair: _Pair, lower: np.ndarray, upper: np.ndarray) -> PairS
     rng = np.random.default_rng(0)
     values = lower + (upper - lower) * rng.random((SAMPLES, len(lower)))
     ta, tb, _ = pair.placements(values)
-    lowest = piece_distances(
-        pair.links[pair.a].pack, pair.links[pair.b].pack, ta, tb, np.full(SAMPLES, pair.tolerance)
-    )
+    lowest = pair.distances(ta, tb, np.full(SAMPLES, pair.tolerance))
     order = np.argsort(lowest, kind="stable")[:SAMPLE_CHECKS]
     return _witness(pair, values[order[lowest[order] <= pair.tolerance]], SAMPLES)
 
@@ -531,15 +690,15 @@ def sweep_mechanism(
     robot = mech.robot
     base = joint_values(robot, motion.pose)
     swept = _swept(robot, motion.sweep)
-    scale = unit_scale("m", bodies[mech.parts[next(iter(mech.parts))][0]].units)
+    scale = unit_scale(mech.units, bodies[mech.parts[next(iter(mech.parts))][0]].units)
     links = _links(robot, mech, bodies, pieces, base, scale)
     radius = {name: link.radius for name, link in links.items()}
+    points = {name: link.points for name, link in links.items()}
     names = sorted(links)
-    lower = np.array([links[n].pack.lower.min(axis=0) for n in names])
-    upper = np.array([links[n].pack.upper.max(axis=0) for n in names])
+    lower = np.array([links[n].points.min(axis=0) for n in names])
+    upper = np.array([links[n].points.max(axis=0) for n in names])
     diagonal, _ = part_sizes(lower, upper)
     magnitude = np.full(len(names), max(radius.values()) + _reach(robot, swept, base) * scale)
-    adjacent = adjacent_links(robot)
     out = []
     for x, a in enumerate(names):
         for y in range(x + 1, len(names)):
@@ -547,27 +706,43 @@ def sweep_mechanism(
             tol = tolerance
             if tol is None:
                 tol = float(pair_tolerances(diagonal, magnitude, np.array([[x, y]]))[0])
-            weights = motion_weights(robot, (a, b), radius, swept, base, scale)
+            weights = motion_weights(robot, (a, b), radius, swept, base, scale, points)
+            if not weights and not mech.is_urdf:
+                continue  # nothing moves them: the check judged them at the pose
             free = sorted(weights)
             pair = _Pair(robot, a, b, free, np.array([weights[n] for n in free]), base, scale,
                          tol, links, bodies)  # fmt: skip
             lo, hi = _ranges(robot, free)
             swept_pair = sweep_pair(pair, lo, hi, motion.resolution)
-            is_adjacent = frozenset((a, b)) in adjacent
+            is_adjacent = frozenset((a, b)) in mech.adjacent
             out.append(dataclasses.replace(swept_pair, is_adjacent=is_adjacent))
     return tuple(out)
 
 
 def _swept(robot: Robot, named) -> set[str]:
+    """The joints of ``robot`` swept: every movable one when ``named`` is empty, else those of
+    ``named`` it has (``check_swept`` refused names no mechanism of the run has)."""
     from .errors import ConfigError
 
     if not named:
         return {j.name for j in robot.movable}
+    out = set()
     for name in named:
-        joint = robot.joint(name)
+        joint = next((j for j in robot.joints if j.name == name), None)
+        if joint is None:
+            continue
         if joint not in robot.movable:
             raise ConfigError(robot.path, f"--sweep {name}: not a movable joint that leads")
-    return set(named)
+        out.add(name)
+    return out
+
+
+def check_swept(found: Sequence[Mechanism], named) -> None:
+    """Refuse a joint of ``--sweep-joints`` that no mechanism of the run has (``ConfigError``
+    from the first robot, listing its joints)."""
+    for name in named or ():
+        if found and not any(name in {j.name for j in m.robot.joints} for m in found):
+            found[0].robot.joint(name)  # raises, naming the robot's movable joints
 
 
 def _ranges(robot: Robot, names: list[str]) -> tuple[np.ndarray, np.ndarray]:
@@ -603,19 +778,31 @@ def _links(robot, mech, bodies, pieces, base, scale) -> dict[str, _Link]:
         inverse = np.linalg.inv(frame)
         local = [p @ inverse[:3, :3].T + inverse[:3, 3] for k in ks for p in pieces[k]]
         parts = tuple((k, inverse @ bodies[k].transform) for k in ks)
-        pack = pack_convex(local, is_hull=True)
-        radius = float(np.linalg.norm(pack.points, axis=1).max())
-        out[link] = _Link(pack, radius, parts)
+        points = pack_convex(local, is_hull=True).points
+        coarse, pad = coarse_pieces(local)
+        radius = float(np.linalg.norm(points, axis=1).max())
+        out[link] = _Link(pack_convex(coarse, is_hull=True), radius, parts, pad, points)
     return out
 
 
 @dataclass(frozen=True)
 class RobotSweep:
-    """One robot's sweep: its URDF, its name, and every link pair's ``PairSweep``."""
+    """One robot's sweep: its URDF (or configuration file), its name, every link pair's
+    ``PairSweep``, and whether it is a URDF robot (the SRDF describes one)."""
 
     path: str
     name: str
     pairs: tuple[PairSweep, ...]
+    is_urdf: bool = True
+
+    def to_dict(self) -> dict:
+        """The robot's sweep as the JSON report lists it: counts by status, every pair."""
+        return {
+            "robot": self.path,
+            "name": self.name,
+            "counts": {s: sum(p.status == s for p in self.pairs) for s in STATUSES},
+            "pairs": [p.to_dict() for p in self.pairs],
+        }
 
 
 def summary(robot: RobotSweep) -> str:
@@ -639,7 +826,9 @@ def sweep_bodies(bodies: Sequence[Body], settings, *, executor=None) -> tuple[Ro
     from .decompose import decompose_bodies
 
     out: list[RobotSweep] = []
-    for mech in mechanisms(bodies):
+    found = mechanisms(bodies, settings.motion.joints)
+    check_swept(found, settings.motion.sweep)
+    for mech in found:
         ks = sorted(k for ks in mech.parts.values() for k in ks)
         piece_lists = decompose_bodies(
             [bodies[k] for k in ks],
@@ -653,5 +842,5 @@ def sweep_bodies(bodies: Sequence[Body], settings, *, executor=None) -> tuple[Ro
         )
         pieces = dict(zip(ks, piece_lists, strict=True))
         pairs = sweep_mechanism(mech, bodies, pieces, settings.motion, tolerance=settings.tolerance)
-        out.append(RobotSweep(mech.robot.path, mech.robot.name, pairs))
+        out.append(RobotSweep(mech.robot.path, mech.robot.name, pairs, mech.is_urdf))
     return tuple(out)

@@ -4,6 +4,7 @@ and random sampling; the motion bound the proof rests on; the SRDF it writes.
 
 from __future__ import annotations
 
+import itertools
 import math
 import os
 
@@ -156,7 +157,9 @@ def test_a_narrow_window_that_10000_random_poses_miss_is_found_with_its_witness(
 
 def test_no_point_moves_farther_than_the_motion_bound():
     """For random boxes of the panda's joints, every vertex of the two links moves (relative to
-    the pair's common frame) by at most sum_k w_k |q_k - c_k| between the centre and any pose."""
+    the pair's common frame) by at most sum_k w_k |q_k - c_k| between the centre and any pose:
+    with the weights from the links' radii, and with the tighter ones from their points'
+    distances to the joint axes."""
     bodies = load_bodies([PANDA])
     (mech,) = mechanisms(bodies)
     robot = mech.robot
@@ -170,8 +173,14 @@ def test_no_point_moves_farther_than_the_motion_bound():
                                  for k in ks])  # fmt: skip
     radius = {link: float(np.linalg.norm(v, axis=1).max()) for link, v in local.items()}
     rng = np.random.default_rng(1)
-    for a, b in [("panda_link0", "panda_hand"), ("panda_link2", "panda_leftfinger")]:
-        weights = motion_weights(robot, (a, b), radius, swept, base)
+    cases = [("panda_link0", "panda_hand"), ("panda_link2", "panda_leftfinger")]
+    for (a, b), points in itertools.product(cases, (None, local)):
+        weights = motion_weights(robot, (a, b), radius, swept, base, points=points)
+        if points is not None:  # distances from the axes: tighter than radii, never looser
+            loose = motion_weights(robot, (a, b), radius, swept, base)
+            assert all(weights[n] <= loose[n] + 1e-12 for n in loose)
+            if b == "panda_hand":  # turned by joint 7 about an axis through it
+                assert sum(weights.values()) < sum(loose.values())
         names = sorted(weights)
         lo = np.array([robot.joint(n).lower for n in names])
         hi = np.array([robot.joint(n).upper for n in names])
@@ -245,3 +254,38 @@ def test_srdf_without_a_robot_is_a_usage_error(tmp_path):
     )
     assert run.exit_code == ExitStatus.USAGE
     assert "swept no robot" in run.stderr and not (tmp_path / "x.srdf").exists()
+
+
+def test_coarse_pieces_with_their_pads_never_raise_the_distance_bound():
+    """The box search poses each piece's coarse hull grown by its pad: at random placements of
+    two panda links, the padded coarse distance never exceeds the full pieces' distance, and no
+    coarse piece keeps more vertices than the icosphere has directions (162)."""
+    from meshcheck.decompose import decompose_bodies
+    from meshcheck.geometry import pack_convex
+    from meshcheck.sweep import coarse_pieces, piece_distances
+
+    bodies = load_bodies([PANDA])
+    by_name = {b.name.rpartition("#")[2]: k for k, b in enumerate(bodies)}
+    chosen = [by_name["panda_link4"], by_name["panda_hand"]]
+    pieces = decompose_bodies([bodies[k] for k in chosen], jobs=1)
+    packs = []
+    for body, ps in zip([bodies[k] for k in chosen], pieces, strict=True):
+        inverse = np.linalg.inv(body.transform)
+        local = [p @ inverse[:3, :3].T + inverse[:3, 3] for p in ps]
+        coarse, pad = coarse_pieces(local, min_vertices=0)  # the panda's are under the bar
+        assert all(len(c) <= 162 for c in coarse) and np.all(pad >= 0.0)
+        packs.append((pack_convex(local, is_hull=True), pack_convex(coarse, is_hull=True), pad))
+    rng = np.random.default_rng(3)
+    ta = np.broadcast_to(np.eye(4), (200, 4, 4)).copy()
+    tb = ta.copy()
+    for k in range(200):
+        rotation = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+        tb[k, :3, :3] = rotation * np.sign(np.linalg.det(rotation))
+        tb[k, :3, 3] = rng.uniform(-0.3, 0.3, 3)
+    reach = np.full(200, np.inf)
+    (full_a, coarse_a, pad_a), (full_b, coarse_b, pad_b) = packs
+    exact = piece_distances(full_a, full_b, ta, tb, reach)
+    bound = piece_distances(coarse_a, coarse_b, ta, tb, reach, pad_a, pad_b)
+    apart = exact > 0.0  # in contact, GJK without depth gives some value <= 0, not the depth
+    assert np.all(bound[apart] <= exact[apart] + 1e-12) and np.all(bound[~apart] <= 0.0)
+    assert np.any(apart) and not np.all(apart)  # both sides of contact were drawn

@@ -220,7 +220,8 @@ def load_bodies(
         Read in the executor's processes: True always, False never, None (default) when it pays
         (``files.parallel_pays``).
     motion : motion.Motion, optional
-        The pose URDF robots are placed at and where their packages are (``load.urdf``).
+        The pose URDF robots are placed at and where their packages are (``load.urdf``); the
+        configuration's ``[[joint]]`` mechanism, posed too (``load.joints``).
 
     Returns
     -------
@@ -250,7 +251,17 @@ def load_bodies(
     )
     declared = [given.get(path, r.declared) for (path, _), r in zip(files, reads, strict=True)]
     report = units_.report_unit(declared, units)
-    return _placed_bodies(files, reads, report, units, budget.limits, split=split, given=given)
+    bodies = _placed_bodies(files, reads, report, units, budget.limits, split=split, given=given)
+    return _posed(bodies, motion)
+
+
+def _posed(bodies: list[Body], motion) -> list[Body]:
+    """``bodies`` with the configuration's ``[[joint]]`` mechanism (``load.joints``) posed."""
+    if motion is None or not motion.joints:
+        return bodies
+    from .joints import pose_parts
+
+    return pose_parts(bodies, motion)
 
 
 def _checked_unit(units: str | None) -> str | None:

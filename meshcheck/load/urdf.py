@@ -185,7 +185,16 @@ def read_urdf(path: str, data: bytes, budget: Budget, motion=None) -> list[Item]
         Placements in metres: link placement @ collision origin @ scale.
     """
     robot = parse_robot(path, data)
-    values = joint_values(robot, motion.pose if motion is not None else ())
+    pose = ()
+    if motion is not None:  # the values of [[joint]] tables are load.joints' to place
+        ours = {spec.name for spec in motion.joints}
+        pose = tuple(v for v in motion.pose if v.joint not in ours)
+        clash = sorted(ours & {j.name for j in robot.joints})
+        if clash:
+            raise ConfigError(
+                path, f"joint {clash[0]!r} is also a [[joint]] of the configuration: rename one"
+            )
+    values = joint_values(robot, pose)
     links = link_transforms(robot, values)
     package_paths = tuple(motion.package_paths) if motion is not None else ()
     meshes: dict = {}

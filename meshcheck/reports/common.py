@@ -271,3 +271,20 @@ def ordered(result: CheckResult) -> list[Finding]:
 def finding_title(finding: Finding) -> str:
     """``a and b``, names made printable."""
     return f"{printable(finding.a)} and {printable(finding.b)}"
+
+
+def sweep_rows(result: CheckResult) -> list[tuple[str, object]]:
+    """(robot path, pair) of every swept link pair that is not proven ``never``, robot by
+    robot, in link-name order: what the reports list of a sweep."""
+    return [(r.path, p) for r in result.sweeps for p in r.pairs if p.status != "never"]
+
+
+def pose_text(pair) -> str:
+    """How a swept pair collides, the witness as ``--pose`` takes it: ``interference at --pose
+    hinge=0.300216643``; the status alone without a witness."""
+    if pair.status == "sometimes" and pair.witness:
+        values = ",".join(f"{name}={value:.9g}" for name, value in pair.witness.items())
+        return f"{pair.verdict} at --pose {values}"
+    if pair.status == "always" and pair.verdict:
+        return f"{pair.verdict} at every pose"
+    return "neither proven apart nor seen colliding" if pair.status == "undecided" else ""

@@ -4,6 +4,10 @@
 part its findings share, named in ``part``; ``pattern``: copies of two parts at one relative
 placement, ``part`` null), its status and its findings' IDs.
 
+With ``--sweep`` the document also has ``sweeps``: per robot (or ``[[joint]]`` mechanism) the
+counts by class and every link pair, each with its ``pose`` (the witness's joint values, for a
+``sometimes`` pair; see ``sweep.PairSweep``).
+
 Every finding carries ``baseline`` (``"new"``, ``"active"``, or null without a baseline); with a
 baseline the document also has ``resolved``, the baseline's findings this run no longer has.
 Output is ASCII (``\\uXXXX`` escapes), so any name survives any terminal or file encoding.
@@ -32,6 +36,8 @@ def document(result: CheckResult) -> dict:
         "parts": [p.to_dict() for p in result.parts],
         "summary": summary(result),
     }
+    if result.sweeps:  # --sweep: every link pair's class, a witness pose for sometimes
+        doc["sweeps"] = [r.to_dict() for r in result.sweeps]
     if result.baseline is not None:
         doc["resolved"] = [r.to_dict() for r in result.baseline.resolved(result.findings)]
     return doc

@@ -16,10 +16,12 @@ from .common import (
     describe,
     ordered,
     plural,
+    pose_text,
     printable,
     resolution,
     summary,
     summary_line,
+    sweep_rows,
     unlisted,
 )
 from .text import group_lines
@@ -96,6 +98,7 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
             for r in resolved[:MAX_ROWS]:
                 lines.append(f"- {r.status}: {escape(r.a)} and {escape(r.b)} `{r.id}`")
             lines.append("")
+    lines += _sweep_lines(result)
     if result.settings.config_path:
         lines += [f"Configuration: {escape(result.settings.config_path)}", ""]
     if result.warnings:
@@ -104,3 +107,19 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
         lines += [f"- {escape(w)}" for w in result.warnings]
         lines.append("")
     return "\n".join(lines)
+
+
+def _sweep_lines(result: CheckResult) -> list[str]:
+    """The sweep's link pairs that are not proven never, with their witness poses."""
+    rows = sweep_rows(result)
+    if not rows:
+        return []
+    lines = ["Sweep (link pairs not proven apart over the joint ranges):", ""]
+    lines += ["| Class | Robot | Link A | Link B | Witness |", "|---|---|---|---|---|"]
+    for robot, pair in rows[:MAX_ROWS]:
+        status = pair.status + (" (adjacent)" if pair.is_adjacent else "")
+        cells = [status, escape(robot), escape(pair.a), escape(pair.b), escape(pose_text(pair))]
+        lines.append("| " + " | ".join(cells) + " |")
+    if len(rows) > MAX_ROWS:
+        lines += ["", f"... and {plural(len(rows) - MAX_ROWS, 'more pair')} (see the report)"]
+    return [*lines, ""]

@@ -31,10 +31,11 @@ def render(result: CheckResult) -> str:
     ConfigError
         The run swept no robot, or several (an SRDF describes one).
     """
-    if len(result.sweeps) != 1:
-        count = "no robot" if not result.sweeps else f"{len(result.sweeps)} robots"
-        raise ConfigError(None, f"--srdf writes one robot's SRDF; this run swept {count}")
-    (robot,) = result.sweeps
+    robots = [r for r in result.sweeps if r.is_urdf]  # not a mechanism of [[joint]] tables
+    if len(robots) != 1:
+        count = "no robot" if not robots else f"{len(robots)} robots"
+        raise ConfigError(None, f"--srdf writes one URDF robot's SRDF; this run swept {count}")
+    (robot,) = robots
     adjacent = result.settings.motion.adjacent  # off: adjacent pairs are judged by the sweep
     lines = [
         '<?xml version="1.0" encoding="UTF-8"?>',

@@ -12,7 +12,17 @@ import textwrap
 from collections.abc import Sequence
 
 from ..results import CheckResult, clash_groups
-from .common import View, describe, ordered, printable, resolution, summary_line, unlisted
+from .common import (
+    View,
+    describe,
+    ordered,
+    pose_text,
+    printable,
+    resolution,
+    summary_line,
+    sweep_rows,
+    unlisted,
+)
 
 WIDTH = 100
 _ID_WIDTH = 12
@@ -190,6 +200,10 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
             lines.extend(
                 wrap(f"resolved {r.id}  {r.status}  {short(r.a)} and {short(r.b)}", _INDENT)
             )
+    for robot, pair in [] if view.is_quiet else sweep_rows(result):  # --sweep
+        adjacent = " (adjacent)" if pair.is_adjacent else ""
+        text = f"sweep {pair.status}{adjacent}  {short(robot)}: {short(pair.a)} / {short(pair.b)}"
+        lines.extend(wrap(f"{text}  {printable(pose_text(pair))}", _INDENT))
     if result.settings.config_path:
         lines.extend(wrap(f"configuration: {printable(result.settings.config_path)}", "  "))
     lines.extend(wrap(summary_line(result), "  "))
