@@ -116,6 +116,7 @@ class Executor:
         shared: dict | None = None,
         progress: Callable[[int], None] | None = None,
         time_limit: float | None = None,
+        here: bool = False,
     ) -> list:
         """Results of ``function`` on each task, in task order.
 
@@ -131,6 +132,9 @@ class Executor:
         time_limit : float, optional
             Seconds a task may run; a task that overruns gives None. Enforced by killing the
             worker, so only where tasks run in other processes (here: ignored).
+        here : bool
+            This process may take tasks too, while it waits (``LocalPool``: it then starts one
+            worker fewer; only for maps without time limits). The results are the same.
         """
         store = dict(shared or {})
         out = []
@@ -171,6 +175,12 @@ def sleep_then_echo(store: dict, seconds: float, value):
     """A task that sleeps, then returns its argument (for tests of time limits)."""
     time.sleep(seconds)
     return value
+
+
+def sleep_then_pid(store: dict, seconds: float):
+    """A task that sleeps, then returns the id of the process it ran in (for tests)."""
+    time.sleep(seconds)
+    return os.getpid()
 
 
 def exit_worker(store: dict, code: int):
@@ -258,17 +268,32 @@ class LocalPool(Executor):
     def is_started(self) -> bool:
         return bool(self.workers)
 
+    #: Index of the task this process runs itself (``map(here=True)``), None otherwise.
+    here_task: int | None = None
+
     @property
     def running(self) -> tuple[int, ...]:
-        return tuple(sorted(w.task for w in list(self.workers) if w.task is not None))
+        tasks = [w.task for w in list(self.workers) if w.task is not None]
+        return tuple(sorted(tasks + ([] if self.here_task is None else [self.here_task])))
 
-    def map(self, function, tasks, *, shared=None, progress=None, time_limit=None) -> list:
+    def map(
+        self, function, tasks, *, shared=None, progress=None, time_limit=None, here=False
+    ) -> list:
         if not tasks:
             return []
-        wanted = min(self.jobs, len(tasks))
+        # This process helps only where it cannot be asked to stop (no time limits) and the
+        # workers already started leave a core to it.
+        here = (
+            here
+            and time_limit is None
+            and all(t.time_limit is None for t in tasks)
+            and len(self.workers) < self.jobs
+        )
+        wanted = min(self.jobs - 1 if here else self.jobs, len(tasks))
         while len(self.workers) < wanted:
             self.workers.append(_Worker())
         run = _LocalRun(self, function, tasks, shared or {}, progress, time_limit, wanted)
+        run.here = here
         try:
             return run.results_when_done()
         except BaseException:
@@ -307,6 +332,8 @@ class _LocalRun:
         self.results: list = [None] * len(tasks)
         self.pending = deque(sorted(range(len(tasks)), key=lambda i: -tasks[i].size))
         self.finished = 0
+        self.here = False  # this process takes tasks too (``LocalPool.map``)
+        self.store: dict | None = None  # its store, as a worker's
 
     def results_when_done(self) -> list:
         from multiprocessing.connection import wait
@@ -316,8 +343,11 @@ class _LocalRun:
             if worker.is_ready and worker.task is None and self.pending:
                 self.start(worker)
         while self.finished < len(self.tasks):
-            for worker in wait(list(pool.workers), timeout=self.wait_timeout()):
+            helps = self.here and self.pending
+            for worker in wait(list(pool.workers), timeout=0.0 if helps else self.wait_timeout()):
                 self.receive(worker)
+            if self.here and self.pending:
+                self.run_here()
             now = time.monotonic()
             for worker in list(pool.workers):
                 if worker.task is not None and now - worker.started > self.limit_of(worker.task):
@@ -325,6 +355,20 @@ class _LocalRun:
             if not pool.workers and self.pending:
                 pool.workers.append(_Worker())
         return self.results
+
+    def run_here(self) -> None:
+        """Run the smallest pending task in this process (the workers take the largest first,
+        so the workers' messages wait at most a small task)."""
+        index = self.pending.pop()
+        task = self.tasks[index]
+        if self.store is None:
+            self.store = dict(self.shared)
+        self.pool.here_task = index
+        try:
+            self.results[index] = call(self.function, self.store, task.needs, task.args)
+        finally:
+            self.pool.here_task = None
+        self.count_finished()
 
     def limit_of(self, index: int) -> float:
         task_limit = self.tasks[index].time_limit
@@ -424,9 +468,12 @@ class DaskExecutor(Executor):
         self.sent_bytes = 0  # pickled bytes of the shared values scattered (bench/dask.py)
         self.task_count = 0
 
-    def map(self, function, tasks, *, shared=None, progress=None, time_limit=None) -> list:
+    def map(
+        self, function, tasks, *, shared=None, progress=None, time_limit=None, here=False
+    ) -> list:
         """See ``Executor.map``; ``time_limit`` is not enforced on a cluster (a Dask worker
-        cannot be killed per task): a CoACD overrun only takes longer there."""
+        cannot be killed per task): a CoACD overrun only takes longer there; ``here`` is
+        ignored (the cluster's workers do the work)."""
         if not tasks:
             return []
         run = _DaskRun(self, function, tasks, shared or {}, progress)

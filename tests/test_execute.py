@@ -81,6 +81,23 @@ def test_pool_returns_results_in_task_order_and_reuses_workers():
         assert {w.process.pid for w in pool.workers} == pids
 
 
+def test_here_this_process_works_beside_one_worker_fewer():
+    """``here=True``: the pool starts jobs - 1 workers and this process takes tasks while it
+    waits; results stay in task order. With a time limit, or workers enough already, it does
+    not (it cannot be stopped, and the cores are taken)."""
+    tasks = [Task((0.3,), size=1) for _ in range(8)]
+    with LocalPool(2) as pool:
+        pids = pool.map("meshcheck.execute:sleep_then_pid", tasks, here=True)
+        assert len(pool.workers) == 1
+        assert os.getpid() in pids and set(pids) <= {os.getpid(), pool.workers[0].process.pid}
+    with LocalPool(2) as pool:
+        pids = pool.map("meshcheck.execute:sleep_then_pid", tasks, here=True, time_limit=60)
+        assert len(pool.workers) == 2 and os.getpid() not in pids
+        pids = pool.map("meshcheck.execute:sleep_then_pid", tasks, here=True)
+        assert os.getpid() not in pids  # two workers already: this process only waits
+    assert Executor().map("meshcheck.execute:echo", [Task((1,))], here=True) == [1]
+
+
 def test_shared_values_travel_once_per_worker():
     shared = {"m": list(range(1000))}
     tasks = [Task(("m",), needs=("m",)) for _ in range(6)]

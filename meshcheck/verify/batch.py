@@ -303,6 +303,7 @@ def _verify_in_workers(
             tasks,
             shared=shared,
             progress=lambda done: progress(int(ends[done - 1]) if done else 0),
+            here=True,
         )
     finally:
         if bar is not None:
