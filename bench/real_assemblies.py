@@ -113,6 +113,8 @@ def run_one(path: str, meshcheck: list[str], jobs: int | None) -> dict:
         cold = timed([*cmd, path], env)
         warm = timed([*cmd, path], env)
     cm = timed([sys.executable, "-c", CM_SCRIPT, path])
+    if cm[1] != 0:  # a failed load is no time to compare against (trimesh's 3MF needs networkx)
+        sys.exit(f"error: {path}: CollisionManager's run failed (above); no ratio without it")
     return {
         "cold": cold[0],
         "warm": warm[0],
