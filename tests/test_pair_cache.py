@@ -107,11 +107,14 @@ def test_parallel_verify_is_byte_identical_to_serial(tmp_path, monkeypatch, coun
     paths = write_row(tmp_path / "row")
     _, serial = run(paths, None, use_cache=False, jobs=1)
     serial_count = len(counted)
+    monkeypatch.setattr(batch, "VERIFY_HERE_TOO", False)
     _, parallel_cold = run(paths, tmp_path / "c", jobs=2)
     assert len(counted) == serial_count  # verified in the worker processes, not here
     _, parallel_warm = run(paths, tmp_path / "c", jobs=2)
     _, serial_warm = run(paths, tmp_path / "c", jobs=1)
-    assert serial == parallel_cold == parallel_warm == serial_warm
+    monkeypatch.setattr(batch, "VERIFY_HERE_TOO", True)  # this process and one worker
+    _, beside = run(paths, None, use_cache=False, jobs=2)
+    assert serial == parallel_cold == parallel_warm == serial_warm == beside
     assert len(json.loads(serial)["results"]) == 4
 
 

@@ -38,6 +38,10 @@ SOLID_SECONDS = 0.02
 POOL_SECONDS = 300 * PAIR_SECONDS / 2
 #: ... and workers already started (by loading or decomposition): a few messages.
 STARTED_POOL_SECONDS = 32 * PAIR_SECONDS / 2
+#: This process verifies too while it waits on a local pool, which then starts one worker fewer
+#: (``Executor.map(here=True)``): on two cores, two workers importing trimesh and scipy while
+#: this process waited cost more than they saved (README, "Real assemblies").
+VERIFY_HERE_TOO = True
 #: Pairs per task sent to a worker at most: enough to amortise a message, few enough to balance.
 PAIRS_PER_TASK = 16
 #: Expected seconds per task at most: expensive pairs travel alone, so two workers stay busy.
@@ -303,7 +307,7 @@ def _verify_in_workers(
             tasks,
             shared=shared,
             progress=lambda done: progress(int(ends[done - 1]) if done else 0),
-            here=True,
+            here=VERIFY_HERE_TOO,
         )
     finally:
         if bar is not None:
