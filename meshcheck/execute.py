@@ -292,8 +292,7 @@ class LocalPool(Executor):
         wanted = min(self.jobs - 1 if here else self.jobs, len(tasks))
         while len(self.workers) < wanted:
             self.workers.append(_Worker())
-        run = _LocalRun(self, function, tasks, shared or {}, progress, time_limit, wanted)
-        run.here = here
+        run = _LocalRun(self, function, tasks, shared or {}, progress, time_limit, wanted, here)
         try:
             return run.results_when_done()
         except BaseException:
@@ -326,13 +325,13 @@ class LocalPool(Executor):
 class _LocalRun:
     """One ``LocalPool.map``: the tasks not started yet, the results, and the worker loop."""
 
-    def __init__(self, pool, function, tasks, shared, progress, time_limit, wanted):
+    def __init__(self, pool, function, tasks, shared, progress, time_limit, wanted, here=False):
         self.pool, self.function, self.tasks, self.shared = pool, function, tasks, shared
         self.progress, self.time_limit, self.wanted = progress, time_limit, wanted
         self.results: list = [None] * len(tasks)
         self.pending = deque(sorted(range(len(tasks)), key=lambda i: -tasks[i].size))
         self.finished = 0
-        self.here = False  # this process takes tasks too (``LocalPool.map``)
+        self.here = here  # this process takes tasks too (``LocalPool.map``)
         self.store: dict | None = None  # its store, as a worker's
 
     def results_when_done(self) -> list:
