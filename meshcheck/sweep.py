@@ -121,12 +121,21 @@ _NO_LIMITS = Limits(max_file_bytes=1 << 62)  # the URDF was read once already, w
 MAX_BOXES = 200_000
 #: Boxes evaluated in one compiled call.
 BATCH = 1024
+#: Boxes whose motion bound is below this fraction of the smaller link's size, and whose
+#: coarse pieces do not prove them apart, are measured on the real meshes' triangles.
+FINE_REACH = 0.02
 #: Poses drawn (fixed seed) to look for a witness before the proof starts, and how many of the
 #: closest are re-checked on the real meshes.
 SAMPLES = 256
 SAMPLE_CHECKS = 4
 #: Candidate witnesses re-checked on the real meshes per link pair, deepest piece overlap first.
 MAX_WITNESS_CHECKS = 24
+#: A pair not decided after this many boxes looks for a witness by descending the pieces'
+#: distance from the nearest box centres (``_descent_witness``): how many, steps, tries.
+DESCENT_AFTER = 4096
+DESCENT_STARTS = 8
+DESCENT_STEPS = 10
+DESCENT_TRIES = 32
 
 NEVER, SOMETIMES, ALWAYS, UNDECIDED = "never", "sometimes", "always", "undecided"
 STATUSES = (NEVER, SOMETIMES, ALWAYS, UNDECIDED)
@@ -160,6 +169,9 @@ class PairSweep:
         Boxes of joint values evaluated.
     is_adjacent : bool
         The links are joined by a joint (``load.urdf.adjacent_links``).
+    approval_reason : str or None
+        For a mechanism of ``[[joint]]`` tables, the reason of the approval rule its two parts
+        match (adjacent parts: ``ADJACENT``); its collision then does not fail the run.
     """
 
     a: str
@@ -170,6 +182,7 @@ class PairSweep:
     verdict: str | None = None
     boxes: int = 0
     is_adjacent: bool = False
+    approval_reason: str | None = None
 
     def to_dict(self) -> dict:
         """The pair as the JSON report lists it (``pose``: the witness's joint values)."""
@@ -181,6 +194,7 @@ class PairSweep:
             "joints": list(self.joints),
             "pose": None if self.witness is None else dict(self.witness),
             "verdict": self.verdict,
+            "approval_reason": self.approval_reason,
         }
 
 
@@ -193,6 +207,10 @@ class _Link:
     parts: tuple[tuple[int, np.ndarray], ...]  # (body index, link frame -> body placement)
     pad: np.ndarray  # (m,) each coarse piece's padding: the piece lies within it of its hull
     points: np.ndarray  # (n, 3) every piece's hull vertices (the motion bound's geometry)
+    hull: np.ndarray  # (k, 3) a few of them whose hull, grown by ``hull_pad``, holds them all
+    hull_pad: float
+    vertices: np.ndarray  # (v, 3) the real meshes' vertices, link frame
+    faces: np.ndarray  # (f, 3) int64, their triangles
 
 
 #: Directions whose extreme vertices make a piece's coarse hull (an icosphere's vertices, 2
@@ -391,15 +409,21 @@ def _motions(joint, values: np.ndarray) -> np.ndarray:
     return out
 
 
-def _chain_transforms(chain: list, poses: dict, scale: float, count: int) -> np.ndarray:
+def _chain_transforms(
+    chain: list, poses: dict, scale: float, count: int, axes: dict | None = None
+) -> np.ndarray:
     """(E, 4, 4) placements of a chain's last link in the root frame, report units, for
-    ``count`` poses."""
+    ``count`` poses; with ``axes``, each movable joint's axis line at each pose goes there,
+    ``{name: ((E, 3) point on it, report units, (E, 3) unit direction)}``."""
     placed = np.broadcast_to(np.eye(4), (count, 4, 4))
     fixed = np.eye(4)  # origins (and held joints) since the last motion, folded into one matrix
     for joint in chain:
         fixed = fixed @ joint.origin
         if joint.type in MOVABLE:
-            placed = placed @ fixed @ _motions(joint, poses[joint.name])
+            placed = placed @ fixed
+            if axes is not None:
+                axes[joint.name] = (placed[:, :3, 3] * scale, placed[:, :3, :3] @ joint.axis)
+            placed = placed @ _motions(joint, poses[joint.name])
             fixed = np.eye(4)
     placed = placed @ fixed
     placed[:, :3, 3] *= scale
@@ -503,6 +527,52 @@ def _posed_distances(pack_a, pack_b, ta, tb, reach, pad_a, pad_b) -> np.ndarray:
     return lowest
 
 
+@dataclass(frozen=True)
+class _Term:
+    """One swept joint between the pair's common ancestor and one of its links."""
+
+    joint: object  # load.urdf.Joint
+    lead: int  # its leading joint's index among the pair's free joints
+    multiplier: float  # |its value's change per unit of the leader's|
+    weight: float  # bound on the link's points' speed per unit of it, over the whole sweep
+
+
+@dataclass(frozen=True)
+class _Side:
+    """One link of a pair, for the motion bound of a box (``_Pair.box_weights``)."""
+
+    link: str
+    terms: tuple[_Term, ...]  # joints from the common ancestor down to the link
+    hull: np.ndarray  # (k, 3) a few points, link frame, whose hull grown by ``pad`` holds it
+    pad: float
+
+
+def _side(robot: Robot, chain: list, link: _Link, name: str, names, swept, base, scale):
+    """The ``_Side`` of link ``name`` below the common ancestor (``chain``: the joints there)."""
+    terms = []
+    for joint, weight in _chain_weights(robot, chain, link.radius, link.points, swept, base,
+                                        scale):  # fmt: skip
+        leader, multiplier = _leader(robot, joint)
+        terms.append(_Term(joint, names.index(leader), abs(multiplier), weight))
+    return _Side(name, tuple(terms[::-1]), link.hull, link.hull_pad)
+
+
+def surface_distance(a: _Link, b: _Link, ta: np.ndarray, tb: np.ndarray, reach: float) -> float:
+    """The distance between two links' real surfaces placed by ``ta``, ``tb``, exact when at
+    most ``reach`` (else a value above it): the triangle pairs whose boxes come within
+    ``reach`` (a bounding-volume hierarchy), measured exactly; 0 where surfaces cross."""
+    from .geometry.triangles import box_pairs, pair_distances, triangle_boxes
+
+    va = a.vertices @ ta[:3, :3].T + ta[:3, 3]
+    vb = b.vertices @ tb[:3, :3].T + tb[:3, 3]
+    alo, ahi = triangle_boxes(va, a.faces)
+    blo, bhi = triangle_boxes(vb, b.faces)
+    pairs = box_pairs(alo, ahi, blo, bhi, reach)
+    if len(pairs) == 0:
+        return np.inf
+    return float(pair_distances(va, a.faces, vb, b.faces, pairs)[0].min())
+
+
 @dataclass
 class _Pair:
     """What one link pair's sweep needs."""
@@ -511,23 +581,68 @@ class _Pair:
     a: str
     b: str
     names: list[str]  # the free joints
-    weights: np.ndarray  # (n,) motion bound per unit of each free joint
+    sides: tuple[_Side, _Side]
     base: dict
     scale: float
     tolerance: float
     links: dict  # link -> _Link
     bodies: Sequence[Body]
 
-    def placements(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
+    def placements(self, values: np.ndarray, axes: dict | None = None):
+        """(ta, tb, poses): the links' placements at the rows of ``values`` and every joint's
+        values there; each movable joint's axis line goes to ``axes`` when given."""
         poses = _poses(self.robot, self.base, self.names, values)
-        ta = _chain_transforms(_chain(self.robot, self.a), poses, self.scale, len(values))
-        tb = _chain_transforms(_chain(self.robot, self.b), poses, self.scale, len(values))
+        count = len(values)
+        ta = _chain_transforms(_chain(self.robot, self.a), poses, self.scale, count, axes)
+        tb = _chain_transforms(_chain(self.robot, self.b), poses, self.scale, count, axes)
         return ta, tb, poses
 
+    def box_weights(self, ta, tb, axes: dict, half: np.ndarray) -> np.ndarray:
+        """(E, n) bounds on how fast a unit change of each free joint moves any point of the
+        two links, anywhere in the boxes of half-widths ``half`` about the placements
+        ``ta``, ``tb`` (their centres; ``axes`` from ``placements``).
+
+        A revolute joint ``k`` moves a point ``p`` at ``dist(p, axis_k)`` per radian. At the
+        centre, ``dist(p, axis_k)`` is at most the largest distance of the link's few hull
+        points ``_Side.hull`` plus their ``pad`` (the distance to a line is convex, so a hull's
+        largest is at a vertex); within the box ``p`` moves relative to joint ``k``'s frame
+        only by the joints ``j`` below ``k``, by at most ``sum_j h_j r_j``, where ``r_j`` is
+        this bound for ``j`` (computed first, from the link up). So ``r_k = min(w_k,
+        max dist(hull, axis_k) + pad + sum_j h_j r_j)``, with ``w_k`` the bound over the whole
+        sweep (``motion_weights``); a slide moves points at one unit per unit. The links'
+        distance then changes by at most ``sum_k h_k r_k`` within the box.
+        """
+        out = np.zeros(half.shape)
+        for side, placed in zip(self.sides, (ta, tb), strict=True):
+            hull = np.matmul(side.hull, placed[:, :3, :3].transpose(0, 2, 1))
+            hull += placed[:, None, :3, 3]  # (E, k, 3)
+            below = np.zeros(len(half))
+            for term in reversed(side.terms):  # from the link up
+                if term.joint.type == "prismatic":
+                    r = np.full(len(half), term.weight)
+                else:
+                    point, direction = axes[term.joint.name]
+                    d = hull - point[:, None, :]
+                    along = np.einsum("ekj,ej->ek", d, direction)
+                    off = d - along[:, :, None] * direction[:, None, :]
+                    lever = np.sqrt(np.einsum("ekj,ekj->ek", off, off).max(axis=1))
+                    r = np.minimum(term.weight, lever + side.pad + below)
+                out[:, term.lead] += term.multiplier * r
+                below = below + term.multiplier * half[:, term.lead] * r
+        return out
+
     def distances(self, ta: np.ndarray, tb: np.ndarray, reach: np.ndarray) -> np.ndarray:
-        """``piece_distances`` of the two links' coarse pieces at placements ``ta``, ``tb``."""
+        """Lower bounds on the distance between the two links' surfaces at placements ``ta``,
+        ``tb``: from the coarse pieces (``piece_distances``), and where those come within
+        ``reach`` and the reach is below ``FINE_REACH`` of the smaller link's size, the real
+        meshes' exact distance (``surface_distance``: its cost grows with the triangle pairs
+        within reach, so it waits for boxes small enough that it can close them)."""
         a, b = self.links[self.a], self.links[self.b]
-        return piece_distances(a.pack, b.pack, ta, tb, reach, a.pad, b.pad)
+        lowest = piece_distances(a.pack, b.pack, ta, tb, reach, a.pad, b.pad)
+        fine = FINE_REACH * min(np.ptp(a.points, axis=0).max(), np.ptp(b.points, axis=0).max())
+        for e in np.flatnonzero((lowest <= reach) & (reach <= fine)):
+            lowest[e] = surface_distance(a, b, ta[e], tb[e], float(reach[e]))
+        return lowest
 
     def verdict(self, ta: np.ndarray, tb: np.ndarray, *, surfaces_apart: bool = False) -> str:
         """The real meshes' worst status at one placement of the two links."""
@@ -558,9 +673,10 @@ def sweep_pair(pair: _Pair, lower: np.ndarray, upper: np.ndarray, resolution: fl
 
     Boxes of joint values are evaluated at their centre ``c`` with half-widths ``h``: the
     pieces' distance there bounds the links' surface distance from below, and no point moves by
-    more than ``M = sum_k w_k h_k`` (``motion_weights``) within the box, so a box whose centre
-    distance exceeds ``M + tolerance`` is certified free of contact. Other boxes are halved
-    along the joint that contributes most to ``M``, down to ``resolution``. Centres where pieces
+    more than ``M = sum_k r_k h_k`` (``_Pair.box_weights``: each joint's lever arm bounded at
+    the box's centre pose) within the box, so a box whose centre distance exceeds
+    ``M + tolerance`` is certified free of contact. Other boxes are halved along the joint that
+    contributes most to ``M``, down to ``resolution``. Centres where pieces
     overlap are re-checked on the real meshes, deepest first: one that interferes or touches is
     the witness of ``sometimes``. When every box is certified, the surfaces never come within
     the tolerance, so whether one link is buried in the other cannot change over the sweep: one
@@ -577,14 +693,23 @@ def sweep_pair(pair: _Pair, lower: np.ndarray, upper: np.ndarray, resolution: fl
         return found
     lo, hi = lower[None, :].copy(), upper[None, :].copy()
     evaluated, checks, unresolved = SAMPLES, 0, False
-    w = pair.weights
+    nearest = _Nearest(DESCENT_STARTS)
     while len(lo):
+        if nearest is not None and evaluated >= DESCENT_AFTER:
+            found = _descent_witness(pair, lower, upper, nearest.values, evaluated)
+            if found is not None:
+                return found
+            nearest = None
         blo, bhi, lo, hi = lo[:BATCH], hi[:BATCH], lo[BATCH:], hi[BATCH:]
         centre, half = 0.5 * (blo + bhi), 0.5 * (bhi - blo)
-        bound = half @ w + pair.tolerance
-        ta, tb, poses = pair.placements(centre)
+        axes: dict = {}
+        ta, tb, poses = pair.placements(centre, axes)
+        w = pair.box_weights(ta, tb, axes, half)
+        bound = np.sum(half * w, axis=1) + pair.tolerance
         lowest = pair.distances(ta, tb, bound)
         evaluated += len(centre)
+        if nearest is not None:
+            nearest.add(lowest, centre)
         for e in np.argsort(lowest, kind="stable"):
             if lowest[e] > pair.tolerance or checks >= MAX_WITNESS_CHECKS:
                 break
@@ -596,7 +721,7 @@ def sweep_pair(pair: _Pair, lower: np.ndarray, upper: np.ndarray, resolution: fl
         open_ = lowest <= bound
         if not np.any(open_):
             continue
-        blo, bhi, half = blo[open_], bhi[open_], half[open_]
+        blo, bhi, half, w = blo[open_], bhi[open_], half[open_], w[open_]
         splittable = np.any(2.0 * half > resolution, axis=1)
         for e in np.flatnonzero(~splittable)[: max(0, MAX_WITNESS_CHECKS - checks) // 2]:
             unresolved = True  # at the resolution: its corners may still collide
@@ -605,7 +730,7 @@ def sweep_pair(pair: _Pair, lower: np.ndarray, upper: np.ndarray, resolution: fl
             if found is not None:
                 return found
         unresolved |= bool(np.any(~splittable))
-        new_lo, new_hi = _halve(blo[splittable], bhi[splittable], w)
+        new_lo, new_hi = _halve(blo[splittable], bhi[splittable], w[splittable])
         lo, hi = np.concatenate([lo, new_lo]), np.concatenate([hi, new_hi])
         if evaluated + len(lo) > MAX_BOXES:
             return _result(pair, UNDECIDED, evaluated)
@@ -617,13 +742,64 @@ def sweep_pair(pair: _Pair, lower: np.ndarray, upper: np.ndarray, resolution: fl
 
 
 def _halve(lo: np.ndarray, hi: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Each box ``lo..hi`` cut in two across the joint contributing most to its motion bound."""
+    """Each box ``lo..hi`` cut in two across the joint contributing most to its motion bound
+    (``w``: (E, n) each box's bound per unit of each joint)."""
     axis = np.argmax(0.5 * (hi - lo) * w, axis=1)
     rows = np.arange(len(axis))
     mid = 0.5 * (lo[rows, axis] + hi[rows, axis])
     left_hi, right_lo = hi.copy(), lo.copy()
     left_hi[rows, axis], right_lo[rows, axis] = mid, mid
     return np.concatenate([lo, right_lo]), np.concatenate([left_hi, hi])
+
+
+class _Nearest:
+    """The ``count`` box centres whose links came nearest so far (ties: the earlier)."""
+
+    def __init__(self, count: int):
+        self.count, self.lowest, self.values = count, np.empty(0), None
+
+    def add(self, lowest: np.ndarray, values: np.ndarray) -> None:
+        both = np.concatenate([self.lowest, lowest])
+        rows = values if self.values is None else np.concatenate([self.values, values])
+        keep = np.argsort(both, kind="stable")[: self.count]
+        self.lowest, self.values = both[keep], rows[keep]
+
+
+def _descent_witness(pair: _Pair, lower, upper, starts, boxes: int) -> PairSweep | None:
+    """A witness near the box centres where the links came nearest (``starts``): each is
+    moved, ``DESCENT_STEPS`` times, to the nearest of ``DESCENT_TRIES`` perturbations of it
+    (fixed seed; each joint's step in proportion to its range, halved when none comes nearer)
+    by the coarse pieces' signed distance; the final poses whose pieces overlap are
+    re-checked on the real meshes, nearest first. A pair colliding only in a narrow window
+    of many joints is found in a few thousand poses instead of by splitting boxes down to it.
+    """
+    if starts is None or len(starts) == 0:
+        return None
+    rng = np.random.default_rng(1)
+    a, b = pair.links[pair.a], pair.links[pair.b]
+    far = np.full(1, np.inf)
+
+    def measure(values):
+        ta, tb, _ = pair.placements(values)
+        reach = np.broadcast_to(far, len(values)).copy()
+        return piece_distances(a.pack, b.pack, ta, tb, reach, a.pad, b.pad)
+
+    current = starts.copy()
+    scores = measure(current)
+    far[0] = max(float(scores.max()), 0.0) + pair.tolerance  # nothing beyond the starts matters
+    step = np.broadcast_to(0.125 * (upper - lower), current.shape).copy()
+    for _ in range(DESCENT_STEPS):
+        noise = rng.standard_normal((len(current), DESCENT_TRIES, len(lower)))
+        tries = np.clip(current[:, None, :] + step[:, None, :] * noise, lower, upper)
+        flat = measure(tries.reshape(-1, len(lower))).reshape(len(current), DESCENT_TRIES)
+        best = np.argmin(flat, axis=1)
+        better = flat[np.arange(len(current)), best] < scores
+        current[better] = tries[better, best[better]]
+        scores[better] = flat[better, best[better]]
+        step[~better] *= 0.5
+    order = np.argsort(scores, kind="stable")
+    order = order[scores[order] <= pair.tolerance][:SAMPLE_CHECKS]
+    return _witness(pair, current[order], boxes)
 
 
 def _sampled_witness(pair: _Pair, lower: np.ndarray, upper: np.ndarray) -> PairSweep | None:
@@ -710,13 +886,25 @@ def sweep_mechanism(
             if not weights and not mech.is_urdf:
                 continue  # nothing moves them: the check judged them at the pose
             free = sorted(weights)
-            pair = _Pair(robot, a, b, free, np.array([weights[n] for n in free]), base, scale,
-                         tol, links, bodies)  # fmt: skip
+            sides = _sides(robot, (a, b), links, free, swept, base, scale)
+            pair = _Pair(robot, a, b, free, sides, base, scale, tol, links, bodies)
             lo, hi = _ranges(robot, free)
             swept_pair = sweep_pair(pair, lo, hi, motion.resolution)
             is_adjacent = frozenset((a, b)) in mech.adjacent
             out.append(dataclasses.replace(swept_pair, is_adjacent=is_adjacent))
     return tuple(out)
+
+
+def _sides(robot, pair, links, names, swept, base, scale) -> tuple[_Side, _Side]:
+    """Both links' ``_Side``: the joints from their common ancestor down to each."""
+    a_chain, b_chain = _chain(robot, pair[0]), _chain(robot, pair[1])
+    common = 0
+    while common < min(len(a_chain), len(b_chain)) and a_chain[common] is b_chain[common]:
+        common += 1
+    return tuple(
+        _side(robot, chain[common:], links[name], name, names, swept, base, scale)
+        for chain, name in ((a_chain, pair[0]), (b_chain, pair[1]))
+    )
 
 
 def _swept(robot: Robot, named) -> set[str]:
@@ -781,7 +969,15 @@ def _links(robot, mech, bodies, pieces, base, scale) -> dict[str, _Link]:
         points = pack_convex(local, is_hull=True).points
         coarse, pad = coarse_pieces(local)
         radius = float(np.linalg.norm(points, axis=1).max())
-        out[link] = _Link(pack_convex(coarse, is_hull=True), radius, parts, pad, points)
+        (hull,), (hull_pad,) = coarse_pieces([points], min_vertices=0)
+        vertices, faces, count = [], [], 0
+        for k, offset in parts:
+            mesh = bodies[k].mesh
+            vertices.append(np.asarray(mesh.vertices) @ offset[:3, :3].T + offset[:3, 3])
+            faces.append(np.asarray(mesh.faces, dtype=np.int64) + count)
+            count += len(mesh.vertices)
+        out[link] = _Link(pack_convex(coarse, is_hull=True), radius, parts, pad, points, hull,
+                          float(hull_pad), np.vstack(vertices), np.vstack(faces))  # fmt: skip
     return out
 
 
@@ -818,7 +1014,28 @@ def with_sweeps(result, bodies: Sequence[Body], settings, *, executor=None):
     is set (``CheckResult.sweeps``)."""
     if settings.motion.sweep is None:
         return result
-    return dataclasses.replace(result, sweeps=sweep_bodies(bodies, settings, executor=executor))
+    sweeps = sweep_bodies(bodies, settings, executor=executor)
+    return dataclasses.replace(result, sweeps=_approved(sweeps, bodies, settings.approvals))
+
+
+def _approved(sweeps, bodies: Sequence[Body], approvals) -> tuple[RobotSweep, ...]:
+    """The sweeps with each ``[[joint]]`` mechanism's pair given the reason of the approval
+    rule its two parts (links named by the parts' full names) match, if any."""
+    from .config import approval_reason
+
+    names = {b.name: (b.name, b.relative_name) for b in bodies}
+    out = []
+    for robot in sweeps:
+        if not robot.is_urdf:
+            pairs = tuple(
+                dataclasses.replace(
+                    p, approval_reason=approval_reason(approvals, names[p.a], names[p.b])
+                )
+                for p in robot.pairs
+            )
+            robot = dataclasses.replace(robot, pairs=pairs)
+        out.append(robot)
+    return tuple(out)
 
 
 def sweep_bodies(bodies: Sequence[Body], settings, *, executor=None) -> tuple[RobotSweep, ...]:

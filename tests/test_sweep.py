@@ -11,18 +11,20 @@ import os
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from meshes import fcl_collide, winding_inside
+from meshes import fcl_collide, fcl_distance, winding_inside
 
+import meshcheck.sweep as sweep_module
 from meshcheck.cli import main
 from meshcheck.errors import ExitStatus
 from meshcheck.load import load_bodies
-from meshcheck.load.urdf import joint_values, link_transforms, parse_robot
+from meshcheck.load.urdf import joint_values, link_transforms, parse_robot, with_mimics
 from meshcheck.motion import Motion, parse_pose
 from meshcheck.settings import Settings
 from meshcheck.sweep import mechanisms, motion_weights, sweep_bodies
 
 ROBOTS = os.path.join(os.path.dirname(__file__), "data", "robots")
 PANDA = os.path.join(ROBOTS, "panda_description", "urdf", "panda.urdf")
+PR2 = os.path.join(ROBOTS, "pr2_description", "urdf", "pr2.urdf")
 
 # A door 1 m long and 0.1 m thick on a hinge about z at the origin, and a stop (a box from
 # x 0.5..0.8, y 0.3..0.5) on the frame. Opening (positive angle), the door's face y' = T/2
@@ -199,6 +201,146 @@ def test_no_point_moves_farther_than_the_motion_bound():
                 weights[n] * abs(p - c) for n, p, c in zip(names, pose, centre, strict=True)
             )
             assert displacement <= bound + 1e-12
+
+
+@pytest.mark.filterwarnings("ignore::meshcheck.errors.MeshcheckWarning")  # the PR2's open meshes
+@pytest.mark.parametrize(
+    ("urdf", "pairs"),
+    [
+        (PANDA, [("panda_link0", "panda_hand"), ("panda_leftfinger", "panda_rightfinger")]),
+        (PR2, [("l_forearm_link", "r_gripper_l_finger_tip_link"),
+               ("head_tilt_link", "l_wrist_roll_link")]),
+    ],
+)  # fmt: skip
+def test_no_point_moves_farther_than_the_box_bound(urdf, pairs):
+    """The bound of a box, lever arms taken at its centre pose (``_Pair.box_weights``): for
+    random boxes, every hull vertex of the two links moves by at most ``sum_k r_k h_k`` in all
+    (each link relative to the pair's common frame) between the centre and any pose in the box;
+    it is never looser than the bound over the whole sweep, and on the PR2's arms it is
+    tighter."""
+    from meshcheck.sweep import _links, _sides
+
+    bodies = load_bodies([urdf])
+    (mech,) = mechanisms(bodies)
+    robot = mech.robot
+    base = joint_values(robot)
+    swept = {j.name for j in robot.movable}
+    pieces = {k: [bodies[k].world.convex_hull.vertices] for ks in mech.parts.values() for k in ks}
+    links = _links(robot, mech, bodies, pieces, base, 1.0)
+    radius = {n: link.radius for n, link in links.items()}
+    points = {n: link.points for n, link in links.items()}
+    rng = np.random.default_rng(2)
+    tighter = 0
+    for a, b in pairs:
+        weights = motion_weights(robot, (a, b), radius, swept, base, 1.0, points)
+        names = sorted(weights)
+        sides = _sides(robot, (a, b), links, names, swept, base, 1.0)
+        pair = sweep_module._Pair(robot, a, b, names, sides, base, 1.0, 0.0, links, bodies)
+        lo = np.array([robot.joint(n).lower for n in names])
+        hi = np.array([robot.joint(n).upper for n in names])
+        lo, hi = np.where(np.isfinite(lo), lo, -np.pi), np.where(np.isfinite(hi), hi, np.pi)
+        for _ in range(30):
+            half = rng.uniform(0.0, 0.4 if _ % 2 else 0.05, len(names)) * (hi - lo)
+            centre = rng.uniform(lo + half, hi - half)
+            axes: dict = {}
+            ta, tb, _ = pair.placements(centre[None, :], axes)
+            w = pair.box_weights(ta, tb, axes, half[None, :])[0]
+            bound = float(half @ w)
+            loose = float(half @ np.array([weights[n] for n in names]))
+            assert bound <= loose * (1 + 1e-12) + 1e-12
+            tighter += bound < 0.9 * loose
+            poses = centre + half * rng.uniform(-1.0, 1.0, (40, len(names)))
+            poses[:8] = centre + half * rng.choice([-1.0, 1.0], (8, len(names)))  # corners
+            ua, ub, _ = pair.placements(poses)
+            moved = 0.0
+            for link, at_centre, at_pose in ((a, ta, ua), (b, tb, ub)):
+                local = links[link].points
+                p0 = local @ at_centre[0, :3, :3].T + at_centre[0, :3, 3]
+                p1 = np.einsum("nj,eij->eni", local, at_pose[:, :3, :3]) + at_pose[:, None, :3, 3]
+                moved = moved + np.linalg.norm(p1 - p0, axis=2).max(axis=1)
+            assert moved.max() <= bound + 1e-9
+    if urdf == PR2:  # most small boxes: lever arms at their centre pose
+        assert tighter >= 15
+
+
+def _hull_pieces(urdf):
+    """A robot's bodies, mechanism, and each link (``_links``) with one convex piece per part,
+    its hull: pieces that cover every triangle, without CoACD's time."""
+    from meshcheck.sweep import _links
+
+    bodies = load_bodies([urdf])
+    (mech,) = mechanisms(bodies)
+    base = joint_values(mech.robot)
+    pieces = {k: [bodies[k].world.convex_hull.vertices] for ks in mech.parts.values() for k in ks}
+    return bodies, mech, base, _links(mech.robot, mech, bodies, pieces, base, 1.0)
+
+
+@pytest.mark.filterwarnings("ignore::meshcheck.errors.MeshcheckWarning")  # the PR2's open meshes
+def test_surface_distance_agrees_with_fcl():
+    """The real meshes' distance a box is certified with when its pieces do not suffice
+    (``surface_distance``) is FCL's distance between the posed meshes, at random poses of the
+    PR2's forearm and upper arm (a pair whose convex pieces overlap at every pose), and a value
+    above ``reach`` when they are farther apart than that."""
+    pytest.importorskip("fcl")
+    import trimesh
+
+    from meshcheck.sweep import surface_distance
+
+    _, mech, base, links = _hull_pieces(PR2)
+    robot = mech.robot
+    a, b = "l_forearm_link", "l_upper_arm_link"
+    rng = np.random.default_rng(3)
+    for _ in range(6):
+        values = dict(base)
+        for name in ("l_elbow_flex_joint", "l_forearm_roll_joint"):
+            joint = robot.joint(name)
+            lo = joint.lower if np.isfinite(joint.lower) else -np.pi
+            hi = joint.upper if np.isfinite(joint.upper) else np.pi
+            values[name] = rng.uniform(lo, hi)
+        placed = link_transforms(robot, values)
+        meshes = [trimesh.Trimesh(links[n].vertices, links[n].faces, process=False)
+                  .apply_transform(placed[n]) for n in (a, b)]  # fmt: skip
+        expected = fcl_distance(*meshes)
+        got = surface_distance(links[a], links[b], placed[a], placed[b], 1.0)
+        assert got == pytest.approx(expected, abs=1e-9)
+        if expected > 1e-4:
+            assert surface_distance(links[a], links[b], placed[a], placed[b], expected / 2) > (
+                expected / 2
+            )
+
+
+@pytest.mark.filterwarnings("ignore::meshcheck.errors.MeshcheckWarning")  # the PR2's open meshes
+def test_descent_finds_a_collision_sampling_misses():
+    """The PR2's head tilt link and left forearm collide only in a small corner of their seven
+    joints (python-fcl's 10,000 samples in bench/sweep.py never hit it): descending the pieces'
+    distance from the nearest of a few hundred box centres finds a pose where the real meshes
+    collide, and FCL agrees there."""
+    pytest.importorskip("fcl")
+    import trimesh
+
+    from meshcheck.sweep import _descent_witness, _Nearest, _ranges, _sides
+
+    bodies, mech, base, links = _hull_pieces(PR2)
+    robot = mech.robot
+    a, b = "head_tilt_link", "l_forearm_link"
+    swept = {j.name for j in robot.movable}
+    radius = {n: link.radius for n, link in links.items()}
+    points = {n: link.points for n, link in links.items()}
+    names = sorted(motion_weights(robot, (a, b), radius, swept, base, 1.0, points))
+    sides = _sides(robot, (a, b), links, names, swept, base, 1.0)
+    pair = sweep_module._Pair(robot, a, b, names, sides, base, 1.0, 1e-5, links, bodies)
+    lower, upper = _ranges(robot, names)
+    values = lower + (upper - lower) * np.random.default_rng(0).random((512, len(names)))
+    ta, tb, _ = pair.placements(values)
+    nearest = _Nearest(8)
+    nearest.add(pair.distances(ta, tb, np.full(len(values), 1.0)), values)
+    found = _descent_witness(pair, lower, upper, nearest.values, 512)
+    assert found is not None and found.status == "sometimes"
+    pose = dict(base, **found.witness)
+    placed = link_transforms(robot, with_mimics(robot, pose))
+    meshes = [trimesh.Trimesh(links[n].vertices, links[n].faces, process=False)
+              .apply_transform(placed[n]) for n in (a, b)]  # fmt: skip
+    assert fcl_collide(*meshes) or fcl_distance(*meshes) <= 1e-5
 
 
 def test_panda_wrist_sweep_agrees_with_fcl_sampling():
