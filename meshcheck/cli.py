@@ -13,6 +13,7 @@ import warnings
 
 import click
 
+from . import DISTRIBUTION
 from .config import FAIL_ON_CHOICES, NUMBER_RANGES, checked_number, parse_fail_on
 from .errors import ConfigError, ExitStatus, MeshcheckError, MeshcheckWarning, OutputError
 from .output import STDOUT, check_output, write_output
@@ -283,7 +284,7 @@ def _units(values) -> tuple[str | None, tuple]:
     help="Write MoveIt disable_collisions entries (Adjacent, Never, Always) from the sweep to "
     "this SRDF file. Implies --sweep.",
 )
-@click.version_option(package_name="meshcheck-assembly")
+@click.version_option(package_name=DISTRIBUTION)
 def main(**options):
     """Check the parts in FILES for interference, contact and clearance.
 

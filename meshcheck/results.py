@@ -313,9 +313,27 @@ class CheckResult:
         return None if self.baseline is None else self.baseline.state(finding)
 
     @property
+    def failing_sweeps(self) -> list:
+        """(robot, pair) of each swept pair that fails the run: a pair of a mechanism made by
+        ``[[joint]]`` tables that collides somewhere in the declared ranges (a door hitting
+        its stop), unapproved, with the verdict at its witness in ``fail_on``. A URDF robot's
+        pairs never fail it: a robot collides with itself at some poses by design, and its
+        sweep's output is the allowed-collision matrix (``--srdf``)."""
+        return [
+            (robot, pair)
+            for robot in self.sweeps
+            if not robot.is_urdf
+            for pair in robot.pairs
+            if pair.status in ("sometimes", "always")
+            and pair.approval_reason is None
+            and pair.verdict in self.settings.fail_on
+        ]
+
+    @property
     def failed(self) -> bool:
-        """True when an unapproved finding has a status that fails the run."""
-        return any(self.is_failing(f) for f in self.findings)
+        """True when an unapproved finding has a status that fails the run, or a mechanism's
+        parts collide within its joint ranges (``failing_sweeps``)."""
+        return any(self.is_failing(f) for f in self.findings) or bool(self.failing_sweeps)
 
     @property
     def passed(self) -> bool:

@@ -134,7 +134,7 @@ def test_the_sweep_reports_carry_the_witness_pose_that_the_check_confirms(tmp_pa
     and Markdown reports name the pair and the pose as --pose takes it."""
     files = door_files(tmp_path)
     done = run(tmp_path, files, [hinge()], "--sweep", "--format", "json")
-    assert done.exit_code == 0, done.output  # the sweep does not fail the run
+    assert done.exit_code == ExitStatus.FAILED, done.output  # the door hits its stop
     assert "2 link pairs (1 adjacent): 0 never, 2 sometimes" in done.stderr
     (robot,) = json.loads(done.stdout)["sweeps"]
     assert robot["counts"] == {"never": 0, "sometimes": 2, "always": 0, "undecided": 0}
@@ -153,6 +153,43 @@ def test_the_sweep_reports_carry_the_witness_pose_that_the_check_confirms(tmp_pa
     assert shown in " ".join(text.split())
     markdown = run(tmp_path, files, [hinge()], "--sweep", "--format", "markdown").stdout
     assert "| sometimes (adjacent) |" in markdown and "stop\\.stl" in markdown
+
+
+def test_a_collision_in_motion_fails_the_run_unless_approved(tmp_path):
+    """A mechanism's parts colliding within the declared range fail the run (exit 1) in every
+    format, named with the witness pose, even with --quiet; an approval rule for the two parts
+    lets it pass, saying why; a range short of the stop passes; the door meeting its frame
+    (adjacent) never fails it."""
+    files = door_files(tmp_path)
+    failing = {}
+    for fmt in ("text", "json", "junit", "sarif", "github", "markdown"):
+        out = run(tmp_path, files, [hinge()], "--sweep", "--format", fmt, "--quiet")
+        assert out.exit_code == ExitStatus.FAILED, (fmt, out.output)
+        failing[fmt] = out.stdout
+    assert "1 colliding in motion" in failing["text"] and "FAIL sweep sometimes" in failing["text"]
+    assert "hinge=" in failing["text"] and "frame.stl" not in failing["text"].split("FAIL ")[1]
+    doc = json.loads(failing["json"])
+    (robot,) = doc["sweeps"]
+    fails = {p["b"].rsplit("/", 1)[-1]: p["failed"] for p in robot["pairs"]}
+    assert fails == {"stop.stl": True, "frame.stl": False}
+    assert doc["summary"]["failed_in_motion"] == 1 and not doc["summary"]["passed"]
+    assert 'failures="1"' in failing["junit"] and "[sweep]" in failing["junit"]
+    (sarif_run,) = json.loads(failing["sarif"])["runs"]
+    assert [r["message"]["text"].startswith("in motion:") for r in sarif_run["results"]] == [True]
+    assert "::error " in failing["github"] and "in motion" in failing["github"]
+
+    config = tmp_path / "meshcheck.toml"
+    approved_config = toml([hinge()]) + (
+        '[[ignore]]\na = "*door.stl"\nb = "*stop.stl"\nreason = "the stop is the design"\n'
+    )
+    config.write_text(approved_config)
+    approved = CliRunner().invoke(
+        main, [*files, "--config", str(config), "--no-cache", "-j", "1", "--sweep"]
+    )
+    assert approved.exit_code == 0, approved.output
+    assert "(approved: the stop is the design)" in " ".join(approved.stdout.split())
+    short = run(tmp_path, files, [hinge(STOP_ANGLE - 1e-3)], "--sweep")
+    assert short.exit_code == 0, short.output
 
 
 # ------------------------------------------------------------------------------------------
@@ -257,7 +294,7 @@ def test_sweep_joints_names_a_joint_table_and_refuses_an_unknown_one(tmp_path):
     box((10, 10, 10), (2100, 0, 0)).export(tmp_path / "lever.stl")
     files.append(str(tmp_path / "lever.stl"))
     only = run(tmp_path, files, [hinge(), lever], "--sweep-joints", "hinge", "--format", "json")
-    assert only.exit_code == 0, only.output
+    assert only.exit_code == ExitStatus.FAILED, only.output  # the door hits its stop
     (robot,) = json.loads(only.stdout)["sweeps"]
     assert {tuple(p["joints"]) for p in robot["pairs"]} == {("hinge",)}  # lever held at 0
     unknown = run(tmp_path, files, [hinge(), lever], "--sweep-joints", "elbow")

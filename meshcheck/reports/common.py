@@ -99,6 +99,7 @@ def summary(result: CheckResult) -> dict:
         **counts,
         "approved": sum(1 for f in result.findings if f.is_approved),
         "failed": sum(1 for f in result.findings if result.is_failing(f)),
+        "failed_in_motion": len(result.failing_sweeps),
         "fail_on": [str(s) for s in result.fail_on],
         "fail_on_new": result.settings.fail_on_new,
         "tolerance": result.tolerance,
@@ -129,6 +130,8 @@ def summary_line(result: CheckResult) -> str:
         parts.append(f"{s[Verdict.CLEARANCE]} clearance (< {result.clearance:g})")
     if s["approved"]:
         parts.append(f"{s['approved']} approved")
+    if s["failed_in_motion"]:
+        parts.append(f"{s['failed_in_motion']} colliding in motion")
     if result.baseline is not None:
         parts.append(f"{s['new']} new, {s['resolved']} resolved")
     return (
@@ -277,6 +280,16 @@ def sweep_rows(result: CheckResult) -> list[tuple[str, object]]:
     """(robot path, pair) of every swept link pair that is not proven ``never``, robot by
     robot, in link-name order: what the reports list of a sweep."""
     return [(r.path, p) for r in result.sweeps for p in r.pairs if p.status != "never"]
+
+
+def sweep_message(robot, pair) -> str:
+    """One line on a swept pair that collides: ``MECHANISM: a / b: interference at --pose
+    hinge=0.3`` (names printable), ``(approved: reason)`` when an approval rule covers it."""
+    text = f"{printable(robot.path)}: {printable(pair.a)} / {printable(pair.b)}: "
+    text += printable(pose_text(pair))
+    if pair.approval_reason is not None:
+        text += f" (approved: {printable(pair.approval_reason)})"
+    return text
 
 
 def pose_text(pair) -> str:

@@ -26,6 +26,7 @@ from .common import (
     printable,
     resolution,
     summary_line,
+    sweep_message,
 )
 
 #: Annotations GitHub shows per type (error, warning, notice) from one step.
@@ -71,6 +72,10 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
         props = f"file={_property(part_file(paths, f.a))},title={_property(title)}"
         message = f"{f.a} and {f.b}: {f.status}, {describe(f, resolution(result, f))}{extra}"
         annotations[level(result, f)].append(_Annotation(props, title, message))
+    for robot, pair in result.failing_sweeps:
+        title = f"meshcheck {pair.verdict} in motion"
+        props = f"file={_property(robot.path)},title={_property(title)}"
+        annotations["error"].append(_Annotation(props, title, sweep_message(robot, pair)))
     for w in result.warnings:
         annotations["warning"].append(_Annotation("title=meshcheck input", "meshcheck input", w))
 

@@ -37,7 +37,11 @@ def document(result: CheckResult) -> dict:
         "summary": summary(result),
     }
     if result.sweeps:  # --sweep: every link pair's class, a witness pose for sometimes
+        failing = {(r.path, p.a, p.b) for r, p in result.failing_sweeps}
         doc["sweeps"] = [r.to_dict() for r in result.sweeps]
+        for robot, entry in zip(result.sweeps, doc["sweeps"], strict=True):
+            for pair in entry["pairs"]:
+                pair["failed"] = (robot.path, pair["a"], pair["b"]) in failing
     if result.baseline is not None:
         doc["resolved"] = [r.to_dict() for r in result.baseline.resolved(result.findings)]
     return doc

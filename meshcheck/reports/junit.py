@@ -14,13 +14,14 @@ from collections.abc import Sequence
 from xml.etree import ElementTree as ET
 
 from ..results import CheckResult, Finding
-from .common import View, describe, ordered, part_files, printable, resolution
+from .common import View, describe, ordered, part_files, printable, resolution, sweep_message
 
 
 def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None = None) -> str:
     """The findings, then the clear pairs (or parts), as one ``testsuite``."""
     paths = part_files(result)
     cases = [_finding_case(result, f, paths) for f in ordered(result)]
+    cases.extend(_sweep_case(robot, pair) for robot, pair in result.failing_sweeps)
     cases.extend(_clear_cases(result))
     failures = sum(1 for c in cases if c.find("failure") is not None)
     skipped = sum(1 for c in cases if c.find("skipped") is not None)
@@ -74,6 +75,20 @@ def _finding_case(result: CheckResult, f: Finding, paths: dict[str, str]) -> ET.
         failure.text = json.dumps(f.to_dict(), indent=2)
     else:
         ET.SubElement(case, "system-out").text = message
+    return case
+
+
+def _sweep_case(robot, pair) -> ET.Element:
+    """A failed test case for a mechanism's pair that collides within its joint ranges."""
+    case = ET.Element(
+        "testcase",
+        classname=f"meshcheck.sweep.{pair.verdict}",
+        name=f"{printable(pair.a)} <-> {printable(pair.b)} [sweep]",
+        file=printable(robot.path),
+        time="0",
+    )
+    message = f"{pair.verdict} in motion: {sweep_message(robot, pair)}"
+    ET.SubElement(case, "failure", message=message, type=str(pair.verdict))
     return case
 
 

@@ -25,6 +25,7 @@ from .common import (
     printable,
     resolution,
     summary_line,
+    sweep_message,
 )
 
 SCHEMA = "https://json.schemastore.org/sarif-2.1.0.json"
@@ -107,6 +108,17 @@ def document(result: CheckResult) -> dict:
     ]
     paths = part_files(result)
     results = [_result(result, f, paths) for f in ordered(result)]
+    for robot, pair in result.failing_sweeps:  # a mechanism's parts collide in motion
+        results.append(
+            {
+                "ruleId": str(pair.verdict),
+                "ruleIndex": FINDING_STATUSES.index(pair.verdict),
+                "level": "error",
+                "message": {"text": f"in motion: {sweep_message(robot, pair)}"},
+                "locations": [{"physicalLocation": {"artifactLocation": uri(robot.path)}}],
+                "properties": {"a": pair.a, "b": pair.b, "pose": dict(pair.witness or {})},
+            }
+        )
     if result.baseline is not None:
         for r in result.baseline.resolved(result.findings):
             results.append(

@@ -200,10 +200,18 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
             lines.extend(
                 wrap(f"resolved {r.id}  {r.status}  {short(r.a)} and {short(r.b)}", _INDENT)
             )
-    for robot, pair in [] if view.is_quiet else sweep_rows(result):  # --sweep
+    failing = {(r.path, p.a, p.b) for r, p in result.failing_sweeps}
+    for robot, pair in sweep_rows(result):  # --sweep; a failing pair is listed even when quiet
+        fails = (robot, pair.a, pair.b) in failing
+        if view.is_quiet and not fails:
+            continue
         adjacent = " (adjacent)" if pair.is_adjacent else ""
-        text = f"sweep {pair.status}{adjacent}  {short(robot)}: {short(pair.a)} / {short(pair.b)}"
-        lines.extend(wrap(f"{text}  {printable(pose_text(pair))}", _INDENT))
+        mark = "FAIL " if fails else ""
+        text = f"{mark}sweep {pair.status}{adjacent}  {short(robot)}: {short(pair.a)} / "
+        text += f"{short(pair.b)}  {printable(pose_text(pair))}"
+        if pair.approval_reason is not None:
+            text += f" (approved: {printable(pair.approval_reason)})"
+        lines.extend(wrap(text, _INDENT))
     if result.settings.config_path:
         lines.extend(wrap(f"configuration: {printable(result.settings.config_path)}", "  "))
     lines.extend(wrap(summary_line(result), "  "))
