@@ -730,3 +730,38 @@ def test_report_without_findings_in_chromium(browser_page, tmp_path):
         "#clash-label .card"
     ).is_visible()  # nothing to frame: the whole assembly
     assert errors == []
+
+
+def test_a_mechanism_colliding_in_motion_is_listed_and_fails(browser_page, tmp_path):
+    """--sweep of a door that hits its stop within its range: the page says FAIL with no
+    finding at the pose, counts the pair as colliding in motion, and lists it open, failing
+    first, with its witness pose; the door meeting its frame is listed as adjacent, approved."""
+    from click.testing import CliRunner
+
+    from meshcheck.cli import main
+
+    page, errors = browser_page
+    trimesh.creation.box(bounds=[(0, -50, -100), (1000, 50, 100)]).export(tmp_path / "door.stl")
+    trimesh.creation.box(bounds=[(500, 300, -100), (800, 500, 100)]).export(tmp_path / "stop.stl")
+    trimesh.creation.box(bounds=[(-85, -25, -100), (-35, 25, 100)]).export(tmp_path / "frame.stl")
+    (tmp_path / "meshcheck.toml").write_text(
+        '[[joint]]\nname = "hinge"\nparent = "frame.stl"\nchild = "door.stl"\n'
+        'type = "revolute"\naxis = [0, 0, 1]\norigin = [0, 0, 0]\nrange = ["-30deg", "90deg"]\n'
+    )
+    files = [str(tmp_path / n) for n in ("door.stl", "stop.stl", "frame.stl")]
+    path = tmp_path / "door.html"
+    out = CliRunner().invoke(
+        main,
+        [*files, "--config", str(tmp_path / "meshcheck.toml"), "--no-cache", "-j", "1",
+         "--sweep", "--format", "html", "--output", str(path)],
+    )  # fmt: skip
+    assert out.exit_code == 1, out.output
+    open_report(page, path)
+    assert page.locator("#verdict").inner_text() == "FAIL"
+    assert "1 colliding in motion" in page.locator("#counts").inner_text()
+    items = page.locator("#sweeps li").all_inner_texts()
+    assert page.locator("#sweeps").get_attribute("open") is not None
+    assert items[0].startswith("FAIL sometimes: ") and "stop.stl" in items[0]
+    assert "interference at --pose hinge=" in items[0]
+    assert any("(adjacent)" in t and "(approved: adjacent)" in t for t in items[1:])
+    assert errors == []

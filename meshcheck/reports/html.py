@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..results import CheckResult, Finding, Verdict, clash_groups
-from .common import View, ordered, summary
+from .common import View, ordered, pose_text, summary, sweep_rows
 
 if TYPE_CHECKING:
     from ..load import Body
@@ -297,7 +297,28 @@ def _data(result, units, inputs, version, mesh_rows, parts, findings, triangles)
         "findings": findings,
         "groups": [g.to_dict() for g in clash_groups(ordered(result))],
         "triangles": triangles,
+        "sweeps": _sweeps(result),
     }
+
+
+def _sweeps(result: CheckResult) -> list[dict]:
+    """The swept link pairs not proven never (``sweep_rows``), failing ones first, as the
+    viewer lists them: names and the witness pose as text (``--pose`` form)."""
+    failing = {(r.path, p.a, p.b) for r, p in result.failing_sweeps}
+    rows = [
+        {
+            "robot": str(robot),
+            "a": str(pair.a),
+            "b": str(pair.b),
+            "status": str(pair.status),
+            "adjacent": bool(pair.is_adjacent),
+            "pose": pose_text(pair),
+            "approved": pair.approval_reason,
+            "failed": (robot, pair.a, pair.b) in failing,
+        }
+        for robot, pair in sweep_rows(result)
+    ]
+    return sorted(rows, key=lambda row: not row["failed"])  # stable: link-name order within
 
 
 # ---------------------------------------------------------------------------------------------

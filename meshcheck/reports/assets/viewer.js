@@ -93,6 +93,7 @@
       [s.approved, "approved"],
       [s.failed, "failing the run"],
     ];
+    if (s.failed_in_motion) items.push([s.failed_in_motion, "colliding in motion"]);
     items.forEach(([n, label], k) => {
       if (k) counts.append(" \u00b7 ");
       counts.append(el("b", null, n), " " + label);
@@ -124,6 +125,26 @@
     for (const name of data.inputs) list.append(el("li", null, name));
     inputs.append(list);
     header.append(inputs);
+
+    if (data.sweeps.length) {
+      // --sweep: link pairs not proven apart over the joint ranges, failing ones first and open
+      const failing = data.sweeps.filter((r) => r.failed).length;
+      const sweep = el("details", "sweeps");
+      sweep.id = "sweeps";
+      sweep.open = failing > 0;
+      const n = data.sweeps.length;
+      sweep.append(el("summary", null, n + " swept pair" + (n === 1 ? "" : "s") + " not proven apart" +
+        (failing ? ", " + failing + " failing the run" : "")));
+      const sl = el("ul");
+      for (const r of data.sweeps) {
+        const text = (r.failed ? "FAIL " : "") + r.status + (r.adjacent ? " (adjacent)" : "") + ": " +
+          r.a + " / " + r.b + (r.pose ? " — " + r.pose : "") +
+          (r.approved === null ? "" : " (approved: " + r.approved + ")");
+        sl.append(el("li", r.failed ? "fail" : null, text));
+      }
+      sweep.append(sl);
+      header.append(sweep);
+    }
 
     if (s.warnings.length) {
       const warn = el("details", "warnings");
