@@ -453,7 +453,9 @@ def _spheres_within(pack_a, pack_b, ta, tb, reach: np.ndarray, pad: float) -> np
     return np.linalg.norm(pa - pb, axis=1) - ra - rb - pad <= reach
 
 
-def piece_distances(pack_a, pack_b, ta, tb, reach: np.ndarray, pad_a=None, pad_b=None):
+def piece_distances(
+    pack_a, pack_b, ta, tb, reach: np.ndarray, pad_a=None, pad_b=None, *, settle: bool = False
+):
     """Lower bounds on the distance between two links' pieces at E placements.
 
     Parameters
@@ -466,6 +468,12 @@ def piece_distances(pack_a, pack_b, ta, tb, reach: np.ndarray, pad_a=None, pad_b
         Distances beyond which the exact value does not matter (answers above it are bounds).
     pad_a, pad_b : (m_a,), (m_b,) float64, optional
         Each piece stands for itself grown by this much (``coarse_pieces``); default 0.
+    settle : bool
+        Only whether each placement comes within ``reach`` matters: the piece pair whose
+        boxes are nearest is measured first, and a placement it brings within reach gets that
+        pair's distance (at most ``reach``, not the least) and no more GJK; the others are
+        measured in full. The sweep's boxes split or close on this alone; 2.35 million
+        piece pairs became about 0.2 million on the PR2's palm and shoulder.
 
     Returns
     -------
@@ -473,7 +481,7 @@ def piece_distances(pack_a, pack_b, ta, tb, reach: np.ndarray, pad_a=None, pad_b
         For each placement, a lower bound on the distance between the two links' surfaces
         (exact when at most ``reach`` and nothing is padded): the smallest piece-pair signed
         distance less both pads; ``inf`` when every piece pair's boxes are farther apart than
-        ``reach``.
+        ``reach``. With ``settle``, a value at most ``reach`` is some piece pair's.
     """
     ma, mb = len(pack_a.starts) - 1, len(pack_b.starts) - 1
     pad_a = np.zeros(ma) if pad_a is None else pad_a
@@ -482,48 +490,77 @@ def piece_distances(pack_a, pack_b, ta, tb, reach: np.ndarray, pad_a=None, pad_b
     near = _spheres_within(pack_a, pack_b, ta, tb, reach, float(pad_a.max() + pad_b.max()))
     if np.any(near):  # pose only the placements whose links' spheres come within reach
         lowest[near] = _posed_distances(
-            pack_a, pack_b, ta[near], tb[near], reach[near], pad_a, pad_b
+            pack_a, pack_b, ta[near], tb[near], reach[near], pad_a, pad_b, settle
         )
     return lowest
 
 
-def _posed_distances(pack_a, pack_b, ta, tb, reach, pad_a, pad_b) -> np.ndarray:
-    """``piece_distances`` of placements whose links come near: every piece posed, the piece
-    pairs whose boxes come within reach (plus pads) measured by GJK."""
+def _posed_distances(pack_a, pack_b, ta, tb, reach, pad_a, pad_b, settle=False) -> np.ndarray:
+    """``piece_distances`` of placements whose links come near: link b's pieces posed in link
+    a's frame (distances do not change under the rigid motion of both, and a's pieces then
+    serve every placement unmoved), the piece pairs whose boxes come within reach (plus pads)
+    measured by GJK."""
     from .geometry import ConvexPack, Status, query_pairs
 
     e_count = len(ta)
     lowest = np.full(e_count, np.inf)
-    pa, la, ua = _posed(pack_a, ta)
-    pb, lb, ub = _posed(pack_b, tb)
+    rotation = ta[:, :3, :3].transpose(0, 2, 1)
+    relative = np.zeros((e_count, 4, 4))
+    relative[:, :3, :3] = rotation @ tb[:, :3, :3]
+    relative[:, :3, 3] = np.einsum("eij,ej->ei", rotation, tb[:, :3, 3] - ta[:, :3, 3])
+    relative[:, 3, 3] = 1.0
+    pb, lb, ub = _posed(pack_b, relative)
+    la, ua = pack_a.lower, pack_a.upper
     ma, mb = len(pack_a.starts) - 1, len(pack_b.starts) - 1
-    gap = np.maximum(la[:, :, None, :] - ub[:, None, :, :], lb[:, None, :, :] - ua[:, :, None, :])
+    gap = np.maximum(
+        la[None, :, None, :] - ub[:, None, :, :], lb[:, None, :, :] - ua[None, :, None, :]
+    )
     box_gap = np.linalg.norm(np.maximum(gap, 0.0), axis=3)  # (E, ma, mb), a lower bound
     pads = pad_a[:, None] + pad_b[None, :]
     e, i, j = np.nonzero(box_gap - pads[None] <= reach[:, None, None])
     if len(e) == 0:
         return lowest
     na, nb = len(pack_a.points), len(pack_b.points)
-    n = na + nb
-    points = np.concatenate([pa, pb], axis=1).reshape(-1, 3)
-    one_starts = np.concatenate([pack_a.starts[:-1], na + pack_b.starts[:-1]])
-    starts = (one_starts[None, :] + n * np.arange(e_count)[:, None]).ravel()
-    starts = np.append(starts, n * e_count)
-    ea = len(pack_a.nbrs)
-    one_nbr_starts = np.concatenate([pack_a.nbr_starts[:-1], ea + pack_b.nbr_starts[:-1]])
-    edges = ea + len(pack_b.nbrs)
-    nbr_starts = (one_nbr_starts[None, :] + edges * np.arange(e_count)[:, None]).ravel()
-    nbr_starts = np.append(nbr_starts, edges * e_count)
-    one_nbrs = np.concatenate([pack_a.nbrs, pack_b.nbrs + na])
-    nbrs = (one_nbrs[None, :] + n * np.arange(e_count)[:, None]).ravel()
-    lower = np.concatenate([la, lb], axis=1).reshape(-1, 3)
-    upper = np.concatenate([ua, ub], axis=1).reshape(-1, 3)
+    points = np.concatenate([pack_a.points, pb.reshape(-1, 3)])
+    starts = np.concatenate(
+        [
+            pack_a.starts[:-1],
+            (na + pack_b.starts[:-1][None, :] + nb * np.arange(e_count)[:, None]).ravel(),
+            [na + nb * e_count],
+        ]
+    )
+    ea, eb = len(pack_a.nbrs), len(pack_b.nbrs)
+    nbr_starts = np.concatenate(
+        [
+            pack_a.nbr_starts[:-1],
+            (ea + pack_b.nbr_starts[:-1][None, :] + eb * np.arange(e_count)[:, None]).ravel(),
+            [ea + eb * e_count],
+        ]
+    )
+    nbrs = np.concatenate(
+        [pack_a.nbrs, (na + pack_b.nbrs[None, :] + nb * np.arange(e_count)[:, None]).ravel()]
+    )
+    lower = np.concatenate([la, lb.reshape(-1, 3)])
+    upper = np.concatenate([ua, ub.reshape(-1, 3)])
     pack = ConvexPack(points, starts, nbr_starts, nbrs, lower, upper)
-    m = ma + mb
-    pairs = np.stack([e * m + i, e * m + ma + j], axis=1)
-    res = query_pairs(pack, pairs, tolerance=0.0, depth=False, max_distance=reach[e] + pads[i, j])
-    distance = np.where(res.status == Status.UNDECIDED, np.minimum(res.distance, 0.0), res.distance)
-    np.minimum.at(lowest, e, distance - pads[i, j])
+    pairs = np.stack([i, ma + e * mb + j], axis=1)
+    pad = pads[i, j]
+
+    def measure(rows):
+        res = query_pairs(pack, pairs[rows], tolerance=0.0, depth=False,
+                          max_distance=reach[e[rows]] + pad[rows])  # fmt: skip
+        found = np.where(res.status == Status.UNDECIDED, np.minimum(res.distance, 0.0),
+                         res.distance)  # fmt: skip
+        return found - pad[rows]
+
+    rest = np.arange(len(e))
+    if settle:  # each placement's nearest boxes first: is it within reach?
+        order = np.lexsort((box_gap[e, i, j] - pad, e))
+        first = order[np.flatnonzero(np.diff(e[order], prepend=-1))]
+        lowest[e[first]] = measure(first)
+        rest = rest[lowest[e] > reach[e]]
+        lowest[e[first]] = np.where(lowest[e[first]] <= reach[e[first]], lowest[e[first]], np.inf)
+    np.minimum.at(lowest, e[rest], measure(rest))
     return lowest
 
 
@@ -638,7 +675,7 @@ class _Pair:
         meshes' exact distance (``surface_distance``: its cost grows with the triangle pairs
         within reach, so it waits for boxes small enough that it can close them)."""
         a, b = self.links[self.a], self.links[self.b]
-        lowest = piece_distances(a.pack, b.pack, ta, tb, reach, a.pad, b.pad)
+        lowest = piece_distances(a.pack, b.pack, ta, tb, reach, a.pad, b.pad, settle=True)
         fine = FINE_REACH * min(np.ptp(a.points, axis=0).max(), np.ptp(b.points, axis=0).max())
         for e in np.flatnonzero((lowest <= reach) & (reach <= fine)):
             lowest[e] = surface_distance(a, b, ta[e], tb[e], float(reach[e]))

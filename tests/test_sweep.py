@@ -431,3 +431,11 @@ def test_coarse_pieces_with_their_pads_never_raise_the_distance_bound():
     apart = exact > 0.0  # in contact, GJK without depth gives some value <= 0, not the depth
     assert np.all(bound[apart] <= exact[apart] + 1e-12) and np.all(bound[~apart] <= 0.0)
     assert np.any(apart) and not np.all(apart)  # both sides of contact were drawn
+    # settle (the boxes' question, within reach or not): the same answer, from some piece pair
+    for r in (0.01, 0.05, 0.2):
+        reach = np.full(200, r)
+        full = piece_distances(coarse_a, coarse_b, ta, tb, reach, pad_a, pad_b)
+        settled = piece_distances(coarse_a, coarse_b, ta, tb, reach, pad_a, pad_b, settle=True)
+        assert np.array_equal(settled <= reach, full <= reach)
+        near = full <= reach
+        assert np.all(settled[near] >= full[near]) and np.array_equal(settled[~near], full[~near])
