@@ -117,8 +117,10 @@ _NO_LIMITS = Limits(max_file_bytes=1 << 62)  # the URDF was read once already, w
 # --------------------------------------------------------------------------------------------
 # The sweep: never / sometimes / always over the joint ranges
 
-#: Boxes of joint values one link pair may evaluate before it is left undecided.
-MAX_BOXES = 200_000
+#: Boxes of joint values one link pair may evaluate before it is left undecided (the panda's
+#: link 0 and link 4 need 71,579; bench/sweep.py on the PR2 sets the time against 10,000
+#: python-fcl samples).
+MAX_BOXES = 100_000
 #: Boxes evaluated in one compiled call.
 BATCH = 1024
 #: Boxes whose motion bound is below this fraction of the smaller link's size, and whose
@@ -709,13 +711,15 @@ def sweep_pair(pair: _Pair, lower: np.ndarray, upper: np.ndarray, resolution: fl
     """Classify one link pair over the box ``lower..upper`` of its free joints.
 
     Boxes of joint values are evaluated at their centre ``c`` with half-widths ``h``: the
-    pieces' distance there bounds the links' surface distance from below, and no point moves by
+    pieces' distance there (or, for a box small enough, the real triangles', see
+    ``_Pair.distances``) bounds the links' surface distance from below, and no point moves by
     more than ``M = sum_k r_k h_k`` (``_Pair.box_weights``: each joint's lever arm bounded at
     the box's centre pose) within the box, so a box whose centre distance exceeds
     ``M + tolerance`` is certified free of contact. Other boxes are halved along the joint that
-    contributes most to ``M``, down to ``resolution``. Centres where pieces
-    overlap are re-checked on the real meshes, deepest first: one that interferes or touches is
-    the witness of ``sometimes``. When every box is certified, the surfaces never come within
+    contributes most to ``M``, down to ``resolution``. Centres where pieces overlap are
+    re-checked on the real meshes, nearest first: one that interferes or touches is the witness
+    of ``sometimes``; after ``DESCENT_AFTER`` boxes, a descent from the nearest centres looks
+    for one (``_descent_witness``). When every box is certified, the surfaces never come within
     the tolerance, so whether one link is buried in the other cannot change over the sweep: one
     exact check at the centre decides ``never`` (or ``always``, buried throughout).
     """
