@@ -268,7 +268,8 @@ def _units(values) -> tuple[str | None, tuple]:
     "--sweep",
     is_flag=True,
     help="Classify every pair of robot links as never / sometimes / always in contact over the "
-    "joint ranges; never is proven, sometimes comes with a witness pose.",
+    "joint ranges; never is proven, sometimes comes with a witness pose. Parts of a [[joint]] "
+    "mechanism that interfere in motion fail the run.",
 )
 @click.option(
     "--sweep-joints",
