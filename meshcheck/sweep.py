@@ -330,17 +330,23 @@ def motion_weights(
         turn a link with only fixed joints between get the exact largest distance of its points
         from their axis line, and the joints above a bound from it (``_chain_weights``).
     """
-    a_chain, b_chain = _chain(robot, pair[0]), _chain(robot, pair[1])
-    common = 0
-    while common < min(len(a_chain), len(b_chain)) and a_chain[common] is b_chain[common]:
-        common += 1
     out: dict[str, float] = {}
-    for chain, link in ((a_chain[common:], pair[0]), (b_chain[common:], pair[1])):
+    for chain, link in zip(_below_common(robot, pair), pair, strict=True):
         local = None if points is None else points.get(link)
         for joint, weight in _chain_weights(robot, chain, radius[link], local, swept, base, scale):
             name, multiplier = _leader(robot, joint)
             out[name] = out.get(name, 0.0) + abs(multiplier) * weight
     return out
+
+
+def _below_common(robot: Robot, pair: tuple[str, str]) -> tuple[list, list]:
+    """The joints from the two links' common ancestor down to each link of ``pair``: only
+    they move one link relative to the other."""
+    a_chain, b_chain = _chain(robot, pair[0]), _chain(robot, pair[1])
+    common = 0
+    while common < min(len(a_chain), len(b_chain)) and a_chain[common] is b_chain[common]:
+        common += 1
+    return a_chain[common:], b_chain[common:]
 
 
 def _chain_weights(robot, chain, radius, local, swept, base, scale):
@@ -818,21 +824,19 @@ def _descent_witness(pair: _Pair, lower, upper, starts, boxes: int) -> PairSweep
         return None
     rng = np.random.default_rng(1)
     a, b = pair.links[pair.a], pair.links[pair.b]
-    far = np.full(1, np.inf)
 
-    def measure(values):
+    def measure(values, reach: float):
         ta, tb, _ = pair.placements(values)
-        reach = np.broadcast_to(far, len(values)).copy()
-        return piece_distances(a.pack, b.pack, ta, tb, reach, a.pad, b.pad)
+        return piece_distances(a.pack, b.pack, ta, tb, np.full(len(values), reach), a.pad, b.pad)
 
     current = starts.copy()
-    scores = measure(current)
-    far[0] = max(float(scores.max()), 0.0) + pair.tolerance  # nothing beyond the starts matters
+    scores = measure(current, np.inf)
+    reach = max(float(scores.max()), 0.0) + pair.tolerance  # nothing beyond the starts matters
     step = np.broadcast_to(0.125 * (upper - lower), current.shape).copy()
     for _ in range(DESCENT_STEPS):
         noise = rng.standard_normal((len(current), DESCENT_TRIES, len(lower)))
         tries = np.clip(current[:, None, :] + step[:, None, :] * noise, lower, upper)
-        flat = measure(tries.reshape(-1, len(lower))).reshape(len(current), DESCENT_TRIES)
+        flat = measure(tries.reshape(-1, len(lower)), reach).reshape(len(current), DESCENT_TRIES)
         best = np.argmin(flat, axis=1)
         better = flat[np.arange(len(current)), best] < scores
         current[better] = tries[better, best[better]]
@@ -938,13 +942,9 @@ def sweep_mechanism(
 
 def _sides(robot, pair, links, names, swept, base, scale) -> tuple[_Side, _Side]:
     """Both links' ``_Side``: the joints from their common ancestor down to each."""
-    a_chain, b_chain = _chain(robot, pair[0]), _chain(robot, pair[1])
-    common = 0
-    while common < min(len(a_chain), len(b_chain)) and a_chain[common] is b_chain[common]:
-        common += 1
     return tuple(
-        _side(robot, chain[common:], links[name], name, names, swept, base, scale)
-        for chain, name in ((a_chain, pair[0]), (b_chain, pair[1]))
+        _side(robot, chain, links[name], name, names, swept, base, scale)
+        for chain, name in zip(_below_common(robot, pair), pair, strict=True)
     )
 
 
