@@ -167,6 +167,9 @@ def test_a_collision_in_motion_fails_the_run_unless_approved(tmp_path):
         assert out.exit_code == ExitStatus.FAILED, (fmt, out.output)
         failing[fmt] = out.stdout
     assert "1 colliding in motion" in failing["text"] and "FAIL sweep sometimes" in failing["text"]
+    assert "| FAIL sometimes |" in failing["markdown"]
+    shown = run(tmp_path, files, [hinge()], "--sweep").stdout  # failing first, then the others
+    assert shown.index("FAIL sweep") < shown.index("(approved: adjacent)")
     assert "hinge=" in failing["text"] and "frame.stl" not in failing["text"].split("FAIL ")[1]
     doc = json.loads(failing["json"])
     (robot,) = doc["sweeps"]

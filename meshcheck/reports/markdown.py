@@ -110,15 +110,23 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
 
 
 def _sweep_lines(result: CheckResult) -> list[str]:
-    """The sweep's link pairs that are not proven never, with their witness poses."""
-    rows = sweep_rows(result)
+    """The sweep's link pairs that are not proven never, with their witness poses, those that
+    fail the run (``CheckResult.failing_sweeps``) first and marked."""
+    failing = {(r.path, p.a, p.b) for r, p in result.failing_sweeps}
+    rows = sorted(sweep_rows(result), key=lambda row: (row[0], row[1].a, row[1].b) not in failing)
     if not rows:
         return []
     lines = ["Sweep (link pairs not proven apart over the joint ranges):", ""]
     lines += ["| Class | Robot | Link A | Link B | Witness |", "|---|---|---|---|---|"]
     for robot, pair in rows[:MAX_ROWS]:
-        status = pair.status + (" (adjacent)" if pair.is_adjacent else "")
-        cells = [status, escape(robot), escape(pair.a), escape(pair.b), escape(pose_text(pair))]
+        fails = (robot, pair.a, pair.b) in failing
+        status = (
+            ("FAIL " if fails else "") + pair.status + (" (adjacent)" if pair.is_adjacent else "")
+        )
+        witness = pose_text(pair)
+        if pair.approval_reason is not None:
+            witness += f" (approved: {pair.approval_reason})"
+        cells = [status, escape(robot), escape(pair.a), escape(pair.b), escape(witness)]
         lines.append("| " + " | ".join(cells) + " |")
     if len(rows) > MAX_ROWS:
         lines += ["", f"... and {plural(len(rows) - MAX_ROWS, 'more pair')} (see the report)"]

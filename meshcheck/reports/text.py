@@ -201,7 +201,8 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
                 wrap(f"resolved {r.id}  {r.status}  {short(r.a)} and {short(r.b)}", _INDENT)
             )
     failing = {(r.path, p.a, p.b) for r, p in result.failing_sweeps}
-    for robot, pair in sweep_rows(result):  # --sweep; a failing pair is listed even when quiet
+    rows = sorted(sweep_rows(result), key=lambda row: (row[0], row[1].a, row[1].b) not in failing)
+    for robot, pair in rows:  # --sweep: failing pairs first, listed even when quiet
         fails = (robot, pair.a, pair.b) in failing
         if view.is_quiet and not fails:
             continue
