@@ -20,6 +20,11 @@ sweep proves never that sampling sees colliding would be a bug.
 
 ``--max-boxes`` sets ``meshcheck.sweep.MAX_BOXES`` (boxes one pair may evaluate before it is
 left undecided): a smaller budget trades proven pairs for time.
+
+    python bench/sweep.py --robot pr2 --pair head_tilt_link:l_forearm_link --pair ...
+
+sweeps only the named link pairs and prints each one's class, boxes, time and GJK piece pairs
+(no sampling): where one pair's time goes.
 """
 
 from __future__ import annotations
@@ -156,13 +161,53 @@ def _progress_on_stderr(module) -> None:
     module.sweep_pair = counted
 
 
+def sweep_pairs(path: str, named: list[str], max_boxes: int | None) -> int:
+    """Sweep only the ``named`` link pairs (``A:B``) of the robot, printing each one's class,
+    boxes, seconds and the GJK piece pairs its boxes measured."""
+    import meshcheck.geometry
+    import meshcheck.sweep as sweep
+    from meshcheck.decompose import decompose_bodies
+    from meshcheck.load import load_bodies
+    from meshcheck.motion import Motion
+
+    if max_boxes is not None:
+        sweep.MAX_BOXES = max_boxes
+    wanted = {tuple(sorted(p.split(":"))) for p in named}
+    query_pairs, sweep_pair, gjk = meshcheck.geometry.query_pairs, sweep.sweep_pair, [0]
+
+    def counted_query(pack, pairs, **kwargs):
+        gjk[0] += len(pairs)
+        return query_pairs(pack, pairs, **kwargs)
+
+    def only_wanted(pair, lower, upper, resolution):
+        if (pair.a, pair.b) not in wanted:
+            return sweep.PairSweep(pair.a, pair.b, "skipped")
+        gjk[0], start = 0, time.perf_counter()
+        out = sweep_pair(pair, lower, upper, resolution)
+        print(f"{pair.a} / {pair.b}: {out.status}, {len(lower)} joints, {out.boxes} boxes, "
+              f"{time.perf_counter() - start:.2f} s, {gjk[0]} GJK piece pairs")  # fmt: skip
+        return out
+
+    meshcheck.geometry.query_pairs, sweep.sweep_pair = counted_query, only_wanted
+    bodies = load_bodies([os.path.normpath(path)])
+    (mech,) = sweep.mechanisms(bodies)
+    ks = sorted(k for ks in mech.parts.values() for k in ks)
+    with tempfile.TemporaryDirectory() as cache:
+        pieces = decompose_bodies([bodies[k] for k in ks], cache_dir=cache, jobs=1)
+    sweep.sweep_mechanism(mech, bodies, dict(zip(ks, pieces, strict=True)), Motion(sweep=()))
+    return 0
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--robot", choices=sorted(ROBOTS), default="panda")
     parser.add_argument("--samples", type=int, default=10_000)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--max-boxes", type=int, default=None)
+    parser.add_argument("--pair", action="append", default=[], metavar="LINK:LINK")
     args = parser.parse_args()
+    if args.pair:
+        return sweep_pairs(ROBOTS[args.robot], args.pair, args.max_boxes)
 
     import meshcheck.sweep
 
