@@ -108,7 +108,9 @@ def oracle_confirms(bodies, mech, pair, tolerance: float = 1e-4) -> str | None:
 
     from meshcheck.load.urdf import joint_values, link_transforms, with_mimics
 
-    sys.path.insert(0, os.path.join(HERE, "..", "tests"))
+    tests = os.path.join(HERE, "..", "tests")
+    if tests not in sys.path:
+        sys.path.insert(0, tests)
     from meshes import winding_inside
 
     robot = mech.robot

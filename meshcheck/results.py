@@ -314,20 +314,21 @@ class CheckResult:
 
     @property
     def failing_sweeps(self) -> list:
-        """(robot, pair) of each swept pair that fails the run: a pair of a mechanism made by
+        """(robot, pair) of each swept pair that fails the run (``is_failing_sweep``)."""
+        return [(r, p) for r in self.sweeps for p in r.pairs if self.is_failing_sweep(r, p)]
+
+    def is_failing_sweep(self, robot, pair) -> bool:
+        """True when a swept ``pair`` of ``robot`` fails the run: a pair of a mechanism made by
         ``[[joint]]`` tables that collides somewhere in the declared ranges (a door hitting
         its stop), unapproved, with the verdict at its witness in ``fail_on``. A URDF robot's
         pairs never fail it: a robot collides with itself at some poses by design, and its
         sweep's output is the allowed-collision matrix (``--srdf``)."""
-        return [
-            (robot, pair)
-            for robot in self.sweeps
-            if not robot.is_urdf
-            for pair in robot.pairs
-            if pair.status in ("sometimes", "always")
+        return (
+            not robot.is_urdf
+            and pair.status in ("sometimes", "always")
             and pair.approval_reason is None
             and pair.verdict in self.settings.fail_on
-        ]
+        )
 
     @property
     def failed(self) -> bool:

@@ -276,10 +276,17 @@ def finding_title(finding: Finding) -> str:
     return f"{printable(finding.a)} and {printable(finding.b)}"
 
 
-def sweep_rows(result: CheckResult) -> list[tuple[str, object]]:
-    """(robot path, pair) of every swept link pair that is not proven ``never``, robot by
-    robot, in link-name order: what the reports list of a sweep."""
-    return [(r.path, p) for r in result.sweeps for p in r.pairs if p.status != "never"]
+def sweep_rows(result: CheckResult) -> list[tuple[str, object, bool]]:
+    """(robot path, pair, whether it fails the run) of every swept link pair that is not
+    proven ``never``: those that fail first (``CheckResult.is_failing_sweep``), then robot by
+    robot in link-name order. What the reports list of a sweep."""
+    rows = [
+        (r.path, p, result.is_failing_sweep(r, p))
+        for r in result.sweeps
+        for p in r.pairs
+        if p.status != "never"
+    ]
+    return sorted(rows, key=lambda row: not row[2])  # stable: robot and link order within
 
 
 def sweep_message(robot, pair) -> str:

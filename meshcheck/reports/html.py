@@ -304,8 +304,7 @@ def _data(result, units, inputs, version, mesh_rows, parts, findings, triangles)
 def _sweeps(result: CheckResult) -> list[dict]:
     """The swept link pairs not proven never (``sweep_rows``), failing ones first, as the
     viewer lists them: names and the witness pose as text (``--pose`` form)."""
-    failing = {(r.path, p.a, p.b) for r, p in result.failing_sweeps}
-    rows = [
+    return [
         {
             "robot": str(robot),
             "a": str(pair.a),
@@ -314,11 +313,10 @@ def _sweeps(result: CheckResult) -> list[dict]:
             "adjacent": bool(pair.is_adjacent),
             "pose": pose_text(pair),
             "approved": pair.approval_reason,
-            "failed": (robot, pair.a, pair.b) in failing,
+            "failed": fails,
         }
-        for robot, pair in sweep_rows(result)
+        for robot, pair, fails in sweep_rows(result)
     ]
-    return sorted(rows, key=lambda row: not row["failed"])  # stable: link-name order within
 
 
 # ---------------------------------------------------------------------------------------------

@@ -37,11 +37,10 @@ def document(result: CheckResult) -> dict:
         "summary": summary(result),
     }
     if result.sweeps:  # --sweep: every link pair's class, a witness pose for sometimes
-        failing = {(r.path, p.a, p.b) for r, p in result.failing_sweeps}
         doc["sweeps"] = [r.to_dict() for r in result.sweeps]
         for robot, entry in zip(result.sweeps, doc["sweeps"], strict=True):
-            for pair in entry["pairs"]:
-                pair["failed"] = (robot.path, pair["a"], pair["b"]) in failing
+            for pair, row in zip(robot.pairs, entry["pairs"], strict=True):
+                row["failed"] = result.is_failing_sweep(robot, pair)
     if result.baseline is not None:
         doc["resolved"] = [r.to_dict() for r in result.baseline.resolved(result.findings)]
     return doc

@@ -112,14 +112,12 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
 def _sweep_lines(result: CheckResult) -> list[str]:
     """The sweep's link pairs that are not proven never, with their witness poses, those that
     fail the run (``CheckResult.failing_sweeps``) first and marked."""
-    failing = {(r.path, p.a, p.b) for r, p in result.failing_sweeps}
-    rows = sorted(sweep_rows(result), key=lambda row: (row[0], row[1].a, row[1].b) not in failing)
+    rows = sweep_rows(result)
     if not rows:
         return []
     lines = ["Sweep (link pairs not proven apart over the joint ranges):", ""]
     lines += ["| Class | Robot | Link A | Link B | Witness |", "|---|---|---|---|---|"]
-    for robot, pair in rows[:MAX_ROWS]:
-        fails = (robot, pair.a, pair.b) in failing
+    for robot, pair, fails in rows[:MAX_ROWS]:
         status = (
             ("FAIL " if fails else "") + pair.status + (" (adjacent)" if pair.is_adjacent else "")
         )

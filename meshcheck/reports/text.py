@@ -200,10 +200,7 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
             lines.extend(
                 wrap(f"resolved {r.id}  {r.status}  {short(r.a)} and {short(r.b)}", _INDENT)
             )
-    failing = {(r.path, p.a, p.b) for r, p in result.failing_sweeps}
-    rows = sorted(sweep_rows(result), key=lambda row: (row[0], row[1].a, row[1].b) not in failing)
-    for robot, pair in rows:  # --sweep: failing pairs first, listed even when quiet
-        fails = (robot, pair.a, pair.b) in failing
+    for robot, pair, fails in sweep_rows(result):  # --sweep: failing pairs even when quiet
         if view.is_quiet and not fails:
             continue
         adjacent = " (adjacent)" if pair.is_adjacent else ""
