@@ -18,8 +18,9 @@ import time
 
 import numpy as np
 
+from meshcheck.outcome import CheckResult
 from meshcheck.reports import FORMATS, render
-from meshcheck.results import CheckResult, Finding, Location, PairVerdict, Part, Verdict, finding_id
+from meshcheck.results import Finding, Location, PairVerdict, Part, Verdict, finding_id
 from meshcheck.settings import Settings
 
 

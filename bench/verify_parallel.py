@@ -32,20 +32,24 @@ from assemblies import write_assembly  # noqa: E402
 
 def verify_stage_input(paths: list[str], cache_dir: str):
     """Bodies, and the pairs, tolerances and near flags the verify stage would get."""
+    import numpy as np
+
     from meshcheck import pipeline
     from meshcheck.geometry import pack_convex, query_pairs
     from meshcheck.load import load_bodies, local_geometries
-    from meshcheck.settings import Settings, part_sizes
+    from meshcheck.settings import Settings
+    from meshcheck.tolerances import pair_tolerances, part_sizes
 
     settings = Settings(cache_dir=cache_dir)
     bodies = load_bodies(paths)
     names = [pipeline._names(b) for b in bodies]
     hulls = pack_convex(pipeline._world_hulls(bodies, local_geometries(bodies)), is_hull=True)
-    diagonal, magnitude = part_sizes(hulls.lower, hulls.upper)
-    pairs = pipeline.select_pairs(hulls, settings, names, diagonal, magnitude)
-    tolerance = pipeline._tolerances(settings, bodies, diagonal, magnitude, pairs)
+    diagonal, magnitude = part_sizes(hulls.lower, hulls.upper, [b.is_float32 for b in bodies])
+    deflection = np.array([b.deflection for b in bodies])
+    pairs = pipeline.select_pairs(hulls, settings, names, diagonal, magnitude, deflection)
+    tolerance = pair_tolerances(diagonal, magnitude, pairs, deflection=deflection)
     query = query_pairs(hulls, pairs, tolerance=tolerance, depth=False, max_distance=tolerance)
-    near = pipeline.within(query, tolerance)
+    near = pipeline.may_come_within(query, tolerance)
     pairs, tolerance = pairs[near], tolerance[near]
     pieces, owner, _ = pipeline.decompose_parts(bodies, pairs, settings)
     surfaces = pipeline.surfaces_near(pieces, owner, pairs, tolerance, tolerance)

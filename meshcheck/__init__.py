@@ -28,8 +28,9 @@ DISTRIBUTION = "meshcheck-assembly"
 
 if TYPE_CHECKING:
     from .geometry import Contact, Status, intersects, query, signed_distance
+    from .outcome import CheckResult
     from .pipeline import check
-    from .results import CheckResult, Finding, Location, PairVerdict, Part, Verdict
+    from .results import Finding, Location, PairVerdict, Part, Verdict
     from .settings import Settings
 
 _LAZY = {
@@ -39,7 +40,7 @@ _LAZY = {
     "query": ".geometry",
     "signed_distance": ".geometry",
     "check": ".pipeline",
-    "CheckResult": ".results",
+    "CheckResult": ".outcome",
     "Finding": ".results",
     "Location": ".results",
     "PairVerdict": ".results",

@@ -27,7 +27,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 
 from .errors import ConfigError
-from .results import FINDING_STATUSES, CheckResult, Finding, Verdict
+from .results import FINDING_STATUSES, Finding, Verdict
 
 #: A baseline larger than this is refused before reading: a report of 100,000 findings is ~40 MB.
 MAX_BASELINE_BYTES = 256 * 1024 * 1024
@@ -134,12 +134,4 @@ def _findings(name: str, doc) -> dict[str, tuple[str, str, Verdict]]:
     return found
 
 
-def compare(result: CheckResult, baseline: Baseline) -> CheckResult:
-    """``result`` with ``baseline`` attached: ``result.baseline_state(f)`` then says new or
-    active, and ``fail_on_new`` settings fail only the new findings."""
-    from dataclasses import replace
-
-    return replace(result, baseline=baseline)
-
-
-__all__ = ["MAX_BASELINE_BYTES", "Baseline", "Resolved", "compare", "load_baseline"]
+__all__ = ["MAX_BASELINE_BYTES", "Baseline", "Resolved", "load_baseline"]

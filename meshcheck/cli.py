@@ -16,8 +16,9 @@ import click
 from . import DISTRIBUTION
 from .config import FAIL_ON_CHOICES, NUMBER_RANGES, checked_number, parse_fail_on
 from .errors import ConfigError, ExitStatus, MeshcheckError, MeshcheckWarning, OutputError
+from .outcome import exit_status
 from .output import STDOUT, check_output, write_output
-from .reports import FORMATS, exit_status, printable, render, summary_line
+from .reports import FORMATS, printable, render, summary_line
 
 #: Set (to anything) to print an unexpected error's traceback on stderr instead of to a file.
 DEBUG_ENV = "MESHCHECK_DEBUG"
@@ -421,7 +422,7 @@ def _check(files, settings, baseline, export_path):
         try:
             result = check(files, settings)
             if baseline is not None:
-                from .baseline import compare
+                from .outcome import compare
 
                 result = compare(result, baseline)
             if export_path is not None:

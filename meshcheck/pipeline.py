@@ -13,8 +13,8 @@ Each stage narrows the part pairs the next one looks at:
 4. ``verify_pairs`` decides the rest on the real meshes;
 5. ``approve`` marks approved findings, in one place.
 
-Every pair is decided with its own tolerance (``settings.pair_tolerances``) unless the user gave
-one.
+Every pair is decided with its own tolerance (``tolerances.pair_tolerances``) unless the user
+gave one.
 """
 
 from __future__ import annotations
@@ -36,24 +36,18 @@ from .geometry import ConvexPack, Status, pack_convex, query_pairs
 from .geometry.broadphase import candidate_pairs, group_pairs
 from .load import Body, Limits, load_bodies, local_geometries
 from .load.limits import check_candidate_pairs
+from .outcome import CheckResult
 from .progress import Progress
-from .results import CheckResult, Finding, Part
-from .settings import (
-    FLOAT32_ULPS,
-    TOLERANCE_FRACTION,
-    Settings,
-    pair_tolerances,
-    part_sizes,
-)
+from .results import Finding, Part
+from .settings import Settings
 from .sweep import with_mechanisms, with_sweeps
+from .tolerances import largest_pair_tolerance, pair_tolerances, part_sizes
 from .units import DEFAULT_UNIT
 from .verify import verify_pairs
 from .verify.brep import confirm_on_brep
 from .verify.duplicates import duplicate_findings, duplicate_sets, without_duplicate_pairs
 from .verify.patterns import with_patterns
 from .verify.shells import warn_nothing_to_compare, warn_overlapping_shells
-
-_EPS32 = float(np.finfo(np.float32).eps)
 
 
 def check(
@@ -163,19 +157,20 @@ def check_bodies(
     geometry = local_geometries(bodies)
     with Progress("comparing hulls", 0):
         hulls = pack_convex(_world_hulls(bodies, geometry), is_hull=True)
-        diagonal, magnitude = part_sizes(hulls.lower, hulls.upper)
-        magnitude = np.where([b.is_float32 for b in bodies], magnitude, 0.0)  # the float32 floor
-        deflection = max((b.deflection for b in bodies), default=0.0)
+        diagonal, magnitude = part_sizes(hulls.lower, hulls.upper, [b.is_float32 for b in bodies])
+        deflection = np.array([b.deflection for b in bodies], dtype=np.float64)
         pairs = select_pairs(hulls, settings, names, diagonal, magnitude, deflection)
-        copies = duplicate_sets(
-            bodies, geometry, tolerance=settings.tolerance, fraction=TOLERANCE_FRACTION
-        )
+        copies = duplicate_sets(bodies, geometry, tolerance=settings.tolerance)
         pairs = without_duplicate_pairs(pairs, copies, len(bodies))
         check_candidate_pairs(len(pairs), len(bodies))  # budgeted, like triangles
-        tolerance = _tolerances(settings, bodies, diagonal, magnitude, pairs)
+        # Triangles of a part read from CAD lie up to its deflection from the true surface:
+        # overlaps and gaps within the two deflections cannot be told apart, so they touch.
+        tolerance = pair_tolerances(
+            diagonal, magnitude, pairs, tolerance=settings.tolerance, deflection=deflection
+        )
         reach = tolerance + (settings.clearance or 0.0)
         hull_query = query_pairs(hulls, pairs, tolerance=tolerance, depth=False, max_distance=reach)
-        near = within(hull_query, reach)
+        near = may_come_within(hull_query, reach)
     pairs_near, tol_near, reach_near = pairs[near], tolerance[near], reach[near]
     with (
         contextlib.nullcontext(executor)
@@ -238,29 +233,23 @@ def select_pairs(
     names: Sequence[tuple[str, ...]],
     diagonal: np.ndarray,
     magnitude: np.ndarray,
-    deflection: float = 0.0,
+    deflection: np.ndarray | None = None,
 ) -> np.ndarray:
     """Part pairs whose boxes come within reach, restricted by the groups rule; ``(k, 2)``.
 
-    The boxes grow by the largest tolerance any pair can get, so no pair within its own reach is
-    pruned.
+    The boxes grow by the largest tolerance any pair can get (``tolerances``), so no pair within
+    its own reach is pruned.
     """
-    if settings.tolerance is not None:
-        largest = settings.tolerance
-    elif len(diagonal):
-        largest = float(
-            max(TOLERANCE_FRACTION * diagonal.max(), FLOAT32_ULPS * _EPS32 * magnitude.max())
-        )
-    else:
-        largest = 0.0
-    largest = max(largest, 2.0 * deflection)
+    largest = largest_pair_tolerance(
+        diagonal, magnitude, tolerance=settings.tolerance, deflection=deflection
+    )
     pairs = candidate_pairs(hulls.lower, hulls.upper, margin=largest + (settings.clearance or 0.0))
     if settings.groups is not None:
         pairs = pairs[settings.groups.pair_mask(names, pairs)]
     return pairs
 
 
-def within(result, reach: np.ndarray) -> np.ndarray:
+def may_come_within(result, reach: np.ndarray) -> np.ndarray:
     """Mask of the pairs of a ``query_pairs`` answer that may come within ``reach``: every pair
     not proven separated beyond it."""
     return (result.status != Status.SEPARATED) | (result.distance <= reach)
@@ -352,7 +341,7 @@ def surfaces_near(
     query = query_pairs(
         pieces, piece_pairs, tolerance=tolerance[row], depth=False, max_distance=reach[row]
     )
-    hit = within(query, reach[row])
+    hit = may_come_within(query, reach[row])
     out = np.zeros(len(pairs), dtype=bool)
     out[row[hit]] = True
     return out
@@ -431,25 +420,6 @@ def _check_patterns(settings: Settings, names: Sequence[tuple[str, ...]]) -> Non
                     stacklevel=3,
                 )
                 break
-
-
-def _tolerances(
-    settings: Settings,
-    bodies: Sequence[Body],
-    diagonal: np.ndarray,
-    magnitude: np.ndarray,
-    pairs: np.ndarray,
-) -> np.ndarray:
-    """The touching tolerance of each pair: the user's, or the pair's own, and never below the
-    sum of the two parts' tessellation deflections."""
-    if settings.tolerance is not None:
-        tol = np.full(len(pairs), settings.tolerance)
-    else:
-        tol = pair_tolerances(diagonal, magnitude, pairs)
-    # Triangles of a part read from CAD lie up to its deflection from the true surface: overlaps
-    # and gaps within the two deflections cannot be told apart, so they count as touching.
-    deflection = np.array([b.deflection for b in bodies], dtype=np.float64)
-    return np.maximum(tol, deflection[pairs[:, 0]] + deflection[pairs[:, 1]])
 
 
 def _world_hulls(bodies: Sequence[Body], geometry: dict) -> list[np.ndarray]:

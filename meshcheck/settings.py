@@ -12,8 +12,6 @@ import os
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
-import numpy as np
-
 from .config import (
     NUMBER_RANGES,
     Approval,
@@ -33,75 +31,6 @@ from .results import FINDING_STATUSES, Verdict
 DEFAULT_THRESHOLD = 0.1
 SCHEDULER_VARIABLE = "MESHCHECK_SCHEDULER"  # the environment's default for --scheduler
 
-# ---------------------------------------------------------------------------------------------
-# The touching tolerance of a pair, when none is given. It comes from the pair alone, never from
-# other parts: a far, large part must not loosen the verdict on a small pair.
-
-#: Overlaps and gaps below this fraction of the smaller part's bounding-box diagonal count as
-#: touching. CAD exporters round coordinates, so faces modelled as coincident land up to ~1e-6 of
-#: a part's size apart; 1e-5 leaves a 10x margin while staying far below any clearance an
-#: engineer specifies (1 um on a 100 mm part).
-TOLERANCE_FRACTION = 1e-5
-
-#: ... and, for parts whose coordinates went through float32 (``Body.is_float32``: binary STL,
-#: float PLY, glTF, STEP), never below ``FLOAT32_ULPS * 2^-23 * |x|`` at the largest such
-#: coordinate x of the pair (at least 8 float32 units in the last place at x): a float32 face at
-#: x is only known to 2^-24 |x|, and two coincident faces of two files can be that far apart for
-#: each vertex. Coordinates read in double (ASCII STL, OBJ, 3MF...) get no such floor.
-FLOAT32_ULPS = 8.0
-
-#: Two closed shells of one part whose overlap is no thicker than this fraction of their size
-#: (the diagonal of their larger extents) only touch, and draw no "shells overlap" warning
-#: (``verify.shells``). Shells a CAD exporter wrote face to face land up to ~1e-7 of the size
-#: apart (float32 STL); 1e-6 keeps a 10x margin, and stays under ``TOLERANCE_FRACTION``, so
-#: shells overlapping by what would be an interference between two parts are warned about.
-SHELL_TOUCH_FRACTION = 1e-6
-_FLOAT32_EPS = float(np.finfo(np.float32).eps)
-
-
-def part_sizes(lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Bounding-box diagonal and largest absolute coordinate of each part, two ``(n,)`` arrays.
-
-    Parameters
-    ----------
-    lower, upper : (n, 3) float64
-        Each part's axis-aligned bounding box, world coordinates, model units.
-    """
-    lower, upper = np.asarray(lower, dtype=np.float64), np.asarray(upper, dtype=np.float64)
-    diagonal = np.linalg.norm(upper - lower, axis=1)
-    magnitude = np.maximum(np.abs(lower), np.abs(upper)).max(axis=1)
-    return diagonal, magnitude
-
-
-def pair_tolerances(diagonal: np.ndarray, magnitude: np.ndarray, pairs: np.ndarray) -> np.ndarray:
-    """Default touching tolerance of each pair, from the two parts alone, model units, ``(k,)``.
-
-    ``max(TOLERANCE_FRACTION * smaller diagonal, FLOAT32_ULPS * 2^-23 * largest magnitude)``;
-    parts without extent fall back to the magnitude term (and to ``TOLERANCE_FRACTION`` units at
-    the origin).
-
-    Parameters
-    ----------
-    diagonal : (n,) float64
-        Each part's bounding-box diagonal, model units.
-    magnitude : (n,) float64
-        Each part's largest absolute coordinate when its coordinates went through float32
-        (``Body.is_float32``), else 0: the float32 floor applies to those parts only.
-    pairs : (k, 2) int64
-
-    Examples
-    --------
-    >>> d, m = np.array([100.0, 10.0, 40000.0]), np.array([50.0, 50.0, 50000.0])
-    >>> pair_tolerances(d, m, np.array([[0, 1]])).round(9).tolist()
-    [0.0001]
-    """
-    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
-    i, j = pairs[:, 0], pairs[:, 1]
-    size = TOLERANCE_FRACTION * np.minimum(diagonal[i], diagonal[j])
-    rounding = FLOAT32_ULPS * _FLOAT32_EPS * np.maximum(magnitude[i], magnitude[j])
-    tol = np.maximum(size, rounding)
-    return np.where(tol > 0.0, tol, TOLERANCE_FRACTION)
-
 
 def default_cache_dir() -> str:
     """The user's cache directory for meshcheck (platform convention)."""
@@ -120,7 +49,7 @@ class Settings:
         Report pairs whose true distance is below this, model units.
     tolerance : float or None
         Overlaps and gaps below this count as touching, model units; None: each pair's own
-        (``pair_tolerances``).
+        (``tolerances.pair_tolerances``).
     threshold : float
         CoACD concavity threshold of the convex pieces.
     fail_on : tuple of Verdict
@@ -313,13 +242,8 @@ def resolve_fail_on(words: Sequence[str] | None, *, clearance: float | None) -> 
 
 __all__ = [
     "DEFAULT_THRESHOLD",
-    "FLOAT32_ULPS",
-    "SHELL_TOUCH_FRACTION",
-    "TOLERANCE_FRACTION",
     "Settings",
     "default_cache_dir",
-    "pair_tolerances",
-    "part_sizes",
     "resolve_fail_on",
 ]
 

@@ -905,7 +905,7 @@ def sweep_mechanism(
         One per pair of links with collision geometry, sorted by link names.
     """
     from .load.urdf import joint_values
-    from .settings import pair_tolerances, part_sizes
+    from .tolerances import pair_tolerances, part_sizes
     from .units import scale as unit_scale
 
     robot = mech.robot

@@ -39,8 +39,8 @@ def main(argv=None) -> None:
 
     import meshcheck
     from meshcheck.load import load_bodies
+    from meshcheck.outcome import exit_status
     from meshcheck.pipeline import check
-    from meshcheck.reports import exit_status
     from meshcheck.reports.html import render_html
 
     os.chdir(ROOT)  # part names as README shows them: sample_meshes/...

@@ -184,7 +184,7 @@ def test_groups_allow_only_pairs_across():
 def test_default_tolerance_comes_from_the_pair():
     import numpy as np
 
-    from meshcheck.settings import pair_tolerances, part_sizes
+    from meshcheck.tolerances import pair_tolerances, part_sizes
 
     lower = np.array([[0, 0, 0], [0, 0, 0], [50e3, 0, 0]], float)
     upper = np.array([[300, 400, 0], [3000, 4000, 0], [70e3, 10, 10]], float)

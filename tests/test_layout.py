@@ -25,11 +25,13 @@ STAGES = [
         [
             "errors",
             "units",
+            "tolerances",
             "motion",
             "settings",
             "results",
             "config",
             "baseline",
+            "outcome",
             "output",
             "progress",
         ],

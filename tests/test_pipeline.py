@@ -8,8 +8,8 @@ import trimesh
 
 from meshcheck.config import Approval, Groups
 from meshcheck.load import Body
+from meshcheck.outcome import exit_status
 from meshcheck.pipeline import check_bodies
-from meshcheck.reports import exit_status
 
 
 def box_body(name: str, lower, upper) -> Body:

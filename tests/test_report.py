@@ -11,8 +11,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from meshcheck.errors import ExitStatus
-from meshcheck.reports import FORMATS, exit_status, render, summary
-from meshcheck.results import CheckResult, Finding, Location, PairVerdict, Part, Verdict, finding_id
+from meshcheck.outcome import CheckResult, exit_status
+from meshcheck.reports import FORMATS, render, summary
+from meshcheck.results import Finding, Location, PairVerdict, Part, Verdict, finding_id
 from meshcheck.settings import Settings, resolve_fail_on
 
 HYPOTHESIS = settings(derandomize=True, deadline=None, max_examples=50)

@@ -12,11 +12,12 @@ from xml.etree import ElementTree
 import numpy as np
 import pytest
 
-from meshcheck.baseline import MAX_BASELINE_BYTES, Baseline, compare, load_baseline
+from meshcheck.baseline import MAX_BASELINE_BYTES, Baseline, load_baseline
 from meshcheck.errors import ConfigError, ExitStatus
-from meshcheck.reports import FORMATS, exit_status, printable, render
+from meshcheck.outcome import CheckResult, compare, exit_status
+from meshcheck.reports import FORMATS, printable, render
 from meshcheck.reports.github import LIMIT
-from meshcheck.results import CheckResult, Finding, Location, PairVerdict, Part, Verdict, finding_id
+from meshcheck.results import Finding, Location, PairVerdict, Part, Verdict, finding_id
 from meshcheck.settings import Settings
 
 DATA = Path(__file__).parent / "data"

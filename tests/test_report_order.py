@@ -16,10 +16,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from meshcheck.cli import main
+from meshcheck.outcome import CheckResult
 from meshcheck.reports import FORMATS, View, render
 from meshcheck.reports.text import shorten_all
 from meshcheck.results import (
-    CheckResult,
     Finding,
     Location,
     PairVerdict,

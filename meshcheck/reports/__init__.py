@@ -17,12 +17,11 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Protocol
 
-from ..results import CheckResult
+from ..outcome import CheckResult
 from . import github, html, json, junit, markdown, sarif, text
 from .common import (
     View,
     describe,
-    exit_status,
     printable,
     summary,
     summary_line,
@@ -75,7 +74,6 @@ __all__ = [
     "Format",
     "View",
     "describe",
-    "exit_status",
     "printable",
     "render",
     "summary",

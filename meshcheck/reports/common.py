@@ -11,8 +11,8 @@ import math
 import re
 from dataclasses import dataclass
 
-from ..errors import ExitStatus
-from ..results import FINDING_STATUSES, CheckResult, Finding, Verdict
+from ..outcome import CheckResult
+from ..results import FINDING_STATUSES, Finding, Verdict
 
 _NAMED = {"\n": "\\n", "\r": "\\r", "\t": "\\t"}
 
@@ -69,11 +69,6 @@ def _escape(ch: str) -> str:
 def plural(count: int, noun: str) -> str:
     """``1 part``, ``2 parts``."""
     return f"{count} {noun}" if count == 1 else f"{count} {noun}s"
-
-
-def exit_status(result: CheckResult) -> ExitStatus:
-    """``FAILED`` when a finding fails the run (``CheckResult.is_failing``), else ``OK``."""
-    return ExitStatus.FAILED if result.failed else ExitStatus.OK
 
 
 _TOLERANCE_RULE = (

@@ -15,7 +15,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from ..results import CheckResult, Finding, Verdict
+from ..outcome import CheckResult
+from ..results import Finding, Verdict
 from .common import (
     View,
     describe,

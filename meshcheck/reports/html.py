@@ -29,7 +29,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..results import CheckResult, Finding, Verdict, clash_groups
+from ..outcome import CheckResult
+from ..results import Finding, Verdict, clash_groups
 from .common import View, ordered, pose_text, summary, sweep_rows
 
 if TYPE_CHECKING:

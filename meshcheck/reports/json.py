@@ -18,7 +18,8 @@ from __future__ import annotations
 import json
 from collections.abc import Sequence
 
-from ..results import CheckResult, clash_groups
+from ..outcome import CheckResult
+from ..results import clash_groups
 from .common import View, ordered, summary
 
 

@@ -13,7 +13,8 @@ import json
 from collections.abc import Sequence
 from xml.etree import ElementTree as ET
 
-from ..results import CheckResult, Finding
+from ..outcome import CheckResult
+from ..results import Finding
 from .common import View, describe, ordered, part_files, printable, resolution, sweep_message
 
 

@@ -10,7 +10,8 @@ from __future__ import annotations
 import re
 from collections.abc import Sequence
 
-from ..results import CheckResult, clash_groups
+from ..outcome import CheckResult
+from ..results import clash_groups
 from .common import (
     View,
     describe,

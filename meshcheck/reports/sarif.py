@@ -15,7 +15,8 @@ import urllib.parse
 from collections.abc import Sequence
 from importlib import metadata
 
-from ..results import FINDING_STATUSES, CheckResult, Finding, Verdict
+from ..outcome import CheckResult
+from ..results import FINDING_STATUSES, Finding, Verdict
 from .common import (
     View,
     describe,

@@ -18,7 +18,7 @@ from __future__ import annotations
 from xml.sax.saxutils import quoteattr
 
 from ..errors import ConfigError
-from ..results import CheckResult
+from ..outcome import CheckResult
 
 REASONS = {"never": "Never", "always": "Always"}
 

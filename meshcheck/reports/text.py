@@ -11,7 +11,8 @@ import shutil
 import textwrap
 from collections.abc import Sequence
 
-from ..results import CheckResult, clash_groups
+from ..outcome import CheckResult
+from ..results import clash_groups
 from .common import (
     View,
     describe,

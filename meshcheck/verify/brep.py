@@ -58,7 +58,8 @@ from ..errors import InputError, MeshcheckWarning
 from ..load import Body
 from ..load.files import STEP_EXTENSIONS
 from ..results import Finding, Location, PairVerdict, Verdict
-from ..settings import Settings, pair_tolerances, part_sizes
+from ..settings import Settings
+from ..tolerances import pair_tolerances, part_sizes
 from ..units import METRES
 
 #: Findings within this many tolerances of it are decided on the B-rep (see the module docstring).

@@ -377,7 +377,7 @@ class _Search:
             < 1 - FLAT_EDGE_COS
         )
         for edges in (pair[bent & (lift > 0.0)], pair[bent & (lift <= 0.0)]):
-            self._grow_edge_seeds(e, owner, _strided(edges, _MAX_SEEDS), size)
+            self._grow_edge_seeds(e, owner, evenly_strided(edges, _MAX_SEEDS), size)
 
     def _grow_edge_seeds(self, e, owner, pair, size) -> None:
         bisector = -(self.normal[owner[pair]] + self.normal[owner[pair + 1]])
@@ -671,7 +671,7 @@ def _triangle_distances(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
     return out
 
 
-def _strided(items: np.ndarray, limit: int) -> np.ndarray:
+def evenly_strided(items: np.ndarray, limit: int) -> np.ndarray:
     """At most ``limit`` of ``items``, evenly strided."""
     return items if len(items) <= limit else items[:: -(-len(items) // limit)]
 

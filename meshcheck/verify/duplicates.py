@@ -15,6 +15,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..results import Finding, Location, PairVerdict, Verdict
+from ..tolerances import mesh_tolerance
 
 #: Tolerance -> search radius in the 12-number placement space (scaled rotation, translation):
 #: a distance r there moves no vertex by more than sqrt(2) r, so r = tol / 2 keeps every vertex
@@ -22,9 +23,7 @@ from ..results import Finding, Location, PairVerdict, Verdict
 _RADIUS_FRACTION = 0.5
 
 
-def duplicate_sets(
-    bodies: Sequence, geometry: dict, *, tolerance: float | None, fraction: float
-) -> list[list[int]]:
+def duplicate_sets(bodies: Sequence, geometry: dict, *, tolerance: float | None) -> list[list[int]]:
     """Sets of body indices (each sorted, two or more) that are copies at the same spot.
 
     Parameters
@@ -33,9 +32,8 @@ def duplicate_sets(
     geometry : dict
         ``load.local_geometries(bodies)``.
     tolerance : float or None
-        The user's touching tolerance, model units; None: ``fraction`` of the part's diagonal.
-    fraction : float
-        The relative tolerance (``settings.TOLERANCE_FRACTION``).
+        The user's touching tolerance, model units; None: the part's own
+        (``tolerances.mesh_tolerance``).
     """
     by_digest: dict[str, list[int]] = {}
     for k, body in enumerate(bodies):
@@ -44,9 +42,12 @@ def duplicate_sets(
     for members in by_digest.values():
         if len(members) < 2:
             continue
-        local = geometry[id(bodies[members[0]].mesh)].local
+        first = bodies[members[0]]
+        local, _, corner, _ = geometry[id(first.mesh)]
         diagonal = float(np.linalg.norm(local.max(axis=0))) if len(local) else 0.0
-        tol = tolerance if tolerance is not None else fraction * diagonal
+        tol = tolerance
+        if tol is None:
+            tol = mesh_tolerance(local, corner, is_float32=first.is_float32)
         features = np.array([_placement(bodies[k], geometry, diagonal) for k in members])
         sets += [[members[i] for i in group] for group in clusters(features, tol)]
     return sorted(sets)

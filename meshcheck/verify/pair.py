@@ -33,7 +33,7 @@ from ..geometry.triangles import (
 )
 from ..mesh import is_closed
 from ..results import PairVerdict, Solid, Verdict
-from .depth import depth_bounds
+from .depth import depth_bounds, evenly_strided
 
 # Points tested with winding numbers (each costs one pass over the other mesh's triangles): one per
 # shell for burial (a triangle soup can have a shell per triangle), and the surface-only probes.
@@ -108,7 +108,7 @@ def verify_pair(
 
 
 @dataclass(frozen=True)
-class _Pair:
+class _CentredPair:
     """Both meshes, re-centred on ``origin`` (world = local + origin)."""
 
     va: np.ndarray
@@ -121,7 +121,7 @@ class _Pair:
     is_closed: bool  # both meshes closed (then their faces are wound outward)
 
 
-def _recentred(a: trimesh.Trimesh, b: trimesh.Trimesh, memo: dict) -> _Pair:
+def _recentred(a: trimesh.Trimesh, b: trimesh.Trimesh, memo: dict) -> _CentredPair:
     """Both meshes as float64 arrays re-centred on a point between them; closed ones wound
     outward (manifold3d and the inward rays want that)."""
     is_closed = _is_closed(a) and _is_closed(b)
@@ -135,10 +135,10 @@ def _recentred(a: trimesh.Trimesh, b: trimesh.Trimesh, memo: dict) -> _Pair:
         fa = fa[:, ::-1].copy() if flipped[0] else fa
         fb = fb[:, ::-1].copy() if flipped[1] else fb
     keys = ((id(a), flipped[0]), (id(b), flipped[1]))
-    return _Pair(va, fa, vb, fb, origin, keys, memo, is_closed)
+    return _CentredPair(va, fa, vb, fb, origin, keys, memo, is_closed)
 
 
-def _clearance_verdict(m: _Pair, near: _Near, distance: float) -> PairVerdict:
+def _clearance_verdict(m: _CentredPair, near: _Near, distance: float) -> PairVerdict:
     """A clearance finding: the two closest points, their box and its centre, world frame."""
     k = int(np.argmin(near.distance))
     p, q = near.point_a[k] + m.origin, near.point_b[k] + m.origin
@@ -195,7 +195,7 @@ def _common_origin(va: np.ndarray, vb: np.ndarray) -> np.ndarray:
     return 0.5 * (lo + hi)
 
 
-def _near_pairs(m: _Pair, reach: float) -> _Near:
+def _near_pairs(m: _CentredPair, reach: float) -> _Near:
     """Exact distances of the triangle pairs whose boxes come within ``reach`` of each other."""
     alo, ahi = triangle_boxes(m.va, m.fa)
     blo, bhi = triangle_boxes(m.vb, m.fb)
@@ -226,16 +226,11 @@ def _shell_points(v: np.ndarray, f: np.ndarray, memo: dict, key) -> np.ndarray:
         graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
         _, labels = connected_components(graph, directed=False)
         _, first = np.unique(labels[used], return_index=True)
-        index = memo[("shells", key)] = _strided(used[first], _MAX_SHELL_PROBES)
+        index = memo[("shells", key)] = evenly_strided(used[first], _MAX_SHELL_PROBES)
     return v[index]
 
 
-def _strided(points: np.ndarray, limit: int) -> np.ndarray:
-    """At most ``limit`` of ``points``, evenly strided."""
-    return points if len(points) <= limit else points[:: -(-len(points) // limit)]
-
-
-def _is_buried(m: _Pair) -> bool:
+def _is_buried(m: _CentredPair) -> bool:
     """True when a shell of one mesh lies inside the other (winding number above one half, in
     magnitude: an inside-out mesh has winding number -1 inside)."""
     for v, f, ov, of, key in (
@@ -325,7 +320,7 @@ def solid_depth(v: np.ndarray, f: np.ndarray) -> float:
 
 
 def _interference(
-    m: _Pair, *, tolerance: float, distance: float, near: _Near | None
+    m: _CentredPair, *, tolerance: float, distance: float, near: _Near | None
 ) -> PairVerdict:
     """Interference or touching, for meshes that meet or where one may be buried in the other."""
     if m.is_closed:
@@ -335,7 +330,9 @@ def _interference(
     return _surface_verdict(m, tolerance=tolerance, distance=distance, near=near)
 
 
-def _solid_verdict(m: _Pair, solid, *, tolerance: float, distance: float, near) -> PairVerdict:
+def _solid_verdict(
+    m: _CentredPair, solid, *, tolerance: float, distance: float, near
+) -> PairVerdict:
     """Touching only when the shared solid is proven no thicker than the tolerance (an upper
     bound on its largest ball); a ball that merely failed to be found larger proves nothing,
     so anything short of that proof is an interference, reported with the largest ball shown
@@ -359,7 +356,7 @@ def _solid_verdict(m: _Pair, solid, *, tolerance: float, distance: float, near) 
     return PairVerdict(Verdict.TOUCHING, distance, location=_contact_region(m, near, tolerance))
 
 
-def _surface_verdict(m: _Pair, *, tolerance: float, distance: float, near) -> PairVerdict:
+def _surface_verdict(m: _CentredPair, *, tolerance: float, distance: float, near) -> PairVerdict:
     """Verdict from surfaces alone: they interfere when they pass through each other by more
     than the tolerance, or when a surface lies deeper than that inside the other mesh."""
     if near is None:  # surfaces apart: only a buried shell brings us here
@@ -387,7 +384,7 @@ def _surface_verdict(m: _Pair, *, tolerance: float, distance: float, near) -> Pa
     )
 
 
-def _deep_points(m: _Pair, near: _Near, tolerance: float) -> np.ndarray:
+def _deep_points(m: _CentredPair, near: _Near, tolerance: float) -> np.ndarray:
     """Vertices and centroids of the triangles near the other mesh that lie inside it (winding
     number above one half) by more than the tolerance, local frame, ``(p, 3)``."""
     from ..geometry.triangles import point_distances
@@ -396,7 +393,7 @@ def _deep_points(m: _Pair, near: _Near, tolerance: float) -> np.ndarray:
     for col, (v, f, ov, of) in enumerate(((m.va, m.fa, m.vb, m.fb), (m.vb, m.fb, m.va, m.fa))):
         faces = np.unique(near.pairs[:, col])
         tri = v[f[faces]]
-        points = _strided(
+        points = evenly_strided(
             np.concatenate([tri.mean(axis=1), v[np.unique(f[faces])]]), _MAX_SURFACE_PROBES
         )
         inside = points[np.abs(winding_numbers(points, ov, of)) > 0.5]
@@ -405,7 +402,9 @@ def _deep_points(m: _Pair, near: _Near, tolerance: float) -> np.ndarray:
     return np.concatenate(found) if found else np.empty((0, 3))
 
 
-def _contact_region(m: _Pair, near: _Near | None, tolerance: float) -> results.Location | None:
+def _contact_region(
+    m: _CentredPair, near: _Near | None, tolerance: float
+) -> results.Location | None:
     """Where two meshes touch: the box around the overlaps of the boxes of the triangle pairs
     within the tolerance, and its centre (exact for the usual flat rectangles and rings)."""
     if near is None:

@@ -18,10 +18,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..results import GROUPED_STATUSES, Finding
-from ..settings import FLOAT32_ULPS, TOLERANCE_FRACTION
+from ..tolerances import mesh_tolerance
 from .duplicates import clusters
-
-_EPS32 = float(np.finfo(np.float32).eps)
 
 
 def with_patterns(
@@ -97,7 +95,7 @@ def geometry_classes(bodies: Sequence, geometry: dict, *, tolerance: float | Non
         ``load.local_geometries`` of (at least) ``bodies``.
     tolerance : float or None
         The user's touching tolerance, model units; None: each mesh's own, as for a pair
-        (``TOLERANCE_FRACTION`` of its size, at least the float32 rounding of its coordinates).
+        (``tolerances.mesh_tolerance``).
 
     Returns
     -------
@@ -151,13 +149,11 @@ _NEIGHBOURS = [(i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0
 
 def _mesh_tolerance(body, local_geometry: tuple, tolerance: float | None) -> float:
     """How far two copies' local vertices may differ and be one geometry, the mesh's units."""
-    local, _, corner, _ = local_geometry
+    if tolerance is None:
+        local, _, corner, _ = local_geometry
+        return mesh_tolerance(local, corner, is_float32=body.is_float32)
     scale = abs(float(np.linalg.det(np.asarray(body.transform)[:3, :3]))) ** (1.0 / 3.0)
-    if tolerance is not None:
-        return tolerance / scale if scale > 0 else 0.0
-    size = float(np.linalg.norm(local.max(axis=0))) if len(local) else 0.0
-    magnitude = float(np.abs(local + corner).max(initial=0.0))
-    return max(TOLERANCE_FRACTION * size, FLOAT32_ULPS * _EPS32 * magnitude)
+    return tolerance / scale if scale > 0 else 0.0
 
 
 def _relative(bodies, index, geometry, kind, finding: Finding, first: str, second: str):

@@ -18,7 +18,7 @@ from ..geometry.broadphase import candidate_pairs
 from ..load import Body
 from ..mesh import is_closed, shell_labels, split_shells, warn
 from ..results import Verdict
-from ..settings import SHELL_TOUCH_FRACTION
+from ..tolerances import SHELL_TOUCH_FRACTION
 from .pair import verify_pair
 
 

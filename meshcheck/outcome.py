@@ -1,0 +1,126 @@
+"""What a whole run found and what it means: ``CheckResult``, whether it fails, its exit status.
+
+The one place the run's pass/fail is decided (black's ``report.py``): a finding fails the run when
+it is unapproved, has a status the settings fail on and (with ``--fail-on new``) is new against
+the baseline; a ``[[joint]]`` mechanism that collides within its ranges fails it too. The command
+line ends with ``exit_status``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
+
+from .errors import ExitStatus
+from .results import Finding, Part, Verdict
+
+if TYPE_CHECKING:
+    from .baseline import Baseline
+    from .settings import Settings
+
+
+@dataclass(frozen=True)
+class CheckResult:
+    """Everything one check found, and the settings it ran with.
+
+    Attributes
+    ----------
+    findings : list of Finding
+        Sorted by part names.
+    parts : list of Part
+    settings : Settings
+        What the check ran with; its ``fail_on`` decides ``passed``.
+    checked_pairs : list of (str, str)
+        The part pairs the broad phase left to check (sorted names), clear ones included.
+    warnings : list of str
+        The messages of the run's MeshcheckWarnings.
+    units : str
+        The unit every length of the result is in (``meshcheck.units``).
+    bodies : tuple of load.Body
+        The parts' geometry, for outputs that draw them (``--export``); not compared.
+    baseline : baseline.Baseline or None
+        The previous report the findings were compared with (``baseline.compare``), if any.
+    sweeps : tuple of sweep.RobotSweep
+        With ``--sweep``: each robot's link pairs classified over the joint ranges.
+    """
+
+    findings: list[Finding]
+    parts: list[Part]
+    settings: Settings
+    checked_pairs: list[tuple[str, str]] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    bodies: tuple = field(default=(), repr=False, compare=False)
+    units: str = "mm"
+    baseline: Baseline | None = None
+    sweeps: tuple = ()
+
+    @property
+    def tolerance(self) -> float | None:
+        """The touching tolerance the user set, or None when each pair had its own."""
+        return self.settings.tolerance
+
+    @property
+    def clearance(self) -> float | None:
+        return self.settings.clearance
+
+    @property
+    def fail_on(self) -> tuple[Verdict, ...]:
+        return self.settings.fail_on
+
+    def count(self, status: str) -> int:
+        """Number of unapproved findings with this status."""
+        return sum(1 for f in self.findings if f.status == status and not f.is_approved)
+
+    def is_failing(self, finding: Finding) -> bool:
+        """True when ``finding`` fails the run: unapproved, with a status in ``fail_on``, and new
+        against the baseline when the settings ask for ``fail_on_new``."""
+        if finding.is_approved or finding.status not in self.settings.fail_on:
+            return False
+        # Only a finding the baseline holds is spared: without a baseline, every finding is new.
+        return not self.settings.fail_on_new or self.baseline_state(finding) != "active"
+
+    def baseline_state(self, finding: Finding) -> str | None:
+        """``"new"`` or ``"active"`` against the baseline; None when there is no baseline."""
+        return None if self.baseline is None else self.baseline.state(finding)
+
+    @property
+    def failing_sweeps(self) -> list:
+        """(robot, pair) of each swept pair that fails the run (``is_failing_sweep``)."""
+        return [(r, p) for r in self.sweeps for p in r.pairs if self.is_failing_sweep(r, p)]
+
+    def is_failing_sweep(self, robot, pair) -> bool:
+        """True when a swept ``pair`` of ``robot`` fails the run: a pair of a mechanism made by
+        ``[[joint]]`` tables that collides somewhere in the declared ranges (a door hitting
+        its stop), unapproved, with the verdict at its witness in ``fail_on``. A URDF robot's
+        pairs never fail it: a robot collides with itself at some poses by design, and its
+        sweep's output is the allowed-collision matrix (``--srdf``)."""
+        return (
+            not robot.is_urdf
+            and pair.status in ("sometimes", "always")
+            and pair.approval_reason is None
+            and pair.verdict in self.settings.fail_on
+        )
+
+    @property
+    def failed(self) -> bool:
+        """True when an unapproved finding has a status that fails the run, or a mechanism's
+        parts collide within its joint ranges (``failing_sweeps``)."""
+        return any(self.is_failing(f) for f in self.findings) or bool(self.failing_sweeps)
+
+    @property
+    def passed(self) -> bool:
+        return not self.failed
+
+
+def compare(result: CheckResult, baseline: Baseline) -> CheckResult:
+    """``result`` with ``baseline`` attached: ``result.baseline_state(f)`` then says new or
+    active, and ``fail_on_new`` settings fail only the new findings."""
+    return replace(result, baseline=baseline)
+
+
+def exit_status(result: CheckResult) -> ExitStatus:
+    """``FAILED`` when the run fails (``CheckResult.failed``), else ``OK``."""
+    return ExitStatus.FAILED if result.failed else ExitStatus.OK
+
+
+__all__ = ["CheckResult", "compare", "exit_status"]
