@@ -150,6 +150,45 @@ def test_obj_objects_and_groups_are_bodies(tmp_path, keyword):
     assert all(b.is_closed and len(b.mesh.faces) == 12 for b in bodies)
 
 
+def _obj_cubes(offsets, indexing) -> str:
+    """An OBJ of unit cubes (``o cube<k>``) at ``offsets``; each object's faces index its own
+    vertices by ``indexing(k, i)`` for the 0-based vertex ``i`` of cube ``k``."""
+    cube = box(extents=(1, 1, 1))
+    lines = []
+    for k, offset in enumerate(offsets):
+        lines.append(f"o cube{k}")
+        lines += [f"v {x} {y} {z}" for x, y, z in cube.vertices + offset]
+        lines += ["f " + " ".join(indexing(k, i) for i in face) for face in cube.faces]
+    return "\n".join(lines) + "\n"
+
+
+RELATIVE = {
+    "absolute": lambda k, i: str(8 * k + i + 1),
+    "relative": lambda k, i: str(i - 8),
+    "mixed": lambda k, i: str(i - 8) if (i + k) % 2 else str(8 * k + i + 1),
+    "mixed with slashes": lambda k, i: f"{i - 8}//" if i % 3 else f"{8 * k + i + 1}//",
+}
+
+
+@pytest.mark.parametrize("indexing", sorted(RELATIVE))
+def test_obj_relative_indices_count_back_from_the_vertices_read_so_far(tmp_path, indexing):
+    offsets = np.array([[0, 0, 0], [0.5, 0.2, 0.1], [2.0, 0.0, 0.0]])
+    path = tmp_path / "cubes.obj"
+    path.write_text(_obj_cubes(offsets, RELATIVE[indexing]))
+    bodies = load_bodies([str(path)])
+    assert [b.name for b in bodies] == [f"{path}#cube{k}" for k in range(3)]
+    for body, offset in zip(bodies, offsets, strict=True):
+        assert body.is_closed
+        np.testing.assert_allclose(body.world.bounds, [offset - 0.5, offset + 0.5])
+
+
+def test_obj_relative_index_before_the_first_vertex_is_one_line(tmp_path):
+    path = tmp_path / "bad.obj"
+    path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf -4 -2 -1\n")
+    with pytest.raises(InputError, match=r"line 4: index -4 reaches before the first vertex"):
+        load_bodies([str(path)])
+
+
 def test_3mf_build_items_are_placed_bodies(tmp_path):
     path = write_3mf(tmp_path / "assy.3mf", [("base", (0, 0, 0)), ("top", (0, 0, 2))])
     bodies = load_bodies([path])

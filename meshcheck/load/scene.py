@@ -36,7 +36,7 @@ def read_scene(path: str, data: bytes, ext: str, budget: Budget) -> list[Item]:
         data = _as_utf8(data)
     elif ext == ".obj":
         kwargs = {"split_objects": True, "split_groups": True}
-        data = _as_utf8(data)
+        data = absolute_obj_indices(path, _as_utf8(data))
     try:
         scene = trimesh.load_scene(io.BytesIO(data), file_type=ext[1:], process=False, **kwargs)
     except InputError:
@@ -58,6 +58,63 @@ def read_scene(path: str, data: bytes, ext: str, budget: Budget) -> list[Item]:
             reason += " (only points: a point cloud is not a surface)"
         raise InputError(path, reason)
     return items
+
+
+_RELATIVE_INDEX = re.compile(rb"^[ \t]*[flp][ \t][^\n]*-[0-9]", re.MULTILINE)
+_ELEMENT = {b"v": 0, b"vt": 1, b"vn": 2}
+
+
+def absolute_obj_indices(path: str, data: bytes) -> bytes:
+    r"""An OBJ file's text with every relative (negative) index made absolute.
+
+    The format counts ``-k`` back from the elements read *so far* (``v``, ``vt`` and ``vn``
+    each in its own list), so an object written as its own vertices then ``f -8 ... -1`` refers
+    to those vertices. trimesh resolves negatives against the whole file's lists (trimesh issue
+    2364), which would give every such object the last object's vertices; absolute indices mean
+    the same to both. Text without a negative index in a face, line or point statement is
+    returned as it is.
+
+    Raises
+    ------
+    InputError
+        A relative index reaches before the first element read so far.
+
+    Examples
+    --------
+    >>> text = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\nv 0 0 1\nvn 0 0 1\nf 1 -3//-1 4\n"
+    >>> absolute_obj_indices("x.obj", text).decode().splitlines()[3::3]
+    ['f 1 2 3', 'f 1 2//1 4']
+    """
+    if not _RELATIVE_INDEX.search(data):
+        return data
+    counts = [0, 0, 0]
+    lines = data.split(b"\n")
+    for k, line in enumerate(lines):
+        words = line.split()
+        if not words:
+            continue
+        kind = _ELEMENT.get(words[0])
+        if kind is not None:
+            counts[kind] += 1
+        elif words[0] in (b"f", b"l", b"p") and b"-" in line:
+            lines[k] = b" ".join([words[0], *(_absolute(w, counts, path, k) for w in words[1:])])
+    return b"\n".join(lines)
+
+
+def _absolute(word: bytes, counts: list[int], path: str, line: int) -> bytes:
+    """One ``v/vt/vn`` reference with its negative parts counted from ``counts``."""
+    parts = word.split(b"/")
+    for n, part in enumerate(parts[:3]):
+        if part.startswith(b"-") and part[1:].isdigit():
+            index = counts[n] + 1 + int(part)
+            if index < 1:
+                raise InputError(
+                    path,
+                    f"line {line + 1}: index {part.decode()} reaches before the first "
+                    f"{('vertex', 'texture coordinate', 'normal')[n]}",
+                )
+            parts[n] = b"%d" % index
+    return b"/".join(parts)
 
 
 class Soup(NamedTuple):
