@@ -13,9 +13,19 @@ import warnings
 
 import click
 
-from . import DISTRIBUTION
+from . import (
+    DISTRIBUTION,
+    _process,  # noqa: F401  (before the modules below: it sets the process up before numpy)
+)
 from .config import FAIL_ON_CHOICES, NUMBER_RANGES, checked_number, parse_fail_on
-from .errors import ConfigError, ExitStatus, MeshcheckError, MeshcheckWarning, OutputError
+from .errors import (
+    ConfigError,
+    ExitStatus,
+    MeshcheckError,
+    MeshcheckWarning,
+    OutputError,
+    resource_error,
+)
 from .outcome import exit_status
 from .output import STDOUT, check_output, write_output
 from .reports import FORMATS, printable, render, summary_line
@@ -299,7 +309,8 @@ def main(**options):
     or configuration error
     (output paths and the baseline are checked before any work), 3 when an input cannot be
     checked, 4 for a bug in meshcheck (the traceback goes to a file named on stderr, or to stderr
-    when MESHCHECK_DEBUG is set), 5 when a report or the export cannot be written.
+    when MESHCHECK_DEBUG is set), 5 when a report or the export cannot be written, 6 when the
+    machine runs out of memory, disk space or open files.
 
     \b
     Examples:
@@ -314,7 +325,10 @@ def main(**options):
     except click.exceptions.ClickException:
         raise
     except Exception as exc:
-        _internal_error(exc)
+        exhausted = resource_error(exc)
+        if exhausted is None:
+            _internal_error(exc)
+        _fail(exhausted)
 
 
 def _run(

@@ -718,6 +718,24 @@ def executor_for(*, jobs: int | None = None, scheduler: str | None = None) -> Ex
 WORKER_BYTES = 256 << 20
 
 
+def address_space_left() -> int | None:
+    """Bytes this process may still map under its address-space limit (``ulimit -v``,
+    ``RLIMIT_AS``); None when there is no limit or it cannot be read (outside Linux)."""
+    try:
+        import resource
+
+        soft = resource.getrlimit(resource.RLIMIT_AS)[0]
+        if soft == resource.RLIM_INFINITY:
+            return None
+        with open("/proc/self/status", "rb") as fh:
+            for line in fh:
+                if line.startswith(b"VmSize:"):
+                    return max(0, soft - int(line.split()[1]) * 1024)
+    except (ImportError, OSError, ValueError, IndexError):
+        pass
+    return None
+
+
 def max_local_jobs() -> int:
     """Local workers a run may start: no more than the cores this process may run on, nor than
     the available memory holds ``WORKER_BYTES`` (``-j 10000`` starts what the machine can run).

@@ -43,7 +43,10 @@ STAGES = [
     ("sweep", ["sweep"]),  # asks the verify stage's kernels for distances along the joint ranges
     ("pipeline", ["pipeline"]),
     ("reports", ["reports"]),
-    ("command line", ["cli", "__main__", ""]),  # "": the package itself (its lazy names)
+    (
+        "command line",
+        ["cli", "__main__", "_process", ""],
+    ),  # "": the package itself (its lazy names)
 ]
 RANK = {top: k for k, (_, tops) in enumerate(STAGES) for top in tops}
 

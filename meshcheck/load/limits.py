@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, resource_error
 
 
 @dataclass(frozen=True)
@@ -135,7 +135,9 @@ def read_file(
     try:
         fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0))
     except OSError as exc:
-        raise InputError(path, f"cannot be read ({exc.strerror or exc})") from None
+        raise resource_error(exc, path) or InputError(
+            path, f"cannot be read ({exc.strerror or exc})"
+        ) from None
     try:
         info = os.fstat(fd)
         if stat.S_ISDIR(info.st_mode):
@@ -163,7 +165,9 @@ def read_file(
             left -= len(chunk)
         return b"".join(chunks)
     except OSError as exc:
-        raise InputError(path, f"cannot be read ({exc.strerror or exc})") from None
+        raise resource_error(exc, path) or InputError(
+            path, f"cannot be read ({exc.strerror or exc})"
+        ) from None
     finally:
         os.close(fd)
 

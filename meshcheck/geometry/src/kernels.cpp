@@ -10,6 +10,10 @@
 #include <numpy/arrayobject.h>
 
 #include <atomic>
+#include <exception>
+#include <mutex>
+#include <new>
+#include <stdexcept>
 #include <thread>
 
 #include "epa.hpp"
@@ -20,6 +24,32 @@
 using namespace meshcheck;
 
 namespace {
+
+// The GIL released for the life of a scope, and taken back however the scope ends: a C++
+// exception (std::bad_alloc from a vector) unwinding through the work must find the GIL held
+// again when `guarded` turns it into a Python exception.
+struct NoGil {
+    PyThreadState* saved;
+    NoGil() : saved(PyEval_SaveThread()) {}
+    ~NoGil() { PyEval_RestoreThread(saved); }
+    NoGil(const NoGil&) = delete;
+    NoGil& operator=(const NoGil&) = delete;
+};
+
+// A kernel entry point whose C++ exceptions become Python ones instead of aborting the
+// interpreter: std::bad_alloc is MemoryError (the caller says what ran out), anything else a
+// RuntimeError with its message.
+template <PyObject* (*F)(PyObject*, PyObject*)>
+PyObject* guarded(PyObject* self, PyObject* args) {
+    try {
+        return F(self, args);
+    } catch (const std::bad_alloc&) {
+        return PyErr_NoMemory();
+    } catch (const std::exception& e) {
+        PyErr_SetString(PyExc_RuntimeError, e.what());
+        return nullptr;
+    }
+}
 
 // An owned reference to a C-contiguous, aligned array of one dtype.
 struct Array {
@@ -230,25 +260,41 @@ PyObject* query_pairs(PyObject*, PyObject* args) {
             starts.i8(), nbr_starts.i8(), nbrs.i8(), pairs.i8(), want_depth != 0,
             static_cast<int8_t*>(PyArray_DATA(status.a)), distance.f8(), point_a.f8(),
             point_b.f8(), normal.f8()};
-    Py_BEGIN_ALLOW_THREADS;
-    if (threads <= 1) {
-        Polytope P;
-        run_pairs(t, 0, k, P);
-    } else {
-        // Chunks handed out in turn: pairs differ widely in cost (EPA or not).
-        constexpr int64_t CHUNK = 32;
-        std::atomic<int64_t> next{0};
-        auto work = [&]() {
+    {
+        const NoGil released;
+        if (threads <= 1) {
             Polytope P;
-            for (int64_t q0; (q0 = next.fetch_add(CHUNK)) < k;)
-                run_pairs(t, q0, std::min<int64_t>(q0 + CHUNK, k), P);
-        };
-        std::vector<std::thread> pool;
-        for (int w = 1; w < threads; ++w) pool.emplace_back(work);
-        work();
-        for (auto& th : pool) th.join();
+            run_pairs(t, 0, k, P);
+        } else {
+            // Chunks handed out in turn: pairs differ widely in cost (EPA or not).
+            // An exception in a worker (std::bad_alloc) stops the others and is rethrown here
+            // once all are joined; a thread that cannot be started leaves the work to the rest.
+            constexpr int64_t CHUNK = 32;
+            std::atomic<int64_t> next{0};
+            std::exception_ptr failure;
+            std::mutex failure_lock;
+            auto work = [&]() {
+                try {
+                    Polytope P;
+                    for (int64_t q0; (q0 = next.fetch_add(CHUNK)) < k;)
+                        run_pairs(t, q0, std::min<int64_t>(q0 + CHUNK, k), P);
+                } catch (...) {
+                    const std::lock_guard<std::mutex> hold(failure_lock);
+                    if (!failure) failure = std::current_exception();
+                    next = k;
+                }
+            };
+            std::vector<std::thread> pool;
+            try {
+                pool.reserve(threads);
+                for (int w = 1; w < threads; ++w) pool.emplace_back(work);
+            } catch (const std::exception&) {
+            }
+            work();
+            for (auto& th : pool) th.join();
+            if (failure) std::rethrow_exception(failure);
+        }
     }
-    Py_END_ALLOW_THREADS;
     Py_RETURN_NONE;
 }
 
@@ -282,9 +328,10 @@ PyObject* box_pairs_py(PyObject*, PyObject* args) {
         return nullptr;
     }
     std::vector<int64_t> out;
-    Py_BEGIN_ALLOW_THREADS;
-    box_pairs(alo.f8(), ahi.f8(), alo.len(), blo.f8(), bhi.f8(), blo.len(), reach, out);
-    Py_END_ALLOW_THREADS;
+    {
+        const NoGil released;
+        box_pairs(alo.f8(), ahi.f8(), alo.len(), blo.f8(), bhi.f8(), blo.len(), reach, out);
+    }
     npy_intp dims[2] = {static_cast<npy_intp>(out.size() / 2), 2};
     res.a = reinterpret_cast<PyArrayObject*>(PyArray_SimpleNew(2, dims, NPY_INT64));
     if (res.a == nullptr) return nullptr;
@@ -313,20 +360,21 @@ PyObject* pair_distances_py(PyObject*, PyObject* args) {
     if (!new_array(1, k, NPY_DOUBLE, dist) || !new_array(2, k, NPY_DOUBLE, pa) ||
         !new_array(2, k, NPY_DOUBLE, pb) || !new_array(1, k, NPY_DOUBLE, strength))
         return nullptr;
-    Py_BEGIN_ALLOW_THREADS;
-    for (npy_intp t = 0; t < k; ++t) {
-        Tri ta = triangle(va.f8(), fa.i8(), pr[2 * t]);
-        Tri tb = triangle(vb.f8(), fb.i8(), pr[2 * t + 1]);
-        V3 x, y;
-        bool crossing;
-        dist.f8()[t] = triangle_distance(ta, tb, x, y, crossing);
-        double* px = pa.f8() + 3 * t;
-        double* py = pb.f8() + 3 * t;
-        px[0] = x.x, px[1] = x.y, px[2] = x.z;
-        py[0] = y.x, py[1] = y.y, py[2] = y.z;
-        strength.f8()[t] = crossing ? crossing_strength(ta, tb) : 0.0;
+    {
+        const NoGil released;
+        for (npy_intp t = 0; t < k; ++t) {
+            Tri ta = triangle(va.f8(), fa.i8(), pr[2 * t]);
+            Tri tb = triangle(vb.f8(), fb.i8(), pr[2 * t + 1]);
+            V3 x, y;
+            bool crossing;
+            dist.f8()[t] = triangle_distance(ta, tb, x, y, crossing);
+            double* px = pa.f8() + 3 * t;
+            double* py = pb.f8() + 3 * t;
+            px[0] = x.x, px[1] = x.y, px[2] = x.z;
+            py[0] = y.x, py[1] = y.y, py[2] = y.z;
+            strength.f8()[t] = crossing ? crossing_strength(ta, tb) : 0.0;
+        }
     }
-    Py_END_ALLOW_THREADS;
     return Py_BuildValue("NNNN", dist.release(), pa.release(), pb.release(), strength.release());
 }
 
@@ -366,10 +414,11 @@ PyObject* per_point(PyObject*, PyObject* args) {
     if (!as_array(po, NPY_DOUBLE, 2, 3, "points", pts) || !as_array(vo, NPY_DOUBLE, 2, 3, "v", v) ||
         !faces_of(fo, v.len(), "f", f) || !new_array(1, pts.len(), NPY_DOUBLE, res))
         return nullptr;
-    Py_BEGIN_ALLOW_THREADS;
-    for (npy_intp i = 0; i < pts.len(); ++i)
-        res.f8()[i] = fn(row(pts.f8(), i), v.f8(), f.i8(), f.len());
-    Py_END_ALLOW_THREADS;
+    {
+        const NoGil released;
+        for (npy_intp i = 0; i < pts.len(); ++i)
+            res.f8()[i] = fn(row(pts.f8(), i), v.f8(), f.i8(), f.len());
+    }
     return res.release();
 }
 
@@ -386,9 +435,10 @@ PyObject* inscribed_ball_py(PyObject*, PyObject* args) {
     }
     V3 x;
     double r;
-    Py_BEGIN_ALLOW_THREADS;
-    r = inscribed_ball(v.f8(), f.i8(), f.len(), max_seeds, x);
-    Py_END_ALLOW_THREADS;
+    {
+        const NoGil released;
+        r = inscribed_ball(v.f8(), f.i8(), f.len(), max_seeds, x);
+    }
     return Py_BuildValue("dN", r, tuple3(x));
 }
 
@@ -406,11 +456,12 @@ PyObject* ray_hits_py(PyObject*, PyObject* args) {
         return nullptr;
     }
     if (!new_array(1, o.len(), NPY_DOUBLE, res)) return nullptr;
-    Py_BEGIN_ALLOW_THREADS;
-    const MeshBvh bvh(v.f8(), f.i8(), f.len());
-    for (npy_intp i = 0; i < o.len(); ++i)
-        res.f8()[i] = bvh_ray_first_hit(bvh, row(o.f8(), i), row(d.f8(), i), -1, beyond);
-    Py_END_ALLOW_THREADS;
+    {
+        const NoGil released;
+        const MeshBvh bvh(v.f8(), f.i8(), f.len());
+        for (npy_intp i = 0; i < o.len(); ++i)
+            res.f8()[i] = bvh_ray_first_hit(bvh, row(o.f8(), i), row(d.f8(), i), -1, beyond);
+    }
     return res.release();
 }
 
@@ -434,9 +485,10 @@ PyObject* ball_lp_py(PyObject*, PyObject* args) {
     if (y.a == nullptr) return nullptr;
     double t;
     int status;
-    Py_BEGIN_ALLOW_THREADS;
-    status = ball_lp(p.f8(), h.f8(), p.len(), R, max_iter, x.f8(), t, y.f8());
-    Py_END_ALLOW_THREADS;
+    {
+        const NoGil released;
+        status = ball_lp(p.f8(), h.f8(), p.len(), R, max_iter, x.f8(), t, y.f8());
+    }
     return Py_BuildValue("iNdN", status, x.release(), t, y.release());
 }
 
@@ -450,14 +502,15 @@ PyObject* closest_points_on_triangles_py(PyObject*, PyObject* args) {
         !faces_of(fo, v.len(), "f", f) || !new_array(1, f.len(), NPY_DOUBLE, dist) ||
         !new_array(2, f.len(), NPY_DOUBLE, q))
         return nullptr;
-    Py_BEGIN_ALLOW_THREADS;
-    for (npy_intp k = 0; k < f.len(); ++k) {
-        V3 y = closest_on_tri(p, triangle(v.f8(), f.i8(), k));
-        dist.f8()[k] = std::sqrt(dist2(p, y));
-        double* out = q.f8() + 3 * k;
-        out[0] = y.x, out[1] = y.y, out[2] = y.z;
+    {
+        const NoGil released;
+        for (npy_intp k = 0; k < f.len(); ++k) {
+            V3 y = closest_on_tri(p, triangle(v.f8(), f.i8(), k));
+            dist.f8()[k] = std::sqrt(dist2(p, y));
+            double* out = q.f8() + 3 * k;
+            out[0] = y.x, out[1] = y.y, out[2] = y.z;
+        }
     }
-    Py_END_ALLOW_THREADS;
     return Py_BuildValue("NN", dist.release(), q.release());
 }
 
@@ -516,13 +569,14 @@ PyObject* point_distances_py(PyObject* self, PyObject* args) {
         return nullptr;
     if (pts.len() < 8 || f.len() < 64) return per_point<point_distance_fn>(self, args);
     if (!new_array(1, pts.len(), NPY_DOUBLE, res)) return nullptr;
-    Py_BEGIN_ALLOW_THREADS;
-    const MeshBvh bvh(v.f8(), f.i8(), f.len());
-    for (npy_intp i = 0; i < pts.len(); ++i) {
-        int64_t no_hint = -1;
-        res.f8()[i] = bvh_distance_beyond(bvh, row(pts.f8(), i), -1.0, no_hint);
+    {
+        const NoGil released;
+        const MeshBvh bvh(v.f8(), f.i8(), f.len());
+        for (npy_intp i = 0; i < pts.len(); ++i) {
+            int64_t no_hint = -1;
+            res.f8()[i] = bvh_distance_beyond(bvh, row(pts.f8(), i), -1.0, no_hint);
+        }
     }
-    Py_END_ALLOW_THREADS;
     return res.release();
 }
 
@@ -537,12 +591,13 @@ PyObject* group_rows_py(PyObject*, PyObject* args) {
     if (k.a == nullptr || !new_array(1, k.len(), NPY_INT64, inverse)) return nullptr;
     const int64_t cols = k.len(1);
     std::vector<int64_t> heads;
-    Py_BEGIN_ALLOW_THREADS;
-    if (by_sorting)
-        group_rows_sorted(k.i8(), k.len(), cols, inverse.i8(), heads);
-    else
-        group_rows(k.i8(), k.len(), cols, inverse.i8(), heads);
-    Py_END_ALLOW_THREADS;
+    {
+        const NoGil released;
+        if (by_sorting)
+            group_rows_sorted(k.i8(), k.len(), cols, inverse.i8(), heads);
+        else
+            group_rows(k.i8(), k.len(), cols, inverse.i8(), heads);
+    }
     if (!new_array(1, static_cast<npy_intp>(heads.size()), NPY_INT64, first)) return nullptr;
     std::copy(heads.begin(), heads.end(), first.i8());
     return Py_BuildValue("NN", first.release(), inverse.release());
@@ -556,10 +611,11 @@ PyObject* degenerate_triangles_py(PyObject*, PyObject* args) {
     if (!as_array(vo, NPY_DOUBLE, 2, 3, "v", v) || !faces_of(fo, v.len(), "f", f) ||
         !new_array(1, f.len(), NPY_BOOL, repeated) || !new_array(1, f.len(), NPY_BOOL, flat))
         return nullptr;
-    Py_BEGIN_ALLOW_THREADS;
-    degenerate_triangles(v.f8(), f.i8(), f.len(), static_cast<bool*>(PyArray_DATA(repeated.a)),
-                         static_cast<bool*>(PyArray_DATA(flat.a)));
-    Py_END_ALLOW_THREADS;
+    {
+        const NoGil released;
+        degenerate_triangles(v.f8(), f.i8(), f.len(), static_cast<bool*>(PyArray_DATA(repeated.a)),
+                             static_cast<bool*>(PyArray_DATA(flat.a)));
+    }
     return Py_BuildValue("NN", repeated.release(), flat.release());
 }
 
@@ -570,9 +626,10 @@ PyObject* is_closed_py(PyObject*, PyObject* args) {
     Array f;
     if (!as_array(fo, NPY_INT64, 2, 3, "faces", f)) return nullptr;
     bool closed;
-    Py_BEGIN_ALLOW_THREADS;
-    closed = is_closed(f.i8(), f.len());
-    Py_END_ALLOW_THREADS;
+    {
+        const NoGil released;
+        closed = is_closed(f.i8(), f.len());
+    }
     return PyBool_FromLong(closed);
 }
 
@@ -590,29 +647,30 @@ PyObject* shell_labels_py(PyObject*, PyObject* args) {
         !new_array(1, f.len(), NPY_INT64, labels))
         return nullptr;
     int64_t count;
-    Py_BEGIN_ALLOW_THREADS;
-    count = shell_labels(f.i8(), f.len(), n_vertices, labels.i8());
-    Py_END_ALLOW_THREADS;
+    {
+        const NoGil released;
+        count = shell_labels(f.i8(), f.len(), n_vertices, labels.i8());
+    }
     return Py_BuildValue("NL", labels.release(), static_cast<long long>(count));
 }
 
 PyMethodDef METHODS[] = {
-    {"query_points", query_points, METH_VARARGS, nullptr},
-    {"query_pairs", query_pairs, METH_VARARGS, nullptr},
-    {"triangle_boxes", triangle_boxes_py, METH_VARARGS, nullptr},
-    {"box_pairs", box_pairs_py, METH_VARARGS, nullptr},
-    {"pair_distances", pair_distances_py, METH_VARARGS, nullptr},
-    {"triangle_distance", triangle_distance_py, METH_VARARGS, nullptr},
-    {"winding_numbers", per_point<winding_number_fn>, METH_VARARGS, nullptr},
-    {"point_distances", point_distances_py, METH_VARARGS, nullptr},
-    {"inscribed_ball", inscribed_ball_py, METH_VARARGS, nullptr},
-    {"ball_lp", ball_lp_py, METH_VARARGS, nullptr},
-    {"ray_hits", ray_hits_py, METH_VARARGS, nullptr},
-    {"closest_points_on_triangles", closest_points_on_triangles_py, METH_VARARGS, nullptr},
-    {"group_rows", group_rows_py, METH_VARARGS, nullptr},
-    {"degenerate_triangles", degenerate_triangles_py, METH_VARARGS, nullptr},
-    {"is_closed", is_closed_py, METH_VARARGS, nullptr},
-    {"shell_labels", shell_labels_py, METH_VARARGS, nullptr},
+    {"query_points", guarded<query_points>, METH_VARARGS, nullptr},
+    {"query_pairs", guarded<query_pairs>, METH_VARARGS, nullptr},
+    {"triangle_boxes", guarded<triangle_boxes_py>, METH_VARARGS, nullptr},
+    {"box_pairs", guarded<box_pairs_py>, METH_VARARGS, nullptr},
+    {"pair_distances", guarded<pair_distances_py>, METH_VARARGS, nullptr},
+    {"triangle_distance", guarded<triangle_distance_py>, METH_VARARGS, nullptr},
+    {"winding_numbers", guarded<per_point<winding_number_fn>>, METH_VARARGS, nullptr},
+    {"point_distances", guarded<point_distances_py>, METH_VARARGS, nullptr},
+    {"inscribed_ball", guarded<inscribed_ball_py>, METH_VARARGS, nullptr},
+    {"ball_lp", guarded<ball_lp_py>, METH_VARARGS, nullptr},
+    {"ray_hits", guarded<ray_hits_py>, METH_VARARGS, nullptr},
+    {"closest_points_on_triangles", guarded<closest_points_on_triangles_py>, METH_VARARGS, nullptr},
+    {"group_rows", guarded<group_rows_py>, METH_VARARGS, nullptr},
+    {"degenerate_triangles", guarded<degenerate_triangles_py>, METH_VARARGS, nullptr},
+    {"is_closed", guarded<is_closed_py>, METH_VARARGS, nullptr},
+    {"shell_labels", guarded<shell_labels_py>, METH_VARARGS, nullptr},
     {nullptr, nullptr, 0, nullptr},
 };
 
