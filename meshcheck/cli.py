@@ -24,6 +24,7 @@ from .errors import (
     MeshcheckError,
     MeshcheckWarning,
     OutputError,
+    ResourceError,
     resource_error,
 )
 from .outcome import exit_status
@@ -324,6 +325,8 @@ def main(**options):
         sys.exit(130)
     except click.exceptions.ClickException:
         raise
+    except MeshcheckError as exc:
+        _fail(exc)
     except Exception as exc:
         exhausted = resource_error(exc)
         if exhausted is None:
@@ -425,8 +428,16 @@ def _baseline(path):
 
 def _check(files, settings, baseline, export_path):
     """Run the check (and the export); print its warnings; exit on an error, after them."""
+    from .execute import RUN_ADDRESS_SPACE, address_space_left
     from .progress import Progress
 
+    left = address_space_left()
+    if left is not None and left < RUN_ADDRESS_SPACE:
+        raise ResourceError(
+            None,
+            f"out of memory: the address-space limit leaves {left >> 20} MiB after start-up, "
+            f"a check needs {RUN_ADDRESS_SPACE >> 20} MiB",
+        )
     with Progress("starting", 0):  # numba, trimesh, scipy: seconds on a cold disk
         from .pipeline import check
 

@@ -718,6 +718,12 @@ def executor_for(*, jobs: int | None = None, scheduler: str | None = None) -> Ex
 WORKER_BYTES = 256 << 20
 
 
+#: Address space a check needs beyond the command's start-up (under ``ulimit -v``, the
+#: command refuses to start with less): scipy's, trimesh's and the stages' imports map ~180 MiB,
+#: and scipy's OpenBLAS loops for ever in its initialisation when it cannot map its buffers.
+RUN_ADDRESS_SPACE = 320 << 20
+
+
 def address_space_left() -> int | None:
     """Bytes this process may still map under its address-space limit (``ulimit -v``,
     ``RLIMIT_AS``); None when there is no limit or it cannot be read (outside Linux)."""

@@ -88,48 +88,84 @@ def test_a_kernel_that_cannot_allocate_raises_memory_error():
     assert (proc.returncode, proc.stdout.strip()) == (0, "MemoryError"), proc.stderr
 
 
+def test_a_boolean_without_room_raises_memory_error_instead_of_crashing():
+    """manifold3d segfaults when an allocation fails: the boolean is refused first."""
+    code = textwrap.dedent(
+        """
+        import resource, trimesh
+        from meshcheck.verify.pair import shared_solid
+        sphere = trimesh.creation.icosphere(subdivisions=6)  # 81,920 triangles: 53 MiB by the guard
+        cube = trimesh.creation.box(extents=(1, 1, 1))
+        with open("/proc/self/status") as fh:
+            mapped = next(int(l.split()[1]) * 1024 for l in fh if l.startswith("VmSize:"))
+        resource.setrlimit(resource.RLIMIT_AS, (mapped + (40 << 20), resource.RLIM_INFINITY))
+        try:
+            shared_solid(sphere.vertices, sphere.faces, cube.vertices, cube.faces)
+        except MemoryError:
+            print("MemoryError")
+        """
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=False
+    )
+    assert (proc.returncode, proc.stdout.strip()) == (0, "MemoryError"), proc.stderr
+
+
+def test_too_little_address_space_to_start_is_one_line_and_exit_6():
+    status, stdout, lines = capped("memory", 150, "--no-cache", "sample_meshes/plate.stl")
+    assert status == ExitStatus.RESOURCES, lines
+    assert re.fullmatch(
+        r"error: out of memory: the address-space limit leaves 1\d\d MiB after start-up, "
+        r"a check needs 320 MiB",
+        lines[-1],
+    ), lines
+    assert stdout == ""
+
+
 @pytest.fixture(scope="module")
 def large_pair(tmp_path_factory):
-    """A 327,680-triangle sphere and a box that cuts it: a boolean of a few hundred MB."""
+    """An 81,920-triangle sphere and a box that cuts it."""
     folder = tmp_path_factory.mktemp("large")
-    trimesh.creation.icosphere(subdivisions=7).export(folder / "sphere.stl")
+    trimesh.creation.icosphere(subdivisions=6).export(folder / "sphere.stl")
     box(extents=(1, 1, 1), at=(1, 0, 0)).export(folder / "box.stl")
     return [folder / "sphere.stl", folder / "box.stl"]
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("mib", [40, 150, 250])
-def test_out_of_memory_is_one_line_and_exit_6(large_pair, mib):
-    """Whichever allocation fails (numpy, a kernel, the boolean: manifold3d would crash), the
-    run ends with one line saying memory ran out."""
-    status, stdout, lines = capped("memory", mib, "--no-cache", "-j", "1", *large_pair)
-    assert status == ExitStatus.RESOURCES, lines
-    assert lines[-1] == "error: out of memory (the machine's, or a limit such as ulimit -v)"
-    assert not any("Traceback" in line or "internal error" in line for line in lines)
-    assert stdout == ""
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("mib", [120, 200, 300, 450, 700])
-def test_a_report_under_a_memory_cap_is_whole_or_absent(tmp_path, mib):
-    """Across caps, every run either ends with the out-of-memory line (exit 6) or writes the
-    same report as an uncapped run: never a partial report, never exit 1 without one (OpenBLAS
-    calls exit(1) when its per-thread buffer cannot be mapped)."""
-    parts = [box(at=(k * 0.9, 0, 0)) for k in range(6)]
-    paths = []
-    for k, part in enumerate(parts):
-        part.export(tmp_path / f"p{k}.stl")
-        paths.append(tmp_path / f"p{k}.stl")
-    args = ["--no-cache", "-j", "2", "--format", "json", *paths]
-    status, reference, _ = capped("memory", 4096, *args)
-    assert status == ExitStatus.FAILED
+def _whole_or_absent(args, mib, reference):
+    """Run under a cap of ``mib``: one out-of-memory line and exit 6, or the uncapped report."""
     status, stdout, lines = capped("memory", mib, *args)
+    assert not any("Traceback" in line or "internal error" in line for line in lines)
     if status == ExitStatus.RESOURCES:
         assert lines[-1].startswith("error: out of memory"), lines
         assert stdout == ""
     else:
         assert status == ExitStatus.FAILED, lines
         assert json.loads(stdout) == json.loads(reference)
+
+
+@pytest.mark.slow
+def test_a_large_boolean_under_memory_caps_is_whole_or_absent(large_pair):
+    args = ["--no-cache", "-j", "1", "--format", "json", *large_pair]
+    status, reference, _ = capped("memory", 4096, *args)
+    assert status == ExitStatus.FAILED
+    for mib in (330, 400):
+        _whole_or_absent(args, mib, reference)
+
+
+@pytest.mark.slow
+def test_two_workers_under_memory_caps_are_whole_or_absent(tmp_path):
+    """Across caps, every run either ends with the out-of-memory line (exit 6) or writes the
+    same report as an uncapped run: never a partial report, never exit 1 without one (OpenBLAS
+    calls exit(1) when its per-thread buffer cannot be mapped)."""
+    paths = []
+    for k in range(6):
+        box(at=(k * 0.9, 0, 0)).export(tmp_path / f"p{k}.stl")
+        paths.append(tmp_path / f"p{k}.stl")
+    args = ["--no-cache", "-j", "2", "--format", "json", *paths]
+    status, reference, _ = capped("memory", 4096, *args)
+    assert status == ExitStatus.FAILED
+    for mib in (330, 400):
+        _whole_or_absent(args, mib, reference)
 
 
 @pytest.mark.parametrize("jobs", ["1", "2"])
