@@ -16,7 +16,8 @@ from .config import Approval
 from .load import Body
 from .load.files import URDF_EXTENSIONS
 from .load.limits import Limits, read_file
-from .load.urdf import MOVABLE, Robot, adjacent_links, parse_robot, with_mimics
+from .load.robot import MOVABLE, Robot, adjacent_links, with_mimics
+from .load.urdf import parse_robot
 
 #: The reason adjacent links' findings are approved with (MoveIt's "Adjacent").
 ADJACENT = "adjacent"
@@ -34,7 +35,7 @@ class Mechanism:
     units : str
         The unit of the robot's lengths: metres for a URDF, the report unit for ``[[joint]]``.
     adjacent : set of frozenset of str
-        Link pairs joined by a joint (``load.urdf.adjacent_links`` for a URDF).
+        Link pairs joined by a joint (``load.robot.adjacent_links`` for a URDF).
     is_urdf : bool
         A URDF robot: every link pair is swept and goes to the SRDF. A mechanism of mesh parts
         sweeps only the pairs some joint moves relative to each other (the check itself judges
@@ -170,7 +171,7 @@ class PairSweep:
     boxes : int
         Boxes of joint values evaluated.
     is_adjacent : bool
-        The links are joined by a joint (``load.urdf.adjacent_links``).
+        The links are joined by a joint (``load.robot.adjacent_links``).
     approval_reason : str or None
         For a mechanism of ``[[joint]]`` tables, the reason of the approval rule its two parts
         match (adjacent parts: ``ADJACENT``); its collision then does not fail the run.
@@ -576,7 +577,7 @@ def _posed_distances(pack_a, pack_b, ta, tb, reach, pad_a, pad_b, settle=False) 
 class _Term:
     """One swept joint between the pair's common ancestor and one of its links."""
 
-    joint: object  # load.urdf.Joint
+    joint: object  # load.robot.Joint
     lead: int  # its leading joint's index among the pair's free joints
     multiplier: float  # |its value's change per unit of the leader's|
     weight: float  # bound on the link's points' speed per unit of it, over the whole sweep
@@ -904,7 +905,7 @@ def sweep_mechanism(
     tuple of PairSweep
         One per pair of links with collision geometry, sorted by link names.
     """
-    from .load.urdf import joint_values
+    from .load.robot import joint_values
     from .settings import pair_tolerances, part_sizes
     from .units import scale as unit_scale
 
@@ -997,7 +998,7 @@ def _reach(robot: Robot, swept: set[str], base: dict) -> float:
 def _links(robot, mech, bodies, pieces, base, scale) -> dict[str, _Link]:
     """Each link's pieces in its own frame and its parts' offsets from it."""
     from .geometry import pack_convex
-    from .load.urdf import link_transforms
+    from .load.robot import link_transforms
 
     placed = link_transforms(robot, base)
     out = {}

@@ -17,7 +17,8 @@ import meshcheck.sweep as sweep_module
 from meshcheck.cli import main
 from meshcheck.errors import ExitStatus
 from meshcheck.load import load_bodies
-from meshcheck.load.urdf import joint_values, link_transforms, parse_robot, with_mimics
+from meshcheck.load.robot import joint_values, link_transforms, with_mimics
+from meshcheck.load.urdf import parse_robot
 from meshcheck.motion import Motion, parse_pose
 from meshcheck.settings import Settings
 from meshcheck.sweep import mechanisms, motion_weights, sweep_bodies
