@@ -4,7 +4,7 @@ One model serves every mechanism of a run: a URDF robot (``load.urdf`` parses it
 mechanism the configuration's ``[[joint]]`` tables make of mesh parts (``load.joints``, report
 units), and the sweep, which poses both (``meshcheck.sweep``). A pose gives each movable joint a
 value (``joint_values``); each link's placement is the product of the joint origins and motions
-from the root down to it (``link_transforms``).
+from the root down to it (``link_transforms``; ``chain_transforms`` at many poses at once).
 """
 
 from __future__ import annotations
@@ -284,6 +284,60 @@ def adjacent_links(robot: Robot) -> set[frozenset[str]]:
     return out
 
 
+# --------------------------------------------------------------------------------------------
+# Many poses at once (the sweep's)
+
+
+def joint_poses(robot: Robot, base: dict, names: list[str], values: np.ndarray) -> dict:
+    """Every movable joint's values for the rows of ``values``, ``{name: (E,) float64}``: the
+    free joints ``names`` from ``values``, the other leading joints at ``base``, mimic joints
+    following their leaders."""
+    count = len(values)
+    out = {j.name: np.full(count, base[j.name]) for j in robot.movable}
+    for k, name in enumerate(names):
+        out[name] = values[:, k]
+    return with_mimics(robot, out)  # elementwise on the (E,) arrays
+
+
+def joint_motions(joint: Joint, values: np.ndarray) -> np.ndarray:
+    """(E, 4, 4) motions of one joint at E values (Rodrigues, vectorised)."""
+    out = np.zeros((len(values), 4, 4))
+    out[:, 3, 3] = 1.0
+    if joint.type == "prismatic":
+        out[:, 0, 0] = out[:, 1, 1] = out[:, 2, 2] = 1.0
+        out[:, :3, 3] = values[:, None] * joint.axis
+        return out
+    k = cross_matrix(joint.axis)
+    out[:, :3, :3] = (
+        np.eye(3)
+        + np.sin(values)[:, None, None] * k
+        + (1.0 - np.cos(values))[:, None, None] * (k @ k)
+    )
+    return out
+
+
+def chain_transforms(
+    chain: list[Joint], poses: dict, scale: float, count: int, axes: dict | None = None
+) -> np.ndarray:
+    """(E, 4, 4) placements of a chain's last link (``Robot.chain``) in the root frame for
+    ``count`` poses (``joint_poses``), lengths times ``scale``; with ``axes``, each movable
+    joint's axis line at each pose goes there, ``{name: ((E, 3) point on it, lengths times
+    scale, (E, 3) unit direction)}``."""
+    placed = np.broadcast_to(np.eye(4), (count, 4, 4))
+    fixed = np.eye(4)  # origins (and held joints) since the last motion, folded into one matrix
+    for joint in chain:
+        fixed = fixed @ joint.origin
+        if joint.type in MOVABLE:
+            placed = placed @ fixed
+            if axes is not None:
+                axes[joint.name] = (placed[:, :3, 3] * scale, placed[:, :3, :3] @ joint.axis)
+            placed = placed @ joint_motions(joint, poses[joint.name])
+            fixed = np.eye(4)
+    placed = placed @ fixed
+    placed[:, :3, 3] *= scale
+    return placed
+
+
 __all__ = [
     "HELD",
     "LIMIT_SLACK",
@@ -294,8 +348,11 @@ __all__ = [
     "Mechanism",
     "Robot",
     "adjacent_links",
+    "chain_transforms",
     "cross_matrix",
     "default_value",
+    "joint_motions",
+    "joint_poses",
     "joint_values",
     "link_transforms",
     "rotation",

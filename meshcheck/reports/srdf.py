@@ -18,9 +18,10 @@ from __future__ import annotations
 from xml.sax.saxutils import quoteattr
 
 from ..errors import ConfigError
-from ..results import CheckResult
+from ..results import CheckResult, SweepStatus
 
-REASONS = {"never": "Never", "always": "Always"}
+#: The SRDF reason of a swept pair's status; the others get no entry.
+REASONS = {SweepStatus.NEVER: "Never", SweepStatus.ALWAYS: "Always"}
 
 
 def render(result: CheckResult) -> str:
