@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..geometry import ConvexPack, Status, pack_convex, query_pairs
+from ..geometry import ConvexPack, Status, concat_packs, pack_convex, query_pairs, repeat_pack
 from ..load import Body
 from ..load.robot import Mechanism, Robot, link_transforms
 
@@ -241,29 +241,8 @@ def posed_distances(
     e, i, j = np.nonzero(box_gap - pads[None] <= reach[:, None, None])
     if len(e) == 0:
         return lowest
-    na, nb = len(pack_a.points), len(pack_b.points)
-    points = np.concatenate([pack_a.points, pb.reshape(-1, 3)])
-    starts = np.concatenate(
-        [
-            pack_a.starts[:-1],
-            (na + pack_b.starts[:-1][None, :] + nb * np.arange(e_count)[:, None]).ravel(),
-            [na + nb * e_count],
-        ]
-    )
-    ea, eb = len(pack_a.nbrs), len(pack_b.nbrs)
-    nbr_starts = np.concatenate(
-        [
-            pack_a.nbr_starts[:-1],
-            (ea + pack_b.nbr_starts[:-1][None, :] + eb * np.arange(e_count)[:, None]).ravel(),
-            [ea + eb * e_count],
-        ]
-    )
-    nbrs = np.concatenate(
-        [pack_a.nbrs, (na + pack_b.nbrs[None, :] + nb * np.arange(e_count)[:, None]).ravel()]
-    )
-    lower = np.concatenate([la, lb.reshape(-1, 3)])
-    upper = np.concatenate([ua, ub.reshape(-1, 3)])
-    pack = ConvexPack(points, starts, nbr_starts, nbrs, lower, upper)
+    # One pack: a's pieces, then b's at each placement (placement k's piece j: ma + k * mb + j).
+    pack = concat_packs([pack_a, repeat_pack(pack_b, pb, lb, ub)])
     pairs = np.stack([i, ma + e * mb + j], axis=1)
     pad = pads[i, j]
 
