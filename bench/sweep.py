@@ -18,7 +18,7 @@ sweep proves never that sampling sees colliding would be a bug.
     python bench/sweep.py --robot fanuc --samples 2000
     python bench/sweep.py --robot pr2 --max-boxes 20000   # a smaller per-pair box budget
 
-``--max-boxes`` sets ``meshcheck.sweep.MAX_BOXES`` (boxes one pair may evaluate before it is
+``--max-boxes`` sets ``meshcheck.sweep.search.MAX_BOXES`` (boxes one pair may evaluate before it is
 left undecided): a smaller budget trades proven pairs for time.
 
     python bench/sweep.py --robot pr2 --pair head_tilt_link:l_forearm_link --pair ...
@@ -52,7 +52,7 @@ def fcl_sampling(bodies, mech, samples: int, seed: int) -> tuple[dict, float]:
     """Classify every link pair from ``samples`` uniform random poses with python-fcl."""
     import fcl
 
-    from meshcheck.load.urdf import joint_values, link_transforms, with_mimics
+    from meshcheck.load.robot import joint_values, link_transforms, with_mimics
 
     robot = mech.robot
     at_zero = link_transforms(robot, joint_values(robot))
@@ -106,7 +106,7 @@ def oracle_confirms(bodies, mech, pair, tolerance: float = 1e-4) -> str | None:
     import fcl
     import trimesh
 
-    from meshcheck.load.urdf import joint_values, link_transforms, with_mimics
+    from meshcheck.load.robot import joint_values, link_transforms, with_mimics
 
     tests = os.path.join(HERE, "..", "tests")
     if tests not in sys.path:
@@ -149,8 +149,10 @@ def _bvh(mesh):
     return model
 
 
-def _progress_on_stderr(module) -> None:
+def _progress_on_stderr() -> None:
     """Say on stderr every 100 link pairs how far the sweep got (the PR2's takes a while)."""
+    import meshcheck.sweep.run as module
+
     sweep_pair, done, start = module.sweep_pair, [0], time.perf_counter()
 
     def counted(*args, **kwargs):
@@ -166,16 +168,18 @@ def _progress_on_stderr(module) -> None:
 def sweep_pairs(path: str, named: list[str], max_boxes: int | None) -> int:
     """Sweep only the ``named`` link pairs (``A:B``) of the robot, printing each one's class,
     boxes, seconds and the GJK piece pairs its boxes measured."""
-    import meshcheck.geometry
-    import meshcheck.sweep as sweep
+    import meshcheck.sweep.distances as distances
+    import meshcheck.sweep.run as run
+    import meshcheck.sweep.search as search
     from meshcheck.decompose import decompose_bodies
-    from meshcheck.load import load_bodies
+    from meshcheck.load import load_assembly
     from meshcheck.motion import Motion
+    from meshcheck.results import PairSweep
 
     if max_boxes is not None:
-        sweep.MAX_BOXES = max_boxes
+        search.MAX_BOXES = max_boxes
     wanted = {tuple(sorted(p.split(":"))) for p in named}
-    query_pairs, sweep_pair, gjk = meshcheck.geometry.query_pairs, sweep.sweep_pair, [0]
+    query_pairs, sweep_pair, gjk = distances.query_pairs, run.sweep_pair, [0]
 
     def counted_query(pack, pairs, **kwargs):
         gjk[0] += len(pairs)
@@ -183,20 +187,20 @@ def sweep_pairs(path: str, named: list[str], max_boxes: int | None) -> int:
 
     def only_wanted(pair, lower, upper, resolution):
         if (pair.a, pair.b) not in wanted:
-            return sweep.PairSweep(pair.a, pair.b, "skipped")
+            return PairSweep(pair.a, pair.b, "skipped")
         gjk[0], start = 0, time.perf_counter()
         out = sweep_pair(pair, lower, upper, resolution)
         print(f"{pair.a} / {pair.b}: {out.status}, {len(lower)} joints, {out.boxes} boxes, "
               f"{time.perf_counter() - start:.2f} s, {gjk[0]} GJK piece pairs")  # fmt: skip
         return out
 
-    meshcheck.geometry.query_pairs, sweep.sweep_pair = counted_query, only_wanted
-    bodies = load_bodies([os.path.normpath(path)])
-    (mech,) = sweep.mechanisms(bodies)
+    distances.query_pairs, run.sweep_pair = counted_query, only_wanted
+    assembly = load_assembly([os.path.normpath(path)])
+    bodies, (mech,) = assembly.bodies, assembly.mechanisms
     ks = sorted(k for ks in mech.parts.values() for k in ks)
     with tempfile.TemporaryDirectory() as cache:
         pieces = decompose_bodies([bodies[k] for k in ks], cache_dir=cache, jobs=1)
-    sweep.sweep_mechanism(mech, bodies, dict(zip(ks, pieces, strict=True)), Motion(sweep=()))
+    run.sweep_mechanism(mech, bodies, dict(zip(ks, pieces, strict=True)), Motion(sweep=()))
     return 0
 
 
@@ -211,37 +215,35 @@ def main() -> int:
     if args.pair:
         return sweep_pairs(ROBOTS[args.robot], args.pair, args.max_boxes)
 
-    import meshcheck.sweep
+    import meshcheck.sweep.search
 
     if args.max_boxes is not None:
-        meshcheck.sweep.MAX_BOXES = args.max_boxes
-    _progress_on_stderr(meshcheck.sweep)
+        meshcheck.sweep.search.MAX_BOXES = args.max_boxes
+    _progress_on_stderr()
 
-    from meshcheck.decompose import decompose_bodies
-    from meshcheck.load import load_bodies
+    from meshcheck.load import load_assembly
     from meshcheck.motion import Motion
     from meshcheck.settings import Settings
-    from meshcheck.sweep import mechanisms, summary, sweep_bodies
+    from meshcheck.sweep import mechanism_pieces, sweep_bodies
 
     path = os.path.normpath(ROBOTS[args.robot])
-    with tempfile.TemporaryDirectory() as cache:
-        settings = Settings(motion=Motion(sweep=()), cache_dir=cache, jobs=1)
-        bodies = load_bodies([path])
-        (mech,) = mechanisms(bodies)
-        start = time.perf_counter()
-        decompose_bodies(bodies, cache_dir=cache, jobs=1)
-        pieces_s = time.perf_counter() - start
-        start = time.perf_counter()
-        (robot,) = sweep_bodies(bodies, settings)
-        sweep_s = time.perf_counter() - start
+    settings = Settings(motion=Motion(sweep=()), cache_dir=None, jobs=1)
+    assembly = load_assembly([path])
+    bodies, (mech,) = assembly.bodies, assembly.mechanisms
+    start = time.perf_counter()
+    pieces = mechanism_pieces(bodies, [mech], settings)
+    pieces_s = time.perf_counter() - start
+    start = time.perf_counter()
+    (robot,) = sweep_bodies(bodies, [mech], settings, pieces=pieces)
+    sweep_s = time.perf_counter() - start
     sampled, fcl_s = fcl_sampling(bodies, mech, args.samples, args.seed)
 
     print(f"robot: {path} ({len(mech.parts)} links with geometry, {len(robot.pairs)} pairs)")
-    print(f"box budget per pair: {meshcheck.sweep.MAX_BOXES}")
-    print(f"sweep: {summary(robot)}")
+    print(f"box budget per pair: {meshcheck.sweep.search.MAX_BOXES}")
+    print(f"sweep: {robot.summary()}")
     counts = {s: sum(v == s for v in sampled.values()) for s in ("never", "sometimes", "always")}
     print(f"fcl sampling ({args.samples} poses): {counts}")
-    print(f"convex pieces (CoACD, cached by a run's check): {pieces_s:.1f} s")
+    print(f"convex pieces (CoACD, the sweep's, the check uses): {pieces_s:.1f} s")
     print(f"sweep (proof + witnesses):                       {sweep_s:.1f} s")
     print(f"python-fcl sampling at {args.samples} poses:          {fcl_s:.1f} s")
     print(f"ratio sweep / sampling: {sweep_s / fcl_s:.2f}")

@@ -482,10 +482,9 @@ def _write_reports(result, targets, files, srdf_path=None, view_options=None) ->
         except OutputError as exc:
             click.echo(f"error: {printable(str(exc))}", err=True)
             failed = exc
-    from .sweep import summary
 
     for robot in result.sweeps:  # the sweep's counts, with or without --srdf
-        click.echo(f"sweep: {printable(summary(robot))}", err=True)
+        click.echo(f"sweep: {printable(robot.summary())}", err=True)
     if srdf_path is not None and _write_srdf(srdf_path, result):
         failed = True
     if failed is not None:

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 from .errors import ExitStatus
-from .results import Finding, Part, Verdict
+from .results import Finding, PairSweep, Part, RobotSweep, SweepStatus, Verdict
 
 if TYPE_CHECKING:
     from .baseline import Baseline
@@ -40,7 +40,7 @@ class CheckResult:
         The parts' geometry, for outputs that draw them (``--export``); not compared.
     baseline : baseline.Baseline or None
         The previous report the findings were compared with (``baseline.compare``), if any.
-    sweeps : tuple of sweep.RobotSweep
+    sweeps : tuple of RobotSweep
         With ``--sweep``: each robot's link pairs classified over the joint ranges.
     """
 
@@ -52,7 +52,7 @@ class CheckResult:
     bodies: tuple = field(default=(), repr=False, compare=False)
     units: str = "mm"
     baseline: Baseline | None = None
-    sweeps: tuple = ()
+    sweeps: tuple[RobotSweep, ...] = ()
 
     @property
     def tolerance(self) -> float | None:
@@ -88,7 +88,7 @@ class CheckResult:
         """(robot, pair) of each swept pair that fails the run (``is_failing_sweep``)."""
         return [(r, p) for r in self.sweeps for p in r.pairs if self.is_failing_sweep(r, p)]
 
-    def is_failing_sweep(self, robot, pair) -> bool:
+    def is_failing_sweep(self, robot: RobotSweep, pair: PairSweep) -> bool:
         """True when a swept ``pair`` of ``robot`` fails the run: a pair of a mechanism made by
         ``[[joint]]`` tables that collides somewhere in the declared ranges (a door hitting
         its stop), unapproved, with the verdict at its witness in ``fail_on``. A URDF robot's
@@ -96,7 +96,7 @@ class CheckResult:
         sweep's output is the allowed-collision matrix (``--srdf``)."""
         return (
             not robot.is_urdf
-            and pair.status in ("sometimes", "always")
+            and pair.status in (SweepStatus.SOMETIMES, SweepStatus.ALWAYS)
             and pair.approval_reason is None
             and pair.verdict in self.settings.fail_on
         )

@@ -34,13 +34,14 @@ from .errors import MeshcheckWarning
 from .execute import Executor, executor_for
 from .geometry import ConvexPack, Status, pack_convex, query_pairs
 from .geometry.broadphase import candidate_pairs, group_pairs
-from .load import Body, Limits, load_bodies, local_geometries
+from .load import Body, Limits, load_assembly, local_geometries
 from .load.limits import check_candidate_pairs
+from .load.robot import Mechanism
 from .outcome import CheckResult
 from .progress import Progress
 from .results import Finding, Part
 from .settings import Settings
-from .sweep import with_mechanisms, with_sweeps
+from .sweep import mechanism_pieces, sweep_bodies, with_adjacent_approvals
 from .tolerances import largest_pair_tolerance, pair_tolerances, part_sizes
 from .units import DEFAULT_UNIT
 from .verify import verify_pairs
@@ -110,7 +111,7 @@ def check(
                 limits = None
                 if settings.max_triangles is not None:
                     limits = Limits(max_triangles=settings.max_triangles)
-                bodies = load_bodies(
+                assembly = load_assembly(
                     paths,
                     split=settings.split,
                     units=settings.units,
@@ -122,9 +123,9 @@ def check(
                     executor=executor,
                     motion=settings.motion,
                 )
-            settings = with_mechanisms(bodies, settings)  # robots: adjacent links approved
-            result = check_bodies(bodies, settings, executor=executor)
-            result = with_sweeps(result, bodies, settings, executor=executor)  # --sweep
+            bodies, mechanisms = assembly.bodies, assembly.mechanisms
+            settings = with_adjacent_approvals(settings, bodies, mechanisms)  # adjacent links
+            result = check_bodies(bodies, settings, executor=executor, mechanisms=mechanisms)
     finally:
         caught = _reissue(caught)
     messages = [str(w.message) for w in caught if issubclass(w.category, MeshcheckWarning)]
@@ -136,13 +137,15 @@ def check_bodies(
     settings: Settings | None = None,
     *,
     executor: Executor | None = None,
+    mechanisms: Sequence[Mechanism] = (),
     **fields,
 ) -> CheckResult:
     """Run the check on bodies already loaded; see ``check``.
 
     ``settings`` defaults to ``Settings(**fields)`` (there ``cache_dir=None`` means no cache).
     ``executor`` is the run's (left open); default: one for ``settings.jobs`` and
-    ``settings.scheduler``, closed at the end.
+    ``settings.scheduler``, closed at the end. ``mechanisms`` are the robots among the bodies
+    (``load.Assembly.mechanisms``), swept when ``settings.motion.sweep`` is set.
     """
     if settings is None:
         settings = Settings(**fields)
@@ -177,6 +180,7 @@ def check_bodies(
         if executor is not None
         else executor_for(jobs=settings.jobs, scheduler=settings.scheduler)
     ) as executor:
+        swept = mechanism_pieces(bodies, mechanisms, settings, executor=executor, secret=secret)
         pieces, owner, piece_count = decompose_parts(
             bodies,
             pairs_near,
@@ -184,6 +188,7 @@ def check_bodies(
             executor=executor,
             geometry=geometry,
             secret=secret,
+            known=swept,
         )
         near_surfaces = surfaces_near(pieces, owner, pairs_near, tol_near, reach_near)
         findings = verify_pairs(
@@ -197,6 +202,7 @@ def check_bodies(
             hulls_penetrate=hull_query.status[near] == Status.PENETRATING,
         )
         findings = confirm_on_brep(bodies, findings, settings, secret=secret)
+        sweeps = sweep_bodies(bodies, mechanisms, settings, pieces=swept)
     findings = sorted(
         [*duplicate_findings(bodies, copies, geometry), *findings], key=lambda f: (f.a, f.b)
     )
@@ -204,11 +210,11 @@ def check_bodies(
     findings = approve(
         findings, settings.approvals, dict(zip([b.name for b in bodies], names, strict=True))
     )
-    return _result(bodies, findings, settings, pairs, piece_count)
+    return _result(bodies, findings, settings, pairs, piece_count, sweeps)
 
 
-def _result(bodies, findings, settings, pairs, piece_count) -> CheckResult:
-    """The run's ``CheckResult``: findings, parts, the candidate pairs, the bodies."""
+def _result(bodies, findings, settings, pairs, piece_count, sweeps) -> CheckResult:
+    """The run's ``CheckResult``: findings, parts, the candidate pairs, the bodies, the sweeps."""
     parts = [
         Part(b.name, b.path, len(b.mesh.faces), b.is_closed, int(piece_count[k]))
         for k, b in enumerate(bodies)
@@ -220,6 +226,7 @@ def _result(bodies, findings, settings, pairs, piece_count) -> CheckResult:
         checked_pairs=[tuple(sorted((bodies[i].name, bodies[j].name))) for i, j in pairs],
         bodies=tuple(bodies),
         units=bodies[0].units if bodies else (settings.units or DEFAULT_UNIT),
+        sweeps=sweeps,
     )
 
 
@@ -269,11 +276,13 @@ def decompose_parts(
     executor: Executor | None = None,
     geometry: dict | None = None,
     secret: bytes | None = None,
+    known: dict[int, list[np.ndarray]] | None = None,
 ) -> tuple[ConvexPack, np.ndarray, np.ndarray]:
     """Convex pieces of the parts of the hull-near ``pairs`` (``(k, 2)``, indices into
     ``bodies``): CoACD's where the cost model says they pay (``decompose.coacd_budgets``), the
     hull elsewhere. CoACD runs on ``executor`` (default: ``settings.jobs`` local processes);
-    cached entries are signed with ``secret`` (``decompose.decompose_bodies``).
+    cached entries are signed with ``secret`` (``decompose.decompose_bodies``). Parts in
+    ``known`` (body index -> world pieces: the sweep's, ``sweep.mechanism_pieces``) keep those.
 
     Returns
     -------
@@ -294,9 +303,11 @@ def decompose_parts(
     budgets = coacd_budgets(
         chosen, rank[pairs], geometry=geometry, forced=float(forced) if forced else None
     )
-    with Progress("decomposing", len({geometry[id(b.mesh)].digest for b in chosen})) as bar:
-        piece_lists = decompose_bodies(
-            chosen,
+    known = known or {}
+    fresh = [bodies[i] for i in needed if i not in known]
+    with Progress("decomposing", len({geometry[id(b.mesh)].digest for b in fresh})) as bar:
+        fresh_lists = decompose_bodies(
+            fresh,
             threshold=settings.threshold,
             cache_dir=settings.cache_dir,
             jobs=settings.jobs,
@@ -306,6 +317,8 @@ def decompose_parts(
             geometry=geometry,
             secret=secret,
         )
+    fresh_pieces = iter(fresh_lists)
+    piece_lists = [known[i] if i in known else next(fresh_pieces) for i in needed]
     count = np.zeros(len(bodies), dtype=np.int64)
     count[needed] = [len(p) for p in piece_lists]
     owner = np.repeat(needed, count[needed]).astype(np.int64)

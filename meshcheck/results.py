@@ -1,5 +1,6 @@
 """The vocabulary of results: the verdict of a part pair (``PairVerdict``), a ``Finding`` per
-pair that is not clear, and the clash groups findings fall into.
+pair that is not clear, how a robot's link pairs relate over its joint ranges (``RobotSweep``),
+and the clash groups findings fall into.
 
 What a whole run found, and whether it fails, is ``outcome.CheckResult``.
 """
@@ -243,6 +244,110 @@ class Part:
             "path": self.path,
             "triangles": self.triangles,
             "closed": self.is_closed,
+        }
+
+
+class SweepStatus(enum.StrEnum):
+    """How a pair of a robot's links relates over the swept joint ranges (``PairSweep``).
+
+    Members compare equal to, and format as, their lower-case names, as ``Verdict``'s do.
+    """
+
+    NEVER = "never"
+    SOMETIMES = "sometimes"
+    ALWAYS = "always"
+    UNDECIDED = "undecided"
+
+
+@dataclass(frozen=True)
+class PairSweep:
+    """How one pair of links relates over the joint ranges.
+
+    Attributes
+    ----------
+    a, b : str
+        Link names, ``a < b``.
+    status : SweepStatus
+        ``NEVER`` (proven: every box of joint values certified apart by more than the touching
+        tolerance, see ``sweep.sweep_mechanism``), ``SOMETIMES`` (a witness pose where the real
+        meshes interfere or touch), ``ALWAYS`` (their relative placement does not move and they
+        collide, or one is buried in the other throughout), or ``UNDECIDED`` (neither proven
+        within the resolution and the sweep's box budget).
+    joints : tuple of str
+        The swept joints that move the pair relative to each other.
+    witness : dict of str -> float or None
+        For ``SOMETIMES``: the free joints' values of the worst pose found, the witness
+        (radians; metres for a URDF's slide, report units for a ``[[joint]]`` slide; the other
+        joints at the run's pose): candidates (the seeded samples, then each batch of box
+        centres) are re-checked deepest overlap of the links' convex pieces first, and the first
+        the real meshes confirm is the witness (a bad pose, not a proven maximum of the depth).
+        ``{}`` for ``ALWAYS`` when nothing moves the pair.
+    verdict : Verdict or None
+        The real meshes' status at the witness (``INTERFERENCE`` or ``TOUCHING``).
+    boxes : int
+        Boxes of joint values evaluated.
+    is_adjacent : bool
+        The links are joined by a joint (``load.robot.adjacent_links``).
+    approval_reason : str or None
+        For a mechanism of ``[[joint]]`` tables, the reason of the approval rule its two parts
+        match (adjacent parts: ``sweep.ADJACENT``); its collision then does not fail the run.
+    """
+
+    a: str
+    b: str
+    status: SweepStatus
+    joints: tuple[str, ...] = ()
+    witness: dict[str, float] | None = None
+    verdict: Verdict | None = None
+    boxes: int = 0
+    is_adjacent: bool = False
+    approval_reason: str | None = None
+
+    def to_dict(self) -> dict:
+        """The pair as the JSON report lists it (``pose``: the witness's joint values)."""
+        return {
+            "a": self.a,
+            "b": self.b,
+            "status": str(self.status),
+            "adjacent": self.is_adjacent,
+            "joints": list(self.joints),
+            "pose": None if self.witness is None else dict(self.witness),
+            "verdict": None if self.verdict is None else str(self.verdict),
+            "approval_reason": self.approval_reason,
+        }
+
+
+@dataclass(frozen=True)
+class RobotSweep:
+    """One robot's sweep: its URDF (or configuration file), its name, every link pair's
+    ``PairSweep``, and whether it is a URDF robot (the SRDF describes one)."""
+
+    path: str
+    name: str
+    pairs: tuple[PairSweep, ...]
+    is_urdf: bool = True
+
+    @property
+    def counts(self) -> dict[SweepStatus, int]:
+        """Link pairs of each status, every status listed."""
+        return {s: sum(p.status == s for p in self.pairs) for s in SweepStatus}
+
+    def summary(self) -> str:
+        """One line: how many link pairs are never, sometimes, always in contact (``always``
+        only when some are), and undecided."""
+        shown = ", ".join(
+            f"{n} {s}" for s, n in self.counts.items() if n or s != SweepStatus.ALWAYS
+        )
+        adjacent = sum(p.is_adjacent for p in self.pairs)
+        return f"{self.path}: {len(self.pairs)} link pairs ({adjacent} adjacent): {shown}"
+
+    def to_dict(self) -> dict:
+        """The robot's sweep as the JSON report lists it: counts by status, every pair."""
+        return {
+            "robot": self.path,
+            "name": self.name,
+            "counts": {str(s): n for s, n in self.counts.items()},
+            "pairs": [p.to_dict() for p in self.pairs],
         }
 
 

@@ -15,6 +15,7 @@ from meshcheck.geometry import (
     pack_convex,
     query,
     query_pairs,
+    repeat_pack,
     signed_distance,
 )
 from meshcheck.geometry.constants import HILL_CLIMB_MIN_VERTICES, PARALLEL_MIN_PAIRS
@@ -432,6 +433,23 @@ def test_concat_packs_offsets_indices():
     res = query_pairs(both, np.array([[0, 2], [1, 2]]), tolerance=1e-9)
     assert res.distance[0] == pytest.approx(1.0, abs=0.05)
     assert res.distance[1] == pytest.approx(signed_distance(CUBE, p2.points), rel=1e-12)
+
+
+def test_repeat_pack_is_the_packs_of_its_copies_joined():
+    """A pack moved to three placements: the same arrays as packing each moved copy and joining
+    them, and GJK between copies measures the placements' offset."""
+    pack = pack_convex([sphere_points(BIG, 1), CUBE])
+    shifts = np.array([[0.0, 0.0, 0.0], [5.0, 0.0, 0.0], [0.0, 7.0, 0.0]])
+    moved = pack.points[None, :, :] + shifts[:, None, :]
+    lower = pack.lower[None, :, :] + shifts[:, None, :]
+    upper = pack.upper[None, :, :] + shifts[:, None, :]
+    repeated = repeat_pack(pack, moved, lower, upper)
+    one_by_one = concat_packs([pack._replace(points=p, lower=lo, upper=hi)
+                               for p, lo, hi in zip(moved, lower, upper, strict=True)])  # fmt: skip
+    for got, want in zip(repeated, one_by_one, strict=True):
+        np.testing.assert_array_equal(got, want)
+    res = query_pairs(repeated, np.array([[1, 3], [1, 5]]), tolerance=1e-9)  # cube to cube
+    np.testing.assert_allclose(res.distance, [4.0, 6.0], atol=1e-12)
 
 
 def test_query_pairs_matches_query_on_big_hulls():

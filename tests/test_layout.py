@@ -37,10 +37,12 @@ STAGES = [
         ],
     ),
     ("kernels and shared tools", ["mesh", "geometry", "cache", "execute", "_worker", "progress"]),
-    ("load", ["load"]),
+    ("load", ["load"]),  # load.robot: the robot model every mechanism of a run shares
     ("decompose", ["decompose"]),
     ("verify", ["verify"]),
-    ("sweep", ["sweep"]),  # asks the verify stage's kernels for distances along the joint ranges
+    # sweep.mechanisms, .kinematics, .distances, .search, .run: asks the verify stage's kernels
+    # for distances along the joint ranges
+    ("sweep", ["sweep"]),
     ("pipeline", ["pipeline"]),
     ("reports", ["reports"]),
     (

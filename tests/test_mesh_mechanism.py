@@ -16,7 +16,7 @@ from test_hostile_inputs import measured
 
 from meshcheck.cli import main
 from meshcheck.errors import ConfigError, ExitStatus
-from meshcheck.load import load_bodies
+from meshcheck.load import load_assembly, load_bodies
 from meshcheck.motion import MAX_JOINTS, Motion, checked_joints, parse_pose
 from meshcheck.settings import Settings
 from meshcheck.sweep import sweep_bodies
@@ -61,8 +61,8 @@ def sweep(files, joints, **motion) -> dict:
     settings = Settings(
         tolerance=TOL, motion=Motion(sweep=(), joints=checked_joints(joints), **motion)
     )
-    bodies = load_bodies(files, motion=settings.motion)
-    (robot,) = sweep_bodies(bodies, settings)
+    assembly = load_assembly(files, motion=settings.motion)
+    (robot,) = sweep_bodies(assembly.bodies, assembly.mechanisms, settings)
     return {(p.a.rsplit("/", 1)[-1], p.b.rsplit("/", 1)[-1]): p for p in robot.pairs}
 
 

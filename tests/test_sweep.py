@@ -13,14 +13,17 @@ import pytest
 from click.testing import CliRunner
 from meshes import fcl_collide, fcl_distance, winding_inside
 
-import meshcheck.sweep as sweep_module
 from meshcheck.cli import main
 from meshcheck.errors import ExitStatus
-from meshcheck.load import load_bodies
-from meshcheck.load.urdf import joint_values, link_transforms, parse_robot, with_mimics
+from meshcheck.load import load_assembly, load_bodies
+from meshcheck.load.robot import joint_values, link_transforms, with_mimics
+from meshcheck.load.urdf import parse_robot
 from meshcheck.motion import Motion, parse_pose
 from meshcheck.settings import Settings
-from meshcheck.sweep import mechanisms, motion_weights, sweep_bodies
+from meshcheck.sweep import sweep_bodies
+from meshcheck.sweep.distances import link_geometries
+from meshcheck.sweep.kinematics import link_sides, motion_weights
+from meshcheck.sweep.search import LinkPair
 
 ROBOTS = os.path.join(os.path.dirname(__file__), "data", "robots")
 PANDA = os.path.join(ROBOTS, "panda_description", "urdf", "panda.urdf")
@@ -49,8 +52,8 @@ def door(upper: float, *, stop_at: str = "0.65 0.4 0") -> str:
 
 def sweep(path: str, **motion):
     settings = Settings(motion=Motion(sweep=(), **motion))
-    bodies = load_bodies([path], motion=settings.motion)
-    (robot,) = sweep_bodies(bodies, settings)
+    assembly = load_assembly([path], motion=settings.motion)
+    (robot,) = sweep_bodies(assembly.bodies, assembly.mechanisms, settings)
     return {(p.a, p.b): p for p in robot.pairs}
 
 
@@ -162,8 +165,8 @@ def test_no_point_moves_farther_than_the_motion_bound():
     the pair's common frame) by at most sum_k w_k |q_k - c_k| between the centre and any pose:
     with the weights from the links' radii, and with the tighter ones from their points'
     distances to the joint axes."""
-    bodies = load_bodies([PANDA])
-    (mech,) = mechanisms(bodies)
+    assembly = load_assembly([PANDA])
+    bodies, (mech,) = assembly.bodies, assembly.mechanisms
     robot = mech.robot
     base = joint_values(robot)
     swept = {j.name for j in robot.movable}
@@ -213,20 +216,18 @@ def test_no_point_moves_farther_than_the_motion_bound():
     ],
 )  # fmt: skip
 def test_no_point_moves_farther_than_the_box_bound(urdf, pairs):
-    """The bound of a box, lever arms taken at its centre pose (``_Pair.box_weights``): for
+    """The bound of a box, lever arms taken at its centre pose (``LinkPair.box_weights``): for
     random boxes, every hull vertex of the two links moves by at most ``sum_k r_k h_k`` in all
     (each link relative to the pair's common frame) between the centre and any pose in the box;
     it is never looser than the bound over the whole sweep, and on the PR2's arms it is
     tighter."""
-    from meshcheck.sweep import _links, _sides
-
-    bodies = load_bodies([urdf])
-    (mech,) = mechanisms(bodies)
+    assembly = load_assembly([urdf])
+    bodies, (mech,) = assembly.bodies, assembly.mechanisms
     robot = mech.robot
     base = joint_values(robot)
     swept = {j.name for j in robot.movable}
     pieces = {k: [bodies[k].world.convex_hull.vertices] for ks in mech.parts.values() for k in ks}
-    links = _links(robot, mech, bodies, pieces, base, 1.0)
+    links = link_geometries(robot, mech, bodies, pieces, base, 1.0)
     radius = {n: link.radius for n, link in links.items()}
     points = {n: link.points for n, link in links.items()}
     rng = np.random.default_rng(2)
@@ -234,8 +235,8 @@ def test_no_point_moves_farther_than_the_box_bound(urdf, pairs):
     for a, b in pairs:
         weights = motion_weights(robot, (a, b), radius, swept, base, 1.0, points)
         names = sorted(weights)
-        sides = _sides(robot, (a, b), links, names, swept, base, 1.0)
-        pair = sweep_module._Pair(robot, a, b, names, sides, base, 1.0, 0.0, links, bodies)
+        sides = link_sides(robot, (a, b), links, names, swept, base, 1.0)
+        pair = LinkPair(robot, a, b, names, sides, base, 1.0, 0.0, links, bodies)
         lo = np.array([robot.joint(n).lower for n in names])
         hi = np.array([robot.joint(n).upper for n in names])
         lo, hi = np.where(np.isfinite(lo), lo, -np.pi), np.where(np.isfinite(hi), hi, np.pi)
@@ -264,15 +265,13 @@ def test_no_point_moves_farther_than_the_box_bound(urdf, pairs):
 
 
 def _hull_pieces(urdf):
-    """A robot's bodies, mechanism, and each link (``_links``) with one convex piece per part,
-    its hull: pieces that cover every triangle, without CoACD's time."""
-    from meshcheck.sweep import _links
-
-    bodies = load_bodies([urdf])
-    (mech,) = mechanisms(bodies)
+    """A robot's bodies, mechanism, and each link (``link_geometries``) with one convex piece
+    per part, its hull: pieces that cover every triangle, without CoACD's time."""
+    assembly = load_assembly([urdf])
+    bodies, (mech,) = assembly.bodies, assembly.mechanisms
     base = joint_values(mech.robot)
     pieces = {k: [bodies[k].world.convex_hull.vertices] for ks in mech.parts.values() for k in ks}
-    return bodies, mech, base, _links(mech.robot, mech, bodies, pieces, base, 1.0)
+    return bodies, mech, base, link_geometries(mech.robot, mech, bodies, pieces, base, 1.0)
 
 
 @pytest.mark.filterwarnings("ignore::meshcheck.errors.MeshcheckWarning")  # the PR2's open meshes
@@ -284,7 +283,7 @@ def test_surface_distance_agrees_with_fcl():
     pytest.importorskip("fcl")
     import trimesh
 
-    from meshcheck.sweep import surface_distance
+    from meshcheck.sweep.distances import surface_distance
 
     _, mech, base, links = _hull_pieces(PR2)
     robot = mech.robot
@@ -318,7 +317,8 @@ def test_descent_finds_a_collision_sampling_misses():
     pytest.importorskip("fcl")
     import trimesh
 
-    from meshcheck.sweep import _descent_witness, _Nearest, _ranges, _sides
+    from meshcheck.sweep.kinematics import joint_ranges
+    from meshcheck.sweep.search import NearestCentres, descent_witness
 
     bodies, mech, base, links = _hull_pieces(PR2)
     robot = mech.robot
@@ -327,14 +327,14 @@ def test_descent_finds_a_collision_sampling_misses():
     radius = {n: link.radius for n, link in links.items()}
     points = {n: link.points for n, link in links.items()}
     names = sorted(motion_weights(robot, (a, b), radius, swept, base, 1.0, points))
-    sides = _sides(robot, (a, b), links, names, swept, base, 1.0)
-    pair = sweep_module._Pair(robot, a, b, names, sides, base, 1.0, 1e-5, links, bodies)
-    lower, upper = _ranges(robot, names)
+    sides = link_sides(robot, (a, b), links, names, swept, base, 1.0)
+    pair = LinkPair(robot, a, b, names, sides, base, 1.0, 1e-5, links, bodies)
+    lower, upper = joint_ranges(robot, names)
     values = lower + (upper - lower) * np.random.default_rng(0).random((512, len(names)))
     ta, tb, _ = pair.placements(values)
-    nearest = _Nearest(8)
+    nearest = NearestCentres(8)
     nearest.add(pair.distances(ta, tb, np.full(len(values), 1.0)), values)
-    found = _descent_witness(pair, lower, upper, nearest.values, 512)
+    found = descent_witness(pair, lower, upper, nearest.values, 512)
     assert found is not None and found.status == "sometimes"
     pose = dict(base, **found.witness)
     placed = link_transforms(robot, with_mimics(robot, pose))
@@ -348,12 +348,12 @@ def test_panda_wrist_sweep_agrees_with_fcl_sampling():
     every sometimes pair's witness collides in fcl (or one link is buried in the other)."""
     pytest.importorskip("fcl")
     settings = Settings(motion=Motion(sweep=("panda_joint6", "panda_joint7")))
-    bodies = load_bodies([PANDA])
-    (robot_sweep,) = sweep_bodies(bodies, settings)
+    assembly = load_assembly([PANDA])
+    bodies, (mech,) = assembly.bodies, assembly.mechanisms
+    (robot_sweep,) = sweep_bodies(bodies, [mech], settings)
     by_pair = {(p.a, p.b): p for p in robot_sweep.pairs}
     assert by_pair["panda_hand", "panda_link5"].status == "sometimes"
     assert by_pair["panda_link3", "panda_link7"].status == "never"
-    (mech,) = mechanisms(bodies)
     robot = mech.robot
     at_zero = link_transforms(robot, joint_values(robot))
     local = {
@@ -404,7 +404,7 @@ def test_coarse_pieces_with_their_pads_never_raise_the_distance_bound():
     coarse piece keeps more vertices than the icosphere has directions (162)."""
     from meshcheck.decompose import decompose_bodies
     from meshcheck.geometry import pack_convex
-    from meshcheck.sweep import coarse_pieces, piece_distances
+    from meshcheck.sweep.distances import coarse_pieces, piece_distances
 
     bodies = load_bodies([PANDA])
     by_name = {b.name.rpartition("#")[2]: k for k, b in enumerate(bodies)}

@@ -18,7 +18,8 @@ from meshes import box, winding_inside
 from meshcheck.cli import main
 from meshcheck.errors import ConfigError, ExitStatus, InputError
 from meshcheck.load import Limits, load_bodies
-from meshcheck.load.urdf import joint_values, link_transforms, parse_robot, rpy_matrix
+from meshcheck.load.robot import joint_values, link_transforms, rpy_matrix
+from meshcheck.load.urdf import parse_robot
 from meshcheck.motion import Motion, parse_pose
 from meshcheck.pipeline import check_bodies
 from meshcheck.results import Verdict
@@ -130,7 +131,7 @@ def test_non_adjacent_links_are_not_approved(tmp_path):
 
 def test_links_without_geometry_are_passed_through_for_adjacency(tmp_path):
     """MoveIt: a geometry-less link between two links makes them adjacent."""
-    from meshcheck.load.urdf import adjacent_links
+    from meshcheck.load.robot import adjacent_links
 
     text = slide_robot().replace(
         '<link name="arm">\n    <collision><geometry><box size="1 1 1"/></geometry></collision>',

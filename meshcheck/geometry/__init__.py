@@ -28,7 +28,7 @@ from .gjk import (
     query_pairs,
     signed_distance,
 )
-from .support import ConvexPack, concat_packs, pack_convex
+from .support import ConvexPack, concat_packs, pack_convex, repeat_pack
 
 __all__ = [
     "Contact",
@@ -40,5 +40,6 @@ __all__ = [
     "pack_convex",
     "query",
     "query_pairs",
+    "repeat_pack",
     "signed_distance",
 ]

@@ -190,3 +190,49 @@ def concat_packs(packs: Sequence[ConvexPack]) -> ConvexPack:
         cat(lower, (0, 3), np.float64),
         cat(upper, (0, 3), np.float64),
     )
+
+
+def repeat_pack(
+    pack: ConvexPack, points: np.ndarray, lower: np.ndarray, upper: np.ndarray
+) -> ConvexPack:
+    """``pack``'s shapes ``E`` times over, copy ``k`` at new coordinates: a pack moved rigidly
+    to ``E`` placements (its hull adjacency does not change).
+
+    Parameters
+    ----------
+    pack : ConvexPack
+        ``m`` shapes, ``N`` points.
+    points : (E, N, 3) float64
+        Each copy's points, in ``pack.points``' order.
+    lower, upper : (E, m, 3) float64
+        Each copy's shape bounding boxes.
+
+    Returns
+    -------
+    ConvexPack
+        Shape ``s`` of copy ``k`` is shape ``k * m + s``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> pack = pack_convex([np.eye(3)])
+    >>> moved = np.stack([pack.points, pack.points + 1.0])
+    >>> twice = repeat_pack(pack, moved, moved.min(axis=1)[:, None], moved.max(axis=1)[:, None])
+    >>> twice.starts.tolist(), twice.lower.tolist()
+    ([0, 3, 6], [[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]])
+    """
+    count, n, edges = len(points), len(pack.points), len(pack.nbrs)
+    copies = np.arange(count, dtype=np.int64)[:, None]
+    starts = np.concatenate([(pack.starts[:-1][None, :] + n * copies).ravel(), [n * count]])
+    nbr_starts = np.concatenate(
+        [(pack.nbr_starts[:-1][None, :] + edges * copies).ravel(), [edges * count]]
+    )
+    nbrs = (pack.nbrs[None, :] + n * copies).ravel()
+    return ConvexPack(
+        points.reshape(-1, 3),
+        starts.astype(np.int64),
+        nbr_starts.astype(np.int64),
+        nbrs,
+        lower.reshape(-1, 3),
+        upper.reshape(-1, 3),
+    )

@@ -69,7 +69,7 @@ import numpy as np
 from .. import units as units_
 from ..errors import ConfigError, InputError
 from ..mesh import is_closed, split_shells, warn
-from .body import Body, LocalGeometry, local_geometries, local_geometry, mesh_digest
+from .body import Assembly, Body, LocalGeometry, local_geometries, local_geometry, mesh_digest
 from .files import (
     SUPPORTED_EXTENSIONS,
     FileRead,
@@ -78,15 +78,19 @@ from .files import (
     read,
     read_files,
 )
+from .joints import pose_parts
 from .limits import IDENTITY, Budget, Limits, box_corners, check_placement
+from .urdf import urdf_mechanism
 
 __all__ = [
     "SUPPORTED_EXTENSIONS",
+    "Assembly",
     "Body",
     "Limits",
     "LocalGeometry",
     "expand_paths",
     "is_closed",
+    "load_assembly",
     "load_bodies",
     "load_file",
     "local_geometries",
@@ -175,7 +179,12 @@ def _walk_meshes(root: str) -> list[str]:
 # Loading
 
 
-def load_bodies(
+def load_bodies(paths: Sequence[str], **options) -> list[Body]:
+    """The bodies of ``load_assembly(paths, **options)``."""
+    return load_assembly(paths, **options).bodies
+
+
+def load_assembly(
     paths: Sequence[str],
     *,
     split: bool = False,
@@ -188,8 +197,9 @@ def load_bodies(
     executor=None,
     parallel: bool | None = None,
     motion=None,
-) -> list[Body]:
-    """Load every body of every file, in world coordinates and one report unit.
+) -> Assembly:
+    """Load every body of every file, in world coordinates and one report unit, and the robots
+    among them.
 
     Parameters
     ----------
@@ -225,9 +235,10 @@ def load_bodies(
 
     Returns
     -------
-    bodies : list of Body
-        In the order of ``paths``, bodies of one file sorted by node name; every ``Body.units``
-        is the report unit.
+    Assembly
+        The bodies in the order of ``paths``, bodies of one file sorted by node name, every
+        ``Body.units`` the report unit; the mechanisms of the URDF robots and of the
+        configuration's ``[[joint]]`` tables, the latter posed.
 
     Raises
     ------
@@ -252,16 +263,11 @@ def load_bodies(
     declared = [given.get(path, r.declared) for (path, _), r in zip(files, reads, strict=True)]
     report = units_.report_unit(declared, units)
     bodies = _placed_bodies(files, reads, report, units, budget.limits, split=split, given=given)
-    return _posed(bodies, motion)
-
-
-def _posed(bodies: list[Body], motion) -> list[Body]:
-    """``bodies`` with the configuration's ``[[joint]]`` mechanism (``load.joints``) posed."""
-    if motion is None or not motion.joints:
-        return bodies
-    from .joints import pose_parts
-
-    return pose_parts(bodies, motion)
+    found = [urdf_mechanism(r.robot, bodies) for r in reads if r.robot is not None]
+    if motion is not None and motion.joints:  # the [[joint]] mechanism, posed (load.joints)
+        bodies, mech = pose_parts(bodies, motion)
+        found.append(mech)
+    return Assembly(bodies, tuple(found))
 
 
 def _checked_unit(units: str | None) -> str | None:

@@ -1,4 +1,4 @@
-"""The part type every reader produces."""
+"""The part type every reader produces, and what the load stage hands down."""
 
 from __future__ import annotations
 
@@ -11,6 +11,7 @@ import numpy as np
 import trimesh
 
 from ..mesh import is_closed
+from .robot import Mechanism
 
 
 @dataclass(frozen=True, eq=False)
@@ -78,6 +79,22 @@ class Body:
     def is_closed(self) -> bool:
         """True when the mesh bounds a volume (see ``meshcheck.mesh.is_closed``)."""
         return is_closed(self.mesh)
+
+
+@dataclass(frozen=True)
+class Assembly:
+    """What the load stage hands down: the parts, and the robots among them.
+
+    Attributes
+    ----------
+    bodies : list of Body
+    mechanisms : tuple of Mechanism
+        Every URDF robot, in the order their parts come, then the mechanism the configuration's
+        ``[[joint]]`` tables make of mesh parts; each link's parts are indices into ``bodies``.
+    """
+
+    bodies: list[Body]
+    mechanisms: tuple[Mechanism, ...] = ()
 
 
 def mesh_digest(mesh: trimesh.Trimesh) -> str:

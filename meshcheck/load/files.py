@@ -33,6 +33,7 @@ from ..geometry import topology
 from ..mesh import as_mesh, clean_arrays, warn
 from .gltf import read_gltf
 from .limits import MAX_TEXT_LINE, Budget, Limits, read_file
+from .robot import Robot
 from .scene import STL_HEADER, STL_RECORD, read_scene, stores_float32
 from .threemf import read_3mf
 
@@ -89,6 +90,9 @@ class FileRead:
         How far its triangles may lie from the true surface, in that unit (0 for mesh files).
     is_float32 : bool
         Whether the reader got the coordinates through float32 (``Body.is_float32``).
+    robot : robot.Robot or None
+        The robot a URDF describes (its items are the robot's collision elements); None for
+        other files.
     """
 
     items: list[tuple[str, int, np.ndarray]]
@@ -96,6 +100,7 @@ class FileRead:
     declared: str | None
     deflection: float
     is_float32: bool = True
+    robot: Robot | None = None
 
     @property
     def triangles(self) -> int:
@@ -152,7 +157,7 @@ def _read(path: str, budget: Budget, step: StepOptions) -> FileRead:
         check=_stl_head_check(path, budget) if ext == ".stl" else None,
         max_line=MAX_TEXT_LINE if ext in (".obj", ".off") else None,
     )
-    declared, deflection = None, 0.0
+    declared, deflection, robot = None, 0.0, None
     # Which coordinates went through float32, per reader: glTF (POSITION accessors are float32),
     # binary STL and float PLY; 3MF, text meshes and STEP (OpenCASCADE's mesher, double
     # placements, a float64 tessellation cache) are double.
@@ -166,7 +171,7 @@ def _read(path: str, budget: Budget, step: StepOptions) -> FileRead:
         elif ext in URDF_EXTENSIONS:
             from .urdf import read_urdf
 
-            items, declared = read_urdf(path, data, budget, step.motion), "m"
+            (robot, items), declared = read_urdf(path, data, budget, step.motion), "m"
         elif ext == ".3mf":
             items, declared = read_3mf(path, data, budget)
         elif ext in (".glb", ".gltf"):
@@ -192,7 +197,9 @@ def _read(path: str, budget: Budget, step: StepOptions) -> FileRead:
         if not geometries[g][2]:
             warn(name, "mesh is not closed (not watertight); its findings rest on surfaces only")
         out.append((node, g, np.asarray(transform, dtype=np.float64)))
-    return FileRead(out, geometries, declared, float(deflection), is_float32=is_float32)
+    return FileRead(
+        out, geometries, declared, float(deflection), is_float32=is_float32, robot=robot
+    )
 
 
 def _stl_head_check(path: str, budget: Budget):

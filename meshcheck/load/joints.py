@@ -7,7 +7,7 @@ through ``origin`` along ``axis`` (revolute, continuous) or slides them along ``
 whatever is mounted on the child parts further down the tree. Parts no joint moves are the fixed
 ground.
 
-The tree is a ``load.urdf.Robot``, so the pose, the sweep and the SRDF treat it as they treat a
+The tree is a ``load.robot.Robot``, so the pose, the sweep and the SRDF treat it as they treat a
 URDF: the ground and each joint's moving frame are links without geometry (``<ground>``,
 ``<JOINT>``), and every part of the mechanism is a link of its own, named as the part, attached
 to its frame by a fixed joint. Each ``[[joint]]``'s parent parts and child parts are adjacent
@@ -23,36 +23,16 @@ from __future__ import annotations
 import dataclasses
 import os
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
 from ..config import matches
 from ..errors import ConfigError
 from .files import URDF_EXTENSIONS
-from .urdf import Collision, Joint, Robot, joint_values, link_transforms
+from .robot import Collision, Joint, Mechanism, Robot, joint_values, link_transforms
 
 #: The link of the parts no joint moves.
 GROUND = "<ground>"
-
-
-@dataclass(frozen=True)
-class MeshMechanism:
-    """A mechanism made of mesh-file parts.
-
-    Attributes
-    ----------
-    robot : Robot
-        Lengths in report units; links are ``GROUND``, ``<JOINT>`` frames and part names.
-    parts : dict of str -> list of int
-        Each part link's body (one index into the run's bodies).
-    adjacent : set of frozenset of str
-        Pairs of part names a joint joins (its parent parts with its child parts).
-    """
-
-    robot: Robot
-    parts: dict[str, list[int]]
-    adjacent: set[frozenset[str]]
 
 
 def frame(joint: str) -> str:
@@ -60,7 +40,7 @@ def frame(joint: str) -> str:
     return f"<{joint}>"
 
 
-def mesh_mechanism(bodies: Sequence, specs: Sequence) -> MeshMechanism:
+def mesh_mechanism(bodies: Sequence, specs: Sequence) -> Mechanism:
     """The mechanism ``specs`` (``motion.JointSpec``) make of ``bodies``.
 
     Parameters
@@ -69,6 +49,13 @@ def mesh_mechanism(bodies: Sequence, specs: Sequence) -> MeshMechanism:
         The run's parts, as loaded (at joint value 0).
     specs : sequence of motion.JointSpec
         Non-empty.
+
+    Returns
+    -------
+    Mechanism
+        Its robot's lengths are in the report unit; its links are ``GROUND``, the ``<JOINT>``
+        frames and the part names (each part link has one body); the adjacent pairs are each
+        joint's parent parts with its child parts.
 
     Raises
     ------
@@ -157,7 +144,7 @@ def _tree_order(specs, parent_frame: dict[str, str], where) -> list:
     return sorted(specs, key=lambda s: depth[s.name])
 
 
-def _mechanism(bodies, ordered, parent_frame, moved_by, matched, is_urdf) -> MeshMechanism:
+def _mechanism(bodies, ordered, parent_frame, moved_by, matched, is_urdf) -> Mechanism:
     """The ``Robot`` of validated joint tables: frames, part links, adjacency."""
     origin = {s.name: np.asarray(s.origin, dtype=np.float64) for s in ordered}
     joints = []
@@ -202,11 +189,12 @@ def _mechanism(bodies, ordered, parent_frame, moved_by, matched, is_urdf) -> Mes
         tuple(joints),
         tuple(collisions),
     )
-    return MeshMechanism(robot, parts, adjacent)
+    return Mechanism(robot, parts, bodies[0].units, adjacent, is_urdf=False)
 
 
-def pose_parts(bodies: Sequence, motion) -> list:
-    """``bodies`` with the parts of the configuration's mechanism moved to ``motion.pose``.
+def pose_parts(bodies: Sequence, motion) -> tuple[list, Mechanism]:
+    """``bodies`` with the parts of the configuration's mechanism moved to ``motion.pose``, and
+    that mechanism (``mesh_mechanism``).
 
     Pose values of joints no ``[[joint]]`` table names are left to the URDF robots; without
     a URDF in the run, such a value is a ``ConfigError`` (a pose of nothing).
@@ -229,7 +217,7 @@ def pose_parts(bodies: Sequence, motion) -> list:
         move = placed[link] @ np.linalg.inv(zero[link])
         if not np.array_equal(move, np.eye(4)):
             out[k] = dataclasses.replace(bodies[k], transform=move @ bodies[k].transform)
-    return out
+    return out, mech
 
 
-__all__ = ["GROUND", "MeshMechanism", "frame", "mesh_mechanism", "pose_parts"]
+__all__ = ["GROUND", "frame", "mesh_mechanism", "pose_parts"]

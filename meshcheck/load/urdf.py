@@ -1,10 +1,10 @@
 """URDF robots -> placed collision geometry: each link's collision elements at a pose.
 
-A robot is a tree of links joined by joints; a pose gives each movable joint a value, and each
-link's placement is the product of the joint origins and motions from the root to it. The
+A robot is a tree of links joined by joints (``load.robot``, which also poses it). The
 collision geometry of every link becomes parts named ``ROBOT.urdf#LINK`` (``#LINK/1``,
 ``#LINK/2``... for a link's second, third... collision element), placed at the pose
-(``Motion.pose``, zero by default). URDF lengths are metres: the file declares ``m``.
+(``Motion.pose``, zero by default). URDF lengths are metres: the file declares ``m``. The parsed
+robot goes down with the parts (``urdf_mechanism``): no later stage reads the URDF again.
 
 Meshes (STL, OBJ, PLY, OFF; DAE when pycollada is installed) are read by the same readers as
 mesh files, each once however many links use it, scaled by the element's ``scale``; boxes,
@@ -30,7 +30,7 @@ import os
 import re
 import warnings
 import xml.parsers.expat
-from dataclasses import dataclass
+from collections.abc import Sequence
 from xml.etree import ElementTree
 
 import numpy as np
@@ -38,6 +38,18 @@ import numpy as np
 from ..errors import ConfigError, InputError
 from ..mesh import warn
 from .limits import Budget, read_file
+from .robot import (
+    HELD,
+    MOVABLE,
+    Collision,
+    Joint,
+    Mechanism,
+    Robot,
+    adjacent_links,
+    joint_values,
+    link_transforms,
+    rpy_matrix,
+)
 from .scene import Item, Soup, one_line, read_scene
 
 #: Regular polygon sides of a URDF cylinder's mesh (inscribed: its surface lies within
@@ -48,125 +60,16 @@ SPHERE_SUBDIVISIONS = 3
 #: Elements in one URDF and their nesting depth: real robots have a few thousand, a few deep.
 MAX_ELEMENTS = 200_000
 MAX_DEPTH = 64
-#: Joint types with a motion, and the ones held at their zero placement.
-MOVABLE = ("revolute", "continuous", "prismatic")
-HELD = ("fixed", "floating", "planar")
-ROTARY = ("revolute", "continuous")
-#: Joint values may pass a limit by this much (radians or metres) and still be within it: limits
-#: written as 2.9671 against a pose of 170deg (2.96706) are the same to the file's digits.
-LIMIT_SLACK = 1e-6
 MESH_EXTENSIONS = (".stl", ".obj", ".ply", ".off", ".dae")
-
-
-@dataclass(frozen=True)
-class Joint:
-    """One URDF joint.
-
-    Attributes
-    ----------
-    name, type, parent, child : str
-    origin : (4, 4) float64
-        Child frame at zero motion, in the parent link's frame, metres.
-    axis : (3,) float64
-        Unit axis in the joint frame (rotation axis, or slide direction).
-    lower, upper : float
-        Limits, radians or metres; -inf/inf for continuous (and held) joints.
-    mimic : (str, float, float) or None
-        ``(leader, multiplier, offset)``: value = multiplier * leader's value + offset.
-    """
-
-    name: str
-    type: str
-    parent: str
-    child: str
-    origin: np.ndarray
-    axis: np.ndarray
-    lower: float = -math.inf
-    upper: float = math.inf
-    mimic: tuple[str, float, float] | None = None
-
-    def motion(self, value: float) -> np.ndarray:
-        """The joint's motion at ``value``, a (4, 4) transform in the joint frame."""
-        out = np.eye(4)
-        if self.type in ROTARY:
-            out[:3, :3] = rotation(self.axis, value)
-        elif self.type == "prismatic":
-            out[:3, 3] = self.axis * value
-        return out
-
-
-@dataclass(frozen=True)
-class Collision:
-    """One collision element of a link.
-
-    Attributes
-    ----------
-    link : str
-    index : int
-        Its position among the link's collision elements.
-    origin : (4, 4) float64
-        Geometry frame in the link frame, metres.
-    shape : tuple
-        ``("mesh", filename, (3,) scale)``, ``("box", (3,) size)``, ``("cylinder", radius,
-        length)`` or ``("sphere", radius)``.
-    """
-
-    link: str
-    index: int
-    origin: np.ndarray
-    shape: tuple
-
-    @property
-    def node(self) -> str:
-        """The part's node name: ``LINK``, then ``LINK/1``, ``LINK/2``..."""
-        return self.link if self.index == 0 else f"{self.link}/{self.index}"
-
-
-@dataclass(frozen=True)
-class Robot:
-    """A URDF's kinematic tree and collision geometry.
-
-    Attributes
-    ----------
-    path : str
-    name : str
-    root : str
-        The link no joint moves.
-    links : tuple of str
-        In file order.
-    joints : tuple of Joint
-        Parents before children (each joint's parent link is placed before it).
-    collisions : tuple of Collision
-    """
-
-    path: str
-    name: str
-    root: str
-    links: tuple[str, ...]
-    joints: tuple[Joint, ...]
-    collisions: tuple[Collision, ...]
-
-    def joint(self, name: str) -> Joint:
-        """The joint named ``name``; a ``ConfigError`` naming the robot when there is none."""
-        for joint in self.joints:
-            if joint.name == name:
-                return joint
-        movable = [j.name for j in self.joints if j.type in MOVABLE and j.mimic is None]
-        shown = ", ".join(movable[:6]) + (" ..." if len(movable) > 6 else "")
-        raise ConfigError(self.path, f"no joint named {name!r} (movable joints: {shown})")
-
-    @property
-    def movable(self) -> tuple[Joint, ...]:
-        """Joints a pose sets: movable and not mimicking another."""
-        return tuple(j for j in self.joints if j.type in MOVABLE and j.mimic is None)
 
 
 # --------------------------------------------------------------------------------------------
 # Reading
 
 
-def read_urdf(path: str, data: bytes, budget: Budget, motion=None) -> list[Item]:
-    """(node, local mesh, placement) of every collision element of a URDF, posed.
+def read_urdf(path: str, data: bytes, budget: Budget, motion=None) -> tuple[Robot, list[Item]]:
+    """The robot a URDF describes, and (node, local mesh, placement) of every collision element,
+    posed.
 
     Parameters
     ----------
@@ -181,6 +84,7 @@ def read_urdf(path: str, data: bytes, budget: Budget, motion=None) -> list[Item]
 
     Returns
     -------
+    robot : Robot
     items : list of (str, mesh, (4, 4) float64)
         Placements in metres: link placement @ collision origin @ scale.
     """
@@ -207,7 +111,27 @@ def read_urdf(path: str, data: bytes, budget: Budget, motion=None) -> list[Item]
         items.append((c.node, mesh, placement))
     if not items:
         raise InputError(path, "no link has collision geometry")
-    return items
+    return robot, items
+
+
+def urdf_mechanism(robot: Robot, bodies: Sequence) -> Mechanism:
+    """The ``Mechanism`` of a URDF robot: each link's parts among ``bodies``.
+
+    The robot's parts are the bodies of its file (``Body.path`` is ``robot.path``), named
+    ``PATH#NODE`` after their collision element (``Collision.node``), or ``PATH#NODE#k`` for
+    the shells of a split part (``load.split_body``).
+    """
+    node_link = {c.node: c.link for c in robot.collisions}
+    prefix = f"{robot.path}#"
+    parts: dict[str, list[int]] = {}
+    for k, body in enumerate(bodies):
+        if body.path != robot.path:
+            continue
+        node = body.name.removeprefix(prefix)
+        if node not in node_link:  # a shell of a split part
+            node = node.rpartition("#")[0]
+        parts.setdefault(node_link[node], []).append(k)
+    return Mechanism(robot, parts, adjacent=adjacent_links(robot))
 
 
 def parse_robot(path: str, data: bytes) -> Robot:
@@ -470,107 +394,6 @@ def _check_mimics(path: str, joints: list[Joint]) -> None:
 
 
 # --------------------------------------------------------------------------------------------
-# Kinematics
-
-
-def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    """URDF's fixed-axis roll (x), pitch (y), yaw (z): ``Rz(yaw) @ Ry(pitch) @ Rx(roll)``."""
-    return rotation([0, 0, 1], yaw) @ rotation([0, 1, 0], pitch) @ rotation([1, 0, 0], roll)
-
-
-def rotation(axis, angle: float) -> np.ndarray:
-    """(3, 3) rotation by ``angle`` radians about the unit ``axis`` (Rodrigues)."""
-    x, y, z = np.asarray(axis, dtype=np.float64)
-    k = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
-    return np.eye(3) + math.sin(angle) * k + (1.0 - math.cos(angle)) * (k @ k)
-
-
-def default_value(joint: Joint) -> float:
-    """Zero, or the limit nearest zero when zero is outside the limits."""
-    return min(max(0.0, joint.lower), joint.upper)
-
-
-def joint_values(robot: Robot, pose=()) -> dict[str, float]:
-    """Every movable joint's value at ``pose`` (JointValues), mimics following their leaders.
-
-    Raises
-    ------
-    ConfigError
-        A joint not in the robot or mimicking another, degrees for a prismatic joint, or a value
-        beyond the joint's limits (by more than ``LIMIT_SLACK``).
-    """
-    values = {j.name: default_value(j) for j in robot.movable}
-    for given in pose:
-        joint = robot.joint(given.joint)
-        where = f"{robot.path}: joint {joint.name!r}"
-        if joint.mimic is not None:
-            raise ConfigError(where, f"mimics {joint.mimic[0]!r}; set that joint instead")
-        if joint.type not in MOVABLE:
-            raise ConfigError(where, f"is {joint.type}; it takes no value")
-        if given.in_degrees and joint.type not in ROTARY:
-            raise ConfigError(where, "is prismatic: give metres, not degrees")
-        if not joint.lower - LIMIT_SLACK <= given.value <= joint.upper + LIMIT_SLACK:
-            unit = "rad" if joint.type in ROTARY else "m"
-            raise ConfigError(
-                where,
-                f"value {given.value:.6g} {unit} is beyond its limits "
-                f"[{joint.lower:.6g}, {joint.upper:.6g}] {unit}",
-            )
-        values[joint.name] = min(max(given.value, joint.lower), joint.upper)
-    return with_mimics(robot, values)
-
-
-def with_mimics(robot: Robot, values: dict[str, float]) -> dict[str, float]:
-    """``values`` of the leading joints, plus every mimic joint's value from its leader."""
-    out = dict(values)
-    by_name = {j.name: j for j in robot.joints}
-
-    def value(name: str) -> float:
-        if name not in out:
-            leader, multiplier, offset = by_name[name].mimic
-            out[name] = multiplier * value(leader) + offset
-        return out[name]
-
-    for j in robot.joints:
-        if j.type in MOVABLE:
-            value(j.name)
-    return out
-
-
-def link_transforms(robot: Robot, values: dict[str, float]) -> dict[str, np.ndarray]:
-    """Each link's placement in the root link's frame, (4, 4) float64, metres."""
-    out = {robot.root: np.eye(4)}
-    for j in robot.joints:
-        placed = out[j.parent] @ j.origin
-        if j.type in MOVABLE:
-            placed = placed @ j.motion(values[j.name])
-        out[j.child] = placed
-    return out
-
-
-def adjacent_links(robot: Robot) -> set[frozenset[str]]:
-    """Pairs of links joined by a joint, links without collision geometry passed through (their
-    neighbours are adjacent to each other), as MoveIt's Setup Assistant decides "Adjacent"."""
-    with_geometry = {c.link for c in robot.collisions}
-    neighbours: dict[str, set[str]] = {link: set() for link in robot.links}
-    for j in robot.joints:
-        neighbours[j.parent].add(j.child)
-        neighbours[j.child].add(j.parent)
-    out: set[frozenset[str]] = set()
-    for link in with_geometry:
-        seen, frontier = {link}, [link]
-        while frontier:  # walk through geometry-less links to the first ones with geometry
-            at = frontier.pop()
-            for other in neighbours[at] - seen:
-                seen.add(other)
-                if other in with_geometry:
-                    out.add(frozenset((link, other)))
-                else:
-                    frontier.append(other)
-    return out
-
-
-# --------------------------------------------------------------------------------------------
 # Geometry
 
 
@@ -732,18 +555,10 @@ def _read_dae(path: str, data: bytes) -> list[Item]:
 
 
 __all__ = [
-    "Collision",
-    "Joint",
-    "Robot",
-    "adjacent_links",
-    "joint_values",
-    "link_transforms",
     "package_roots",
     "parse_robot",
     "parse_xml",
     "read_urdf",
     "resolve_mesh",
-    "rotation",
-    "rpy_matrix",
-    "with_mimics",
+    "urdf_mechanism",
 ]

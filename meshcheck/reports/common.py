@@ -12,7 +12,7 @@ import re
 from dataclasses import dataclass
 
 from ..outcome import CheckResult
-from ..results import FINDING_STATUSES, Finding, Verdict
+from ..results import FINDING_STATUSES, Finding, PairSweep, RobotSweep, SweepStatus, Verdict
 
 _NAMED = {"\n": "\\n", "\r": "\\r", "\t": "\\t"}
 
@@ -279,12 +279,12 @@ def sweep_rows(result: CheckResult) -> list[tuple[str, object, bool]]:
         (r.path, p, result.is_failing_sweep(r, p))
         for r in result.sweeps
         for p in r.pairs
-        if p.status != "never"
+        if p.status != SweepStatus.NEVER
     ]
     return sorted(rows, key=lambda row: not row[2])  # stable: robot and link order within
 
 
-def sweep_message(robot, pair) -> str:
+def sweep_message(robot: RobotSweep, pair: PairSweep) -> str:
     """One line on a swept pair that collides: ``MECHANISM: a / b: interference at --pose
     hinge=0.3`` (names printable), ``(approved: reason)`` when an approval rule covers it."""
     text = f"{printable(robot.path)}: {printable(pair.a)} / {printable(pair.b)}: "
@@ -294,12 +294,12 @@ def sweep_message(robot, pair) -> str:
     return text
 
 
-def pose_text(pair) -> str:
+def pose_text(pair: PairSweep) -> str:
     """How a swept pair collides, the witness as ``--pose`` takes it: ``interference at --pose
     hinge=0.300216643``; the status alone without a witness."""
-    if pair.status == "sometimes" and pair.witness:
+    if pair.status == SweepStatus.SOMETIMES and pair.witness:
         values = ",".join(f"{name}={value:.9g}" for name, value in pair.witness.items())
         return f"{pair.verdict} at --pose {values}"
-    if pair.status == "always" and pair.verdict:
+    if pair.status == SweepStatus.ALWAYS and pair.verdict:
         return f"{pair.verdict} at every pose"
-    return "neither proven apart nor seen colliding" if pair.status == "undecided" else ""
+    return "neither proven apart nor seen colliding" if pair.status == SweepStatus.UNDECIDED else ""

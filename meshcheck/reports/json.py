@@ -6,7 +6,7 @@ placement, ``part`` null), its status and its findings' IDs.
 
 With ``--sweep`` the document also has ``sweeps``: per robot (or ``[[joint]]`` mechanism) the
 counts by class and every link pair, each with its ``pose`` (the witness's joint values, for a
-``sometimes`` pair; see ``sweep.PairSweep``).
+``sometimes`` pair; see ``results.PairSweep``).
 
 Every finding carries ``baseline`` (``"new"``, ``"active"``, or null without a baseline); with a
 baseline the document also has ``resolved``, the baseline's findings this run no longer has.

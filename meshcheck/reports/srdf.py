@@ -19,8 +19,10 @@ from xml.sax.saxutils import quoteattr
 
 from ..errors import ConfigError
 from ..outcome import CheckResult
+from ..results import SweepStatus
 
-REASONS = {"never": "Never", "always": "Always"}
+#: The SRDF reason of a swept pair's status; the others get no entry.
+REASONS = {SweepStatus.NEVER: "Never", SweepStatus.ALWAYS: "Always"}
 
 
 def render(result: CheckResult) -> str:

@@ -1,0 +1,24 @@
+"""Mechanisms in motion: which link pairs of a robot collide never, sometimes or always over its
+joint ranges (``--sweep``), asking the verify stage's kernels for distances along them.
+
+- ``mechanisms``: what the run's robots (``load.Assembly.mechanisms``) change in the check
+  (adjacent links approved) and which joints a sweep moves;
+- ``kinematics``: joint ranges and the bound on how fast a joint moves a link's points;
+- ``distances``: posed links' distances, from their convex pieces and their real meshes;
+- ``search``: one link pair's boxes of joint values, witnesses and descent;
+- ``run``: every robot's link pairs, the stage the pipeline calls.
+"""
+
+from __future__ import annotations
+
+from .mechanisms import ADJACENT, adjacent_approvals, with_adjacent_approvals
+from .run import mechanism_pieces, sweep_bodies, sweep_mechanism
+
+__all__ = [
+    "ADJACENT",
+    "adjacent_approvals",
+    "mechanism_pieces",
+    "sweep_bodies",
+    "sweep_mechanism",
+    "with_adjacent_approvals",
+]

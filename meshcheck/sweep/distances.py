@@ -1,0 +1,282 @@
+"""Distances between two posed links: lower bounds from their convex pieces, many placements in
+one compiled call, and the real meshes' exact distance when the pieces cannot decide.
+
+Each link's geometry lives in its own frame (``LinkGeometry``), report units; a placement is a
+(4, 4) transform of that frame into the robot's root frame.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..geometry import ConvexPack, Status, concat_packs, pack_convex, query_pairs, repeat_pack
+from ..load import Body
+from ..load.robot import Mechanism, Robot, link_transforms
+
+#: Directions whose extreme vertices make a piece's coarse hull (an icosphere's vertices, 2
+#: subdivisions: 162).
+COARSE_SUBDIVISIONS = 2
+#: Pieces with more hull vertices than this are coarsened for the box search: the PR2's
+#: fingers and wrists (1,000 to 4,450 per piece) are; the panda's (up to 170) are not, as their
+#: pads would cost more boxes than the fewer vertices save (bench/sweep.py: 57.6 s and 3
+#: undecided pairs with every piece over 162 coarsened, against 41.0 s and 2 without).
+COARSE_MIN_VERTICES = 500
+
+
+def coarse_pieces(
+    pieces: list[np.ndarray], *, min_vertices: int = COARSE_MIN_VERTICES
+) -> tuple[list[np.ndarray], np.ndarray]:
+    """Fewer-vertex stand-ins for convex pieces, each with a padding that restores the bound.
+
+    A piece with more than ``min_vertices`` vertices (and more than the icosphere has
+    directions) is replaced by its extreme vertices along those directions (a hull inside it),
+    and ``pad`` is the largest distance of
+    its vertices from that hull (exact, by GJK): the piece lies inside the coarse hull grown by
+    ``pad``, so the coarse hulls' distance minus both pads is a lower bound on the pieces'
+    distance. Posing a finger of 4,000 hull vertices costs 160 instead.
+
+    Returns
+    -------
+    coarse : list of (k_i, 3) float64
+    pad : (m,) float64
+        0 for pieces kept as they are.
+    """
+    import trimesh
+
+    directions = trimesh.creation.icosphere(subdivisions=COARSE_SUBDIVISIONS).vertices
+    coarse, pads = [], []
+    for piece in pieces:
+        if len(piece) <= max(min_vertices, len(directions)):
+            coarse.append(piece)
+            pads.append(0.0)
+            continue
+        kept = piece[np.unique(np.argmax(piece @ directions.T, axis=0))]
+        pack = pack_convex([kept, *piece[:, None, :]])
+        pairs = np.stack([np.zeros(len(piece), np.int64), np.arange(1, len(piece) + 1)], axis=1)
+        res = query_pairs(pack, pairs, tolerance=0.0, depth=False)
+        size = float(np.ptp(piece, axis=0).max())
+        # GJK's distances are exact to rounding; the margin covers that rounding.
+        pads.append(float(max(res.distance.max(), 0.0)) + 1e-9 * size)
+        coarse.append(kept)
+    return coarse, np.array(pads)
+
+
+@dataclass(frozen=True)
+class LinkGeometry:
+    """A link's convex pieces and real meshes in its own frame (report units), and its parts.
+
+    Attributes
+    ----------
+    pack : ConvexPack
+        The coarse pieces the box search poses (``coarse_pieces``).
+    radius : float
+        The farthest piece point from the link frame's origin.
+    parts : tuple of (int, (4, 4) float64)
+        (body index, link frame -> body placement) of each of its parts.
+    pad : (m,) float64
+        Each coarse piece's padding: the piece lies within it of its hull.
+    points : (n, 3) float64
+        Every piece's hull vertices (the motion bound's geometry).
+    hull : (k, 3) float64
+        A few of them whose hull, grown by ``hull_pad``, holds them all.
+    hull_pad : float
+    vertices : (v, 3) float64
+        The real meshes' vertices, link frame.
+    faces : (f, 3) int64
+        Their triangles.
+    """
+
+    pack: ConvexPack
+    radius: float
+    parts: tuple[tuple[int, np.ndarray], ...]
+    pad: np.ndarray
+    points: np.ndarray
+    hull: np.ndarray
+    hull_pad: float
+    vertices: np.ndarray
+    faces: np.ndarray
+
+
+def link_geometries(
+    robot: Robot,
+    mech: Mechanism,
+    bodies: Sequence[Body],
+    pieces: dict[int, list[np.ndarray]],
+    base: dict[str, float],
+    scale: float,
+) -> dict[str, LinkGeometry]:
+    """Each link's pieces and meshes in its own frame and its parts' offsets from it.
+
+    Parameters
+    ----------
+    pieces : dict of int -> list of (n_i, 3) float64
+        Each part's convex pieces, world coordinates at the pose ``base``.
+    base : dict of str -> float
+        Every movable joint's value at the run's pose.
+    scale : float
+        Report units per unit of the robot's lengths.
+    """
+    placed = link_transforms(robot, base)
+    out = {}
+    for link, ks in sorted(mech.parts.items()):
+        frame = placed[link].copy()
+        frame[:3, 3] *= scale
+        inverse = np.linalg.inv(frame)
+        local = [p @ inverse[:3, :3].T + inverse[:3, 3] for k in ks for p in pieces[k]]
+        parts = tuple((k, inverse @ bodies[k].transform) for k in ks)
+        points = pack_convex(local, is_hull=True).points
+        coarse, pad = coarse_pieces(local)
+        radius = float(np.linalg.norm(points, axis=1).max())
+        (hull,), (hull_pad,) = coarse_pieces([points], min_vertices=0)
+        vertices, faces, count = [], [], 0
+        for k, offset in parts:
+            mesh = bodies[k].mesh
+            vertices.append(np.asarray(mesh.vertices) @ offset[:3, :3].T + offset[:3, 3])
+            faces.append(np.asarray(mesh.faces, dtype=np.int64) + count)
+            count += len(mesh.vertices)
+        out[link] = LinkGeometry(
+            pack_convex(coarse, is_hull=True),
+            radius,
+            parts,
+            pad,
+            points,
+            hull,
+            float(hull_pad),
+            np.vstack(vertices),
+            np.vstack(faces),
+        )
+    return out
+
+
+def piece_distances(
+    pack_a, pack_b, ta, tb, reach: np.ndarray, pad_a=None, pad_b=None, *, settle: bool = False
+):
+    """Lower bounds on the distance between two links' pieces at E placements.
+
+    Parameters
+    ----------
+    pack_a, pack_b : ConvexPack
+        Each link's convex pieces in its own frame.
+    ta, tb : (E, 4, 4) float64
+        The links' placements.
+    reach : (E,) float64
+        Distances beyond which the exact value does not matter (answers above it are bounds).
+    pad_a, pad_b : (m_a,), (m_b,) float64, optional
+        Each piece stands for itself grown by this much (``coarse_pieces``); default 0.
+    settle : bool
+        Only whether each placement comes within ``reach`` matters: the piece pair whose
+        boxes are nearest is measured first, and a placement it brings within reach gets that
+        pair's distance (at most ``reach``, not the least) and no more GJK; the others are
+        measured in full. The sweep's boxes split or close on this alone (``bench/sweep.py
+        --pair`` prints the piece pairs a link pair's boxes measured).
+
+    Returns
+    -------
+    lowest : (E,) float64
+        For each placement, a lower bound on the distance between the two links' surfaces
+        (exact when at most ``reach`` and nothing is padded): the smallest piece-pair signed
+        distance less both pads; ``inf`` when every piece pair's boxes are farther apart than
+        ``reach``. With ``settle``, a value at most ``reach`` is some piece pair's.
+    """
+    ma, mb = len(pack_a.starts) - 1, len(pack_b.starts) - 1
+    pad_a = np.zeros(ma) if pad_a is None else pad_a
+    pad_b = np.zeros(mb) if pad_b is None else pad_b
+    lowest = np.full(len(ta), np.inf)
+    near = spheres_within(pack_a, pack_b, ta, tb, reach, float(pad_a.max() + pad_b.max()))
+    if np.any(near):  # pose only the placements whose links' spheres come within reach
+        lowest[near] = posed_distances(
+            pack_a, pack_b, ta[near], tb[near], reach[near], pad_a, pad_b, settle=settle
+        )
+    return lowest
+
+
+def spheres_within(pack_a, pack_b, ta, tb, reach: np.ndarray, pad: float) -> np.ndarray:
+    """Which of E placements bring the two links' bounding spheres (grown by ``pad``) within
+    ``reach`` (the others' pieces are farther apart than that: nothing need be posed)."""
+    out = []
+    for pack, t in ((pack_a, ta), (pack_b, tb)):
+        centre = 0.5 * (pack.points.min(axis=0) + pack.points.max(axis=0))
+        radius = float(np.linalg.norm(pack.points - centre, axis=1).max())
+        out.append((t[:, :3, :3] @ centre + t[:, :3, 3], radius))
+    (pa, ra), (pb, rb) = out
+    return np.linalg.norm(pa - pb, axis=1) - ra - rb - pad <= reach
+
+
+def posed_points(pack: ConvexPack, transforms: np.ndarray) -> tuple[np.ndarray, ...]:
+    """A local pack's points placed by each of E transforms: (E, N, 3) points and each piece's
+    (E, m, 3) lower and upper corners."""
+    points = np.matmul(pack.points, transforms[:, :3, :3].transpose(0, 2, 1))
+    points += transforms[:, None, :3, 3]
+    starts = pack.starts[:-1]
+    lower = np.minimum.reduceat(points, starts, axis=1)
+    upper = np.maximum.reduceat(points, starts, axis=1)
+    return points, lower, upper
+
+
+def posed_distances(
+    pack_a, pack_b, ta, tb, reach, pad_a, pad_b, *, settle: bool = False
+) -> np.ndarray:
+    """``piece_distances`` of placements whose links come near: link b's pieces posed in link
+    a's frame (distances do not change under the rigid motion of both, and a's pieces then
+    serve every placement unmoved), the piece pairs whose boxes come within reach (plus pads)
+    measured by GJK."""
+    e_count = len(ta)
+    lowest = np.full(e_count, np.inf)
+    rotation = ta[:, :3, :3].transpose(0, 2, 1)
+    relative = np.zeros((e_count, 4, 4))
+    relative[:, :3, :3] = rotation @ tb[:, :3, :3]
+    relative[:, :3, 3] = np.einsum("eij,ej->ei", rotation, tb[:, :3, 3] - ta[:, :3, 3])
+    relative[:, 3, 3] = 1.0
+    pb, lb, ub = posed_points(pack_b, relative)
+    la, ua = pack_a.lower, pack_a.upper
+    ma, mb = len(pack_a.starts) - 1, len(pack_b.starts) - 1
+    gap = np.maximum(
+        la[None, :, None, :] - ub[:, None, :, :], lb[:, None, :, :] - ua[None, :, None, :]
+    )
+    box_gap = np.linalg.norm(np.maximum(gap, 0.0), axis=3)  # (E, ma, mb), a lower bound
+    pads = pad_a[:, None] + pad_b[None, :]
+    e, i, j = np.nonzero(box_gap - pads[None] <= reach[:, None, None])
+    if len(e) == 0:
+        return lowest
+    # One pack: a's pieces, then b's at each placement (placement k's piece j: ma + k * mb + j).
+    pack = concat_packs([pack_a, repeat_pack(pack_b, pb, lb, ub)])
+    pairs = np.stack([i, ma + e * mb + j], axis=1)
+    pad = pads[i, j]
+
+    def measure(rows):
+        res = query_pairs(pack, pairs[rows], tolerance=0.0, depth=False,
+                          max_distance=reach[e[rows]] + pad[rows])  # fmt: skip
+        found = np.where(res.status == Status.UNDECIDED, np.minimum(res.distance, 0.0),
+                         res.distance)  # fmt: skip
+        return found - pad[rows]
+
+    rest = np.arange(len(e))
+    if settle:  # each placement's nearest boxes first: is it within reach?
+        order = np.lexsort((box_gap[e, i, j] - pad, e))
+        first = order[np.flatnonzero(np.diff(e[order], prepend=-1))]
+        lowest[e[first]] = measure(first)
+        rest = rest[lowest[e] > reach[e]]
+        lowest[e[first]] = np.where(lowest[e[first]] <= reach[e[first]], lowest[e[first]], np.inf)
+    np.minimum.at(lowest, e[rest], measure(rest))
+    return lowest
+
+
+def surface_distance(
+    a: LinkGeometry, b: LinkGeometry, ta: np.ndarray, tb: np.ndarray, reach: float
+) -> float:
+    """The distance between two links' real surfaces placed by ``ta``, ``tb``, exact when at
+    most ``reach`` (else a value above it): the triangle pairs whose boxes come within
+    ``reach`` (a bounding-volume hierarchy), measured exactly; 0 where surfaces cross."""
+    from ..geometry.triangles import box_pairs, pair_distances, triangle_boxes
+
+    va = a.vertices @ ta[:3, :3].T + ta[:3, 3]
+    vb = b.vertices @ tb[:3, :3].T + tb[:3, 3]
+    alo, ahi = triangle_boxes(va, a.faces)
+    blo, bhi = triangle_boxes(vb, b.faces)
+    pairs = box_pairs(alo, ahi, blo, bhi, reach)
+    if len(pairs) == 0:
+        return np.inf
+    return float(pair_distances(va, a.faces, vb, b.faces, pairs)[0].min())

@@ -1,0 +1,96 @@
+"""What the run's mechanisms (``load.Assembly.mechanisms``) change in the check and the sweep:
+adjacent links' findings approved, the joints a sweep moves, and the approval reasons of a
+``[[joint]]`` mechanism's swept pairs."""
+
+from __future__ import annotations
+
+import dataclasses
+import glob
+from collections.abc import Sequence
+
+from ..config import Approval, approval_reason
+from ..errors import ConfigError
+from ..load import Body
+from ..load.robot import Mechanism, Robot
+from ..results import RobotSweep
+
+#: The reason adjacent links' findings are approved with (MoveIt's "Adjacent").
+ADJACENT = "adjacent"
+
+
+def adjacent_approvals(bodies: Sequence[Body], mechanisms: Sequence[Mechanism]) -> list[Approval]:
+    """An approval (reason ``ADJACENT``) for each pair of parts on adjacent links.
+
+    Parameters
+    ----------
+    bodies : sequence of Body
+        The run's parts.
+    mechanisms : sequence of Mechanism
+        The robots among them (``load.Assembly.mechanisms``).
+    """
+    out = []
+    for mech in mechanisms:
+        for pair in sorted(sorted(p) for p in mech.adjacent):
+            a, b = pair
+            for i in mech.parts.get(a, ()):
+                for j in mech.parts.get(b, ()):
+                    out.append(
+                        Approval(glob.escape(bodies[i].name), glob.escape(bodies[j].name), ADJACENT)
+                    )
+    return out
+
+
+def with_adjacent_approvals(settings, bodies: Sequence[Body], mechanisms: Sequence[Mechanism]):
+    """``settings`` with the approvals the robots among ``bodies`` bring: adjacent links'
+    pairs (after the user's own rules, whose reasons win), unless ``settings.motion.adjacent``
+    is off."""
+    if not settings.motion.adjacent:
+        return settings
+    extra = adjacent_approvals(bodies, mechanisms)
+    if not extra:
+        return settings
+    return settings.replace(approvals=(*settings.approvals, *extra))
+
+
+def check_swept(mechanisms: Sequence[Mechanism], named) -> None:
+    """Refuse a joint of ``--sweep-joints`` that no mechanism of the run has (``ConfigError``
+    from the first robot, listing its joints)."""
+    for name in named or ():
+        if mechanisms and not any(name in {j.name for j in m.robot.joints} for m in mechanisms):
+            mechanisms[0].robot.joint(name)  # raises, naming the robot's movable joints
+
+
+def swept_joints(robot: Robot, named) -> set[str]:
+    """The joints of ``robot`` swept: every movable one when ``named`` is empty, else those of
+    ``named`` it has (``check_swept`` refused names no mechanism of the run has)."""
+    if not named:
+        return {j.name for j in robot.movable}
+    out = set()
+    for name in named:
+        joint = next((j for j in robot.joints if j.name == name), None)
+        if joint is None:
+            continue
+        if joint not in robot.movable:
+            raise ConfigError(robot.path, f"--sweep {name}: not a movable joint that leads")
+        out.add(name)
+    return out
+
+
+def with_approval_reasons(
+    sweeps: Sequence[RobotSweep], bodies: Sequence[Body], approvals: Sequence[Approval]
+) -> tuple[RobotSweep, ...]:
+    """The sweeps with each ``[[joint]]`` mechanism's pair given the reason of the approval
+    rule its two parts (links named by the parts' full names) match, if any."""
+    names = {b.name: (b.name, b.relative_name) for b in bodies}
+    out = []
+    for robot in sweeps:
+        if not robot.is_urdf:
+            pairs = tuple(
+                dataclasses.replace(
+                    p, approval_reason=approval_reason(approvals, names[p.a], names[p.b])
+                )
+                for p in robot.pairs
+            )
+            robot = dataclasses.replace(robot, pairs=pairs)
+        out.append(robot)
+    return tuple(out)

@@ -1,0 +1,314 @@
+"""The search over one link pair's joint values: never proven box by box, sometimes shown by a
+witness pose the real meshes confirm.
+
+A box of joint values is evaluated at its centre: the links' distance there, less how far any
+point can move within the box (``kinematics.box_weights``), either certifies the whole box free
+of contact or the box is halved. Witnesses are looked for before the proof (seeded samples),
+among the nearest box centres, and by a descent from them (``descent_witness``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..load import Body
+from ..load.robot import Robot, chain_transforms, joint_poses
+from ..results import PairSweep, SweepStatus, Verdict
+from ..verify.pair import verify_pair
+from .distances import LinkGeometry, piece_distances, surface_distance
+from .kinematics import LinkSide, box_weights
+
+#: Boxes of joint values one link pair may evaluate before it is left undecided (the panda's
+#: link 0 and link 4 need 71,579; bench/sweep.py on the PR2 sets the time against 10,000
+#: python-fcl samples).
+MAX_BOXES = 100_000
+#: Boxes evaluated in one compiled call.
+BATCH = 1024
+#: Boxes whose motion bound is below this fraction of the smaller link's size, and whose
+#: coarse pieces do not prove them apart, are measured on the real meshes' triangles.
+FINE_REACH = 0.02
+#: Poses drawn (fixed seed) to look for a witness before the proof starts, and how many of the
+#: closest are re-checked on the real meshes.
+SAMPLES = 256
+SAMPLE_CHECKS = 4
+#: Candidate witnesses re-checked on the real meshes per link pair, deepest piece overlap first.
+MAX_WITNESS_CHECKS = 24
+#: A pair not decided after this many boxes looks for a witness by descending the pieces'
+#: distance from the nearest box centres (``descent_witness``): how many, steps, tries.
+DESCENT_AFTER = 4096
+DESCENT_STARTS = 8
+DESCENT_STEPS = 10
+DESCENT_TRIES = 32
+
+#: The real meshes' statuses that make a pose a witness.
+COLLIDING = (Verdict.INTERFERENCE, Verdict.TOUCHING)
+
+
+@dataclass
+class LinkPair:
+    """What one link pair's sweep needs.
+
+    Attributes
+    ----------
+    robot : Robot
+    a, b : str
+        The links, ``a < b``.
+    names : list of str
+        The free joints: the swept leading joints that move one link relative to the other.
+    sides : (LinkSide, LinkSide)
+        Each link's joints below the pair's common ancestor (``kinematics.link_sides``).
+    base : dict of str -> float
+        Every movable joint's value at the run's pose.
+    scale : float
+        Report units per unit of the robot's lengths.
+    tolerance : float
+        Touching tolerance, report units.
+    links : dict of str -> LinkGeometry
+    bodies : sequence of Body
+        The run's parts.
+    """
+
+    robot: Robot
+    a: str
+    b: str
+    names: list[str]
+    sides: tuple[LinkSide, LinkSide]
+    base: dict
+    scale: float
+    tolerance: float
+    links: dict[str, LinkGeometry]
+    bodies: Sequence[Body]
+
+    def placements(self, values: np.ndarray, axes: dict | None = None):
+        """(ta, tb, poses): the links' placements at the rows of ``values`` and every joint's
+        values there; each movable joint's axis line goes to ``axes`` when given."""
+        poses = joint_poses(self.robot, self.base, self.names, values)
+        count = len(values)
+        ta = chain_transforms(self.robot.chain(self.a), poses, self.scale, count, axes)
+        tb = chain_transforms(self.robot.chain(self.b), poses, self.scale, count, axes)
+        return ta, tb, poses
+
+    def box_weights(self, ta, tb, axes: dict, half: np.ndarray) -> np.ndarray:
+        """(E, n) bounds on how fast a unit change of each free joint moves any point of the
+        two links within the boxes of half-widths ``half`` about ``ta``, ``tb``
+        (``kinematics.box_weights``)."""
+        return box_weights(self.sides, ta, tb, axes, half)
+
+    def distances(self, ta: np.ndarray, tb: np.ndarray, reach: np.ndarray) -> np.ndarray:
+        """Lower bounds on the distance between the two links' surfaces at placements ``ta``,
+        ``tb``: from the coarse pieces (``piece_distances``), and where those come within
+        ``reach`` and the reach is below ``FINE_REACH`` of the smaller link's size, the real
+        meshes' exact distance (``surface_distance``: its cost grows with the triangle pairs
+        within reach, so it waits for boxes small enough that it can close them)."""
+        a, b = self.links[self.a], self.links[self.b]
+        lowest = piece_distances(a.pack, b.pack, ta, tb, reach, a.pad, b.pad, settle=True)
+        fine = FINE_REACH * min(np.ptp(a.points, axis=0).max(), np.ptp(b.points, axis=0).max())
+        for e in np.flatnonzero((lowest <= reach) & (reach <= fine)):
+            lowest[e] = surface_distance(a, b, ta[e], tb[e], float(reach[e]))
+        return lowest
+
+    def verdict(self, ta: np.ndarray, tb: np.ndarray, *, surfaces_apart: bool = False) -> Verdict:
+        """The real meshes' worst status at one placement of the two links."""
+        worst = Verdict.CLEAR
+        for i, offset_i in self.links[self.a].parts:
+            mesh_a = self.bodies[i].mesh.copy().apply_transform(ta @ offset_i)
+            for j, offset_j in self.links[self.b].parts:
+                mesh_b = self.bodies[j].mesh.copy().apply_transform(tb @ offset_j)
+                status = verify_pair(
+                    mesh_a,
+                    mesh_b,
+                    tolerance=self.tolerance,
+                    clearance=None,
+                    surfaces_apart=surfaces_apart,
+                ).status
+                if status == Verdict.INTERFERENCE:
+                    return status
+                if status == Verdict.TOUCHING:
+                    worst = Verdict.TOUCHING
+        return worst
+
+    def outcome(
+        self,
+        status: SweepStatus,
+        boxes: int,
+        witness: dict[str, float] | None = None,
+        verdict: Verdict | None = None,
+    ) -> PairSweep:
+        """The pair's ``PairSweep``."""
+        return PairSweep(self.a, self.b, status, tuple(self.names), witness, verdict, boxes)
+
+    def witness_at(self, ta, tb, poses: dict, e: int, boxes: int) -> PairSweep | None:
+        """``SOMETIMES`` with placement ``e`` of ``ta``, ``tb`` as the witness when the real
+        meshes collide there, else None."""
+        status = self.verdict(ta[e], tb[e])
+        if status not in COLLIDING:
+            return None
+        witness = {n: float(poses[n][e]) for n in self.names}
+        return self.outcome(SweepStatus.SOMETIMES, boxes, witness, status)
+
+
+def sweep_pair(
+    pair: LinkPair, lower: np.ndarray, upper: np.ndarray, resolution: float
+) -> PairSweep:
+    """Classify one link pair over the box ``lower..upper`` of its free joints.
+
+    Boxes of joint values are evaluated at their centre ``c`` with half-widths ``h``: the
+    pieces' distance there (or, for a box small enough, the real triangles', see
+    ``LinkPair.distances``) bounds the links' surface distance from below, and no point moves by
+    more than ``M = sum_k r_k h_k`` (``LinkPair.box_weights``: each joint's lever arm bounded
+    at the box's centre pose) within the box, so a box whose centre distance exceeds
+    ``M + tolerance`` is certified free of contact. Other boxes are halved along the joint that
+    contributes most to ``M``, down to ``resolution``. Centres where pieces overlap are
+    re-checked on the real meshes, nearest first: one that interferes or touches is the witness
+    of ``sometimes``; after ``DESCENT_AFTER`` boxes, a descent from the nearest centres looks
+    for one (``descent_witness``). When every box is certified, the surfaces never come within
+    the tolerance, so whether one link is buried in the other cannot change over the sweep: one
+    exact check at the centre decides ``never`` (or ``always``, buried throughout).
+    """
+    if len(lower) == 0:  # nothing moves one link relative to the other
+        return fixed_pair(pair)
+    found = sampled_witness(pair, lower, upper)
+    if found is not None:
+        return found
+    lo, hi = lower[None, :].copy(), upper[None, :].copy()
+    evaluated, checks, unresolved = SAMPLES, 0, False
+    nearest = NearestCentres(DESCENT_STARTS)
+    while len(lo):
+        if nearest is not None and evaluated >= DESCENT_AFTER:
+            found = descent_witness(pair, lower, upper, nearest.values, evaluated)
+            if found is not None:
+                return found
+            nearest = None
+        blo, bhi, lo, hi = lo[:BATCH], hi[:BATCH], lo[BATCH:], hi[BATCH:]
+        centre, half = 0.5 * (blo + bhi), 0.5 * (bhi - blo)
+        axes: dict = {}
+        ta, tb, poses = pair.placements(centre, axes)
+        w = pair.box_weights(ta, tb, axes, half)
+        bound = np.sum(half * w, axis=1) + pair.tolerance
+        lowest = pair.distances(ta, tb, bound)
+        evaluated += len(centre)
+        if nearest is not None:
+            nearest.add(lowest, centre)
+        for e in np.argsort(lowest, kind="stable"):
+            if lowest[e] > pair.tolerance or checks >= MAX_WITNESS_CHECKS:
+                break
+            checks += 1
+            found = pair.witness_at(ta, tb, poses, e, evaluated)
+            if found is not None:
+                return found
+        open_ = lowest <= bound
+        if not np.any(open_):
+            continue
+        blo, bhi, half, w = blo[open_], bhi[open_], half[open_], w[open_]
+        splittable = np.any(2.0 * half > resolution, axis=1)
+        for e in np.flatnonzero(~splittable)[: max(0, MAX_WITNESS_CHECKS - checks) // 2]:
+            unresolved = True  # at the resolution: its corners may still collide
+            checks += 2
+            found = first_witness(pair, np.stack([blo[e], bhi[e]]), evaluated)
+            if found is not None:
+                return found
+        unresolved |= bool(np.any(~splittable))
+        new_lo, new_hi = halve_boxes(blo[splittable], bhi[splittable], w[splittable])
+        lo, hi = np.concatenate([lo, new_lo]), np.concatenate([hi, new_hi])
+        if evaluated + len(lo) > MAX_BOXES:
+            return pair.outcome(SweepStatus.UNDECIDED, evaluated)
+    if unresolved:
+        return pair.outcome(SweepStatus.UNDECIDED, evaluated)
+    ta, tb, _ = pair.placements(0.5 * (lower + upper)[None, :])
+    buried = pair.verdict(ta[0], tb[0], surfaces_apart=True) == Verdict.INTERFERENCE
+    return pair.outcome(SweepStatus.ALWAYS if buried else SweepStatus.NEVER, evaluated)
+
+
+def fixed_pair(pair: LinkPair) -> PairSweep:
+    """A pair no swept joint moves relative to each other: ``ALWAYS`` (with an empty witness)
+    when the real meshes collide at the run's pose, else ``NEVER``."""
+    ta, tb, _ = pair.placements(np.zeros((1, 0)))
+    verdict = pair.verdict(ta[0], tb[0])
+    if verdict in COLLIDING:
+        return pair.outcome(SweepStatus.ALWAYS, 1, {}, verdict)
+    return pair.outcome(SweepStatus.NEVER, 1)
+
+
+def halve_boxes(lo: np.ndarray, hi: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each box ``lo..hi`` cut in two across the joint contributing most to its motion bound
+    (``w``: (E, n) each box's bound per unit of each joint)."""
+    axis = np.argmax(0.5 * (hi - lo) * w, axis=1)
+    rows = np.arange(len(axis))
+    mid = 0.5 * (lo[rows, axis] + hi[rows, axis])
+    left_hi, right_lo = hi.copy(), lo.copy()
+    left_hi[rows, axis], right_lo[rows, axis] = mid, mid
+    return np.concatenate([lo, right_lo]), np.concatenate([left_hi, hi])
+
+
+class NearestCentres:
+    """The ``count`` box centres whose links came nearest so far (ties: the earlier)."""
+
+    def __init__(self, count: int):
+        self.count, self.lowest, self.values = count, np.empty(0), None
+
+    def add(self, lowest: np.ndarray, values: np.ndarray) -> None:
+        both = np.concatenate([self.lowest, lowest])
+        rows = values if self.values is None else np.concatenate([self.values, values])
+        keep = np.argsort(both, kind="stable")[: self.count]
+        self.lowest, self.values = both[keep], rows[keep]
+
+
+def descent_witness(pair: LinkPair, lower, upper, starts, boxes: int) -> PairSweep | None:
+    """A witness near the box centres where the links came nearest (``starts``): each is
+    moved, ``DESCENT_STEPS`` times, to the nearest of ``DESCENT_TRIES`` perturbations of it
+    (fixed seed; each joint's step in proportion to its range, halved when none comes nearer)
+    by the coarse pieces' signed distance; the final poses whose pieces overlap are
+    re-checked on the real meshes, nearest first. A pair colliding only in a narrow window
+    of many joints is found in a few thousand poses instead of by splitting boxes down to it.
+    """
+    if starts is None or len(starts) == 0:
+        return None
+    rng = np.random.default_rng(1)
+    a, b = pair.links[pair.a], pair.links[pair.b]
+
+    def measure(values, reach: float):
+        ta, tb, _ = pair.placements(values)
+        return piece_distances(a.pack, b.pack, ta, tb, np.full(len(values), reach), a.pad, b.pad)
+
+    current = starts.copy()
+    scores = measure(current, np.inf)
+    reach = max(float(scores.max()), 0.0) + pair.tolerance  # nothing beyond the starts matters
+    step = np.broadcast_to(0.125 * (upper - lower), current.shape).copy()
+    for _ in range(DESCENT_STEPS):
+        noise = rng.standard_normal((len(current), DESCENT_TRIES, len(lower)))
+        tries = np.clip(current[:, None, :] + step[:, None, :] * noise, lower, upper)
+        flat = measure(tries.reshape(-1, len(lower)), reach).reshape(len(current), DESCENT_TRIES)
+        best = np.argmin(flat, axis=1)
+        better = flat[np.arange(len(current)), best] < scores
+        current[better] = tries[better, best[better]]
+        scores[better] = flat[better, best[better]]
+        step[~better] *= 0.5
+    order = np.argsort(scores, kind="stable")
+    order = order[scores[order] <= pair.tolerance][:SAMPLE_CHECKS]
+    return first_witness(pair, current[order], boxes)
+
+
+def sampled_witness(pair: LinkPair, lower: np.ndarray, upper: np.ndarray) -> PairSweep | None:
+    """A witness among ``SAMPLES`` poses drawn with a fixed seed (most pairs that collide do so
+    over a wide region, found here before any box is split), else None."""
+    rng = np.random.default_rng(0)
+    values = lower + (upper - lower) * rng.random((SAMPLES, len(lower)))
+    ta, tb, _ = pair.placements(values)
+    lowest = pair.distances(ta, tb, np.full(SAMPLES, pair.tolerance))
+    order = np.argsort(lowest, kind="stable")[:SAMPLE_CHECKS]
+    return first_witness(pair, values[order[lowest[order] <= pair.tolerance]], SAMPLES)
+
+
+def first_witness(pair: LinkPair, values: np.ndarray, boxes: int) -> PairSweep | None:
+    """The first of ``values`` (free joints' values, (k, n)) where the real meshes collide."""
+    if len(values) == 0:
+        return None
+    ta, tb, poses = pair.placements(values)
+    for e in range(len(values)):
+        found = pair.witness_at(ta, tb, poses, e, boxes)
+        if found is not None:
+            return found
+    return None
