@@ -527,9 +527,10 @@ class PairCache:
             return None
         if not isinstance(entry, dict) or set(entry) != {"key", "verdict", "mac"}:
             return None
-        if entry["key"] != key or not isinstance(entry["mac"], str):
+        mac = entry["mac"]
+        if entry["key"] != key or not isinstance(mac, str) or not mac.isascii():
             return None
-        if not hmac.compare_digest(entry["mac"], self._mac(key, entry["verdict"])):
+        if not hmac.compare_digest(mac, self._mac(key, entry["verdict"])):
             return None
         return _decode_verdict(entry["verdict"])
 

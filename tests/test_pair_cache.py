@@ -278,6 +278,18 @@ def _sign(cache: PairCache, fields: dict) -> None:
         json.dump(entry, f)
 
 
+@pytest.mark.parametrize("mac", ["\u00e9" * 64, 7, None])
+def test_a_mac_that_is_not_hex_text_is_a_miss(tmp_path, mac):
+    cache = PairCache(tmp_path, secret=b"k")
+    cache.put("ab" * 32, CLEAR)
+    with open(cache.path("ab" * 32)) as f:
+        entry = json.load(f)
+    entry["mac"] = mac
+    with open(cache.path("ab" * 32), "w") as f:
+        json.dump(entry, f)
+    assert cache.get("ab" * 32) is None
+
+
 def test_a_solid_whose_faces_index_no_vertex_is_a_miss(tmp_path):
     cache = PairCache(tmp_path, secret=b"k")
     good = _solid_verdict()
