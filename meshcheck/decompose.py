@@ -540,10 +540,10 @@ def _from_cache(shapes: dict[str, Shape], cache, settings: dict) -> tuple[dict, 
     pieces_of: dict[str, list[np.ndarray]] = {}
     if cache is None:
         return keys, pieces_of
-    from .cache import cache_key
+    from .cache import decomposition_key
 
     for digest, shape in shapes.items():
-        keys[digest] = cache_key(digest, settings)
+        keys[digest] = decomposition_key(digest, settings)
         hit = cache.lookup(keys[digest])
         if hit is not None and (hit[1] or covers(shape.local, shape.faces, hit[0])):
             pieces_of[digest] = hit[0]

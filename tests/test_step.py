@@ -35,16 +35,10 @@ from step_writer import (
     write_step,
 )
 
+from meshcheck.cache import TessellationCache, tessellation_key
 from meshcheck.cli import main
 from meshcheck.load import Body, load_bodies, mesh_digest
-from meshcheck.load.step import (
-    DEFAULT_DEFLECTION_MM,
-    TessellationCache,
-    close_mesh,
-    read_step,
-    step_unit,
-    tessellation_key,
-)
+from meshcheck.load.step import DEFAULT_DEFLECTION_MM, close_mesh, read_step, step_unit
 from meshcheck.pipeline import check_bodies
 
 EYE = np.eye(4)

@@ -209,7 +209,8 @@ def _stl_head_check(path: str, budget: Budget):
 
 def _read_step(path: str, options: StepOptions, budget: Budget):
     """(items, declared unit, deflection in that unit) of a STEP file."""
-    from .step import TessellationCache, read_step
+    from ..cache import TessellationCache
+    from .step import read_step
 
     cache = None
     if options.cache_dir is not None:

@@ -55,17 +55,12 @@ error line becomes the reason of the ``InputError`` for a broken file.
 from __future__ import annotations
 
 import contextlib
-import functools
 import hashlib
-import hmac
-import io
-import json
 import os
 import re
 import sys
 import tempfile
 import warnings
-import zipfile
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
@@ -73,6 +68,7 @@ import numpy as np
 import trimesh
 
 from .. import units as units_
+from ..cache import Tessellation, TessellationCache, tessellation_key
 from ..errors import InputError, MeshcheckWarning
 
 STEP_EXTENSIONS = (".step", ".stp")
@@ -198,17 +194,17 @@ def read_step(
     budget = MAX_STEP_TRIANGLES if max_triangles is None else min(max_triangles, MAX_STEP_TRIANGLES)
 
     key = tessellation_key(data, deflection_mm, angular, default_scale=ratio) if cache else ""
-    assembly = cache.get(key) if cache is not None else None
-    if assembly is None or assembly.unit != unit:
+    found = cache.get(key) if cache is not None else None
+    if found is None or found.unit != unit:
         instances = _document(data, path).instances
         used_mm = _tessellate(instances, path, deflection_mm, angular, budget, unit, ratio)
         items = _items(instances, path, 1e-3 / scale, used_mm * 1e-3 / scale)
-        assembly = StepAssembly(items, unit, used_mm * 1e-3 / scale, angular)
+        found = Tessellation(items, unit, used_mm * 1e-3 / scale, angular)
         if cache is not None:
-            cache.put(key, assembly)
+            cache.put(key, found)
     if declared is None and real_unit is None:
         _warn_no_unit(path)
-    return assembly
+    return StepAssembly(*found)
 
 
 def _deflection_mm(deflection, deflection_unit, unit: str, real_unit: str | None):
@@ -845,197 +841,3 @@ def _one_line(text) -> str:
     text = " ".join(str(text).split()) or "unknown error"
     text = "".join(c if c.isprintable() else "?" for c in text)
     return text if len(text) <= 160 else text[:157] + "..."
-
-
-# --------------------------------------------------------------------------------------------
-# Cache
-
-# Bump when an entry's layout or the meaning of its meshes changes (the welding, the naming).
-FORMAT_VERSION = 2  # 2: read through OCP's XCAF reader (double-precision placements)
-
-
-def tessellation_key(
-    data: bytes, deflection_mm: float | None, angular: float, *, default_scale: float = 1.0
-) -> str:
-    """Key of a tessellation: hex SHA-256 of the file's content, settings and library versions
-    (and, for a file whose unit the user gave, the scale of the default deflection)."""
-    payload = {
-        "format": FORMAT_VERSION,
-        "ocp": _version("cadquery-ocp-novtk"),
-        "trimesh": _version("trimesh"),
-        "content": hashlib.sha256(data).hexdigest(),
-        "deflection_mm": None if deflection_mm is None else float(deflection_mm).hex(),
-        "angular": float(angular).hex(),
-    }
-    if default_scale != 1.0 and deflection_mm is None:
-        payload["default_scale"] = float(default_scale).hex()
-    text = json.dumps(payload, sort_keys=True, separators=(",", ":"))
-    return hashlib.sha256(text.encode()).hexdigest()
-
-
-@functools.cache
-def _version(package: str) -> str:
-    import importlib.metadata
-
-    try:
-        return importlib.metadata.version(package)
-    except importlib.metadata.PackageNotFoundError:  # pragma: no cover - required dependencies
-        return "unknown"
-
-
-_ARRAYS = [
-    "checksum",
-    "face_starts",
-    "faces",
-    "header",
-    "mesh_of",
-    "transforms",
-    "vertex_starts",
-    "vertices",
-]
-
-
-#: A tessellation cache entry larger than this is a miss (an assembly's is megabytes).
-MAX_TESSELLATION_BYTES = 1 << 30
-
-
-class TessellationCache:
-    """Tessellated STEP files stored under ``directory``, one ``.npz`` per file and setting.
-
-    Like ``meshcheck.cache.DecompositionCache``: entries named by ``tessellation_key``, written
-    to a temporary file then moved into place, read with ``allow_pickle=False``; an entry that
-    is unreadable, malformed or fails its checksum is a miss.
-
-    Parameters
-    ----------
-    directory : str
-        Cache root (shared with the decompositions); created on the first write.
-    """
-
-    def __init__(self, directory: str, *, secret: bytes):
-        self.root = os.path.join(os.fspath(directory), f"tessellations-v{FORMAT_VERSION}")
-        self._secret = bytes(secret)
-
-    def path(self, key: str) -> str:
-        """File of the entry for ``key``."""
-        return os.path.join(self.root, key[:2], f"{key}.npz")
-
-    def get(self, key: str) -> StepAssembly | None:
-        """The assembly stored for ``key``, or None when missing or unusable."""
-        from ..cache import _sizes_agree, read_entry
-
-        raw = read_entry(self.path(key), MAX_TESSELLATION_BYTES)  # a FIFO or link: a miss
-        if raw is None:
-            return None
-        try:
-            if not _sizes_agree(io.BytesIO(raw)):
-                return None
-            with np.load(io.BytesIO(raw), allow_pickle=False) as data:
-                if sorted(data.files) != _ARRAYS:
-                    return None
-                arrays = {name: data[name] for name in _ARRAYS}
-        except (OSError, ValueError, EOFError, KeyError, MemoryError, zipfile.BadZipFile):
-            return None
-        try:
-            return _unpack(arrays, key, self._secret)
-        except (ValueError, KeyError, TypeError, IndexError, UnicodeDecodeError):
-            return None
-
-    def put(self, key: str, assembly: StepAssembly) -> None:
-        """Store ``assembly`` for ``key`` atomically; a failure to write only costs a re-read."""
-        arrays = _pack(assembly, key, self._secret)
-        from ..cache import write_atomically
-
-        write_atomically(self.path(key), ".npz", lambda f: np.savez(f, **arrays))
-
-
-def _pack(assembly: StepAssembly, key: str, secret: bytes) -> dict[str, np.ndarray]:
-    meshes: list[trimesh.Trimesh] = []
-    index: dict[int, int] = {}
-    for _, mesh, _ in assembly.items:
-        if id(mesh) not in index:
-            index[id(mesh)] = len(meshes)
-            meshes.append(mesh)
-    header = {
-        "names": [name for name, _, _ in assembly.items],
-        "unit": assembly.unit,
-        "deflection": float(assembly.deflection).hex(),
-        "angular_deflection": float(assembly.angular_deflection).hex(),
-    }
-    arrays = {
-        "header": np.frombuffer(json.dumps(header).encode(), dtype=np.uint8),
-        "vertices": np.concatenate([np.asarray(m.vertices, dtype=np.float64) for m in meshes]),
-        "faces": np.concatenate([np.asarray(m.faces, dtype=np.int64) for m in meshes]),
-        "vertex_starts": np.cumsum([0] + [len(m.vertices) for m in meshes], dtype=np.int64),
-        "face_starts": np.cumsum([0] + [len(m.faces) for m in meshes], dtype=np.int64),
-        "mesh_of": np.array([index[id(m)] for _, m, _ in assembly.items], dtype=np.int64),
-        "transforms": np.array([t for _, _, t in assembly.items], dtype=np.float64).reshape(
-            -1, 4, 4
-        ),
-    }
-    arrays["checksum"] = np.frombuffer(_checksum(arrays, key, secret), dtype=np.uint8)
-    return arrays
-
-
-def _checksum(arrays: dict[str, np.ndarray], key: str, secret: bytes) -> bytes:
-    """HMAC-SHA256 of the entry under the cache's secret: a tessellation is the part's geometry,
-    which nothing cheaper than tessellating again could check, so an entry not signed with this
-    machine's (or CI's) key is a miss."""
-    h = hmac.new(secret, key.encode(), hashlib.sha256)
-    for name in _ARRAYS:
-        if name != "checksum":
-            h.update(name.encode())
-            h.update(np.ascontiguousarray(arrays[name]).tobytes())
-    return h.digest()
-
-
-def _unpack(arrays: dict[str, np.ndarray], key: str, secret: bytes) -> StepAssembly | None:
-    expected = {
-        "header": (np.uint8, 1),
-        "vertices": (np.float64, 2),
-        "faces": (np.int64, 2),
-        "vertex_starts": (np.int64, 1),
-        "face_starts": (np.int64, 1),
-        "mesh_of": (np.int64, 1),
-        "transforms": (np.float64, 3),
-        "checksum": (np.uint8, 1),
-    }
-    for name, (dtype, ndim) in expected.items():
-        if arrays[name].dtype != dtype or arrays[name].ndim != ndim:
-            return None
-    if not hmac.compare_digest(arrays["checksum"].tobytes(), _checksum(arrays, key, secret)):
-        return None
-    header = json.loads(arrays["header"].tobytes().decode())
-    vs, fs, mesh_of = arrays["vertex_starts"], arrays["face_starts"], arrays["mesh_of"]
-    names = header["names"]
-    n_meshes = len(vs) - 1
-    if (
-        len(fs) != len(vs)
-        or vs[0] != 0
-        or fs[0] != 0
-        or vs[-1] != len(arrays["vertices"])
-        or fs[-1] != len(arrays["faces"])
-        or len(names) != len(mesh_of)
-        or arrays["transforms"].shape != (len(names), 4, 4)
-        or np.any(mesh_of < 0)
-        or np.any(mesh_of >= n_meshes)
-        or header["unit"] not in UNIT_METRES
-    ):
-        return None
-    meshes = []
-    for k in range(n_meshes):
-        faces = arrays["faces"][fs[k] : fs[k + 1]]  # indices into this mesh's own vertices
-        vertices = arrays["vertices"][vs[k] : vs[k + 1]]
-        if len(faces) and (faces.min() < 0 or faces.max() >= len(vertices)):
-            return None
-        meshes.append(trimesh.Trimesh(vertices.copy(), faces.copy(), process=False))
-    items = [
-        (str(name), meshes[int(m)], arrays["transforms"][i].copy())
-        for i, (name, m) in enumerate(zip(names, mesh_of, strict=True))
-    ]
-    return StepAssembly(
-        items,
-        header["unit"],
-        float.fromhex(header["deflection"]),
-        float.fromhex(header["angular_deflection"]),
-    )
