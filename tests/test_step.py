@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import pickle
 import subprocess
 import sys
 
@@ -82,7 +83,15 @@ def bodies_of(path, **kwargs) -> list[Body]:
     """The parts of a STEP file, as ``load_bodies`` makes them (in the file's unit)."""
     asm = read_step(str(path), **kwargs)
     return [
-        Body(f"{path}#{n}", str(path), m, t, units=asm.unit, deflection=asm.deflection)
+        Body(
+            f"{path}#{n}",
+            str(path),
+            m,
+            t,
+            units=asm.unit,
+            deflection=asm.deflection,
+            brep=asm.solids,
+        )
         for n, m, t in asm.items
     ]
 
@@ -497,14 +506,44 @@ def test_brep_verdicts_are_cached_and_a_warm_run_reports_the_same(tmp_path, monk
     fit(path, hole=3.0, pin=3.005)
     args = [path, "--cache-dir", str(tmp_path / "cache"), "--format", "json", "--jobs", "1"]
     cold = CliRunner().invoke(main, args)
-    from meshcheck.load import step
+    from meshcheck.load.step import read
 
-    step._LAST.clear()
-    monkeypatch.setattr(step, "brep_solids", None)  # a warm run must not read the file again
+    # a warm run reads no STEP document: neither to tessellate nor for the exact solids
+    monkeypatch.setattr(read, "read_document", None)
     warm = CliRunner().invoke(main, args)
     assert cold.exit_code == warm.exit_code == 1, (cold.output, warm.output)
     assert cold.stdout == warm.stdout
     assert json.loads(cold.stdout)["results"][0]["depth"] == pytest.approx(0.005, rel=1e-3)
+
+
+def test_no_stage_after_load_opens_the_step_file(tmp_path, monkeypatch):
+    # The exact solids travel with the bodies (Body.brep): once loaded, the file can be gone,
+    # whether load tessellated it or took its tessellation from the cache.
+    path = str(tmp_path / "press.step")
+    (expected,), _ = fit(path, hole=3.0, pin=3.005)
+    assert expected.tolerance < 1e-3  # decided on the B-rep
+    monkeypatch.setenv("MESHCHECK_CACHE_SECRET", "test-secret")
+    cold = load_bodies([path], cache_dir=str(tmp_path / "cache"))
+    warm = load_bodies([path], cache_dir=str(tmp_path / "cache"))
+    os.rename(path, path + ".gone")
+    for bodies in (cold, warm):
+        (finding,) = check_bodies(bodies, jobs=1).findings
+        assert (finding.status, finding.depth, finding.volume, finding.tolerance) == (
+            expected.status,
+            expected.depth,
+            expected.volume,
+            expected.tolerance,
+        )
+
+
+def test_the_exact_solids_stay_in_the_process_that_read_them(files):
+    # A body may be pickled (to a worker); its B-rep is not: the copy keeps only the identity.
+    body = load_bodies([files["resting"]])[0]
+    copy = pickle.loads(pickle.dumps(body))
+    assert (copy.brep.path, copy.brep.digest) == (body.brep.path, body.brep.digest)
+    with pytest.raises(InputError, match="stay in the process"):
+        copy.brep.by_node()
+    assert sorted(body.brep.by_node()) == ["base", "block"]
 
 
 # --------------------------------------------------------------------------------------------

@@ -380,6 +380,7 @@ def _place(
             deflection=file_read.deflection * factor,
             is_float32=file_read.is_float32,
             is_rescaled=is_rescaled,
+            brep=file_read.solids,
         )
         bodies.append(body)
     corners = np.vstack(corners)

@@ -23,6 +23,7 @@ import os
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import trimesh
@@ -36,14 +37,17 @@ from .limits import MAX_TEXT_LINE, Budget, Limits, read_file
 from .scene import STL_HEADER, STL_RECORD, read_scene, stores_float32
 from .threemf import read_3mf
 
+if TYPE_CHECKING:
+    from .step import StepSolids
+
 STEP_EXTENSIONS = (".step", ".stp")
 URDF_EXTENSIONS = (".urdf",)
 SUPPORTED_EXTENSIONS = (
     ".stl", ".obj", ".ply", ".off", ".glb", ".gltf", ".3mf", *STEP_EXTENSIONS, *URDF_EXTENSIONS
 )  # fmt: skip
 #: Read in worker processes when reading in parallel. STEP stays here (its tessellation cache
-#: is written by this process only), and so does 3MF (its reader sizes its stream by what the
-#: run's budget has left, which only this process knows).
+#: is written by this process only, and its exact solids stay here), and so does 3MF (its
+#: reader sizes its stream by what the run's budget has left, which only this process knows).
 WORKER_EXTENSIONS = (".stl", ".obj", ".ply", ".off", ".glb", ".gltf")
 
 #: Estimated seconds of worker time per byte of a file: reading, cleaning, closedness, shells.
@@ -89,6 +93,8 @@ class FileRead:
         How far its triangles may lie from the true surface, in that unit (0 for mesh files).
     is_float32 : bool
         Whether the reader got the coordinates through float32 (``Body.is_float32``).
+    solids : step.StepSolids or None
+        A STEP file's exact solids (``Body.brep``), read in this process only; None otherwise.
     """
 
     items: list[tuple[str, int, np.ndarray]]
@@ -96,6 +102,7 @@ class FileRead:
     declared: str | None
     deflection: float
     is_float32: bool = True
+    solids: StepSolids | None = None
 
     @property
     def triangles(self) -> int:
@@ -152,7 +159,7 @@ def _read(path: str, budget: Budget, step: StepOptions) -> FileRead:
         check=_stl_head_check(path, budget) if ext == ".stl" else None,
         max_line=MAX_TEXT_LINE if ext in (".obj", ".off") else None,
     )
-    declared, deflection = None, 0.0
+    declared, deflection, solids = None, 0.0, None
     # Which coordinates went through float32, per reader: glTF (POSITION accessors are float32),
     # binary STL and float PLY; 3MF, text meshes and STEP (OpenCASCADE's mesher, double
     # placements, a float64 tessellation cache) are double.
@@ -162,7 +169,7 @@ def _read(path: str, budget: Budget, step: StepOptions) -> FileRead:
         # A reader takes (path, bytes, budget) and returns (node, mesh, placement) items and the
         # unit the file declares (None: undeclared). A STEP reader plugs in here the same way.
         if ext in STEP_EXTENSIONS:
-            items, declared, deflection = _read_step(path, step, budget)
+            items, declared, deflection, solids = _read_step(path, data, step, budget)
         elif ext in URDF_EXTENSIONS:
             from .urdf import read_urdf
 
@@ -192,7 +199,9 @@ def _read(path: str, budget: Budget, step: StepOptions) -> FileRead:
         if not geometries[g][2]:
             warn(name, "mesh is not closed (not watertight); its findings rest on surfaces only")
         out.append((node, g, np.asarray(transform, dtype=np.float64)))
-    return FileRead(out, geometries, declared, float(deflection), is_float32=is_float32)
+    return FileRead(
+        out, geometries, declared, float(deflection), is_float32=is_float32, solids=solids
+    )
 
 
 def _stl_head_check(path: str, budget: Budget):
@@ -207,8 +216,8 @@ def _stl_head_check(path: str, budget: Budget):
     return check
 
 
-def _read_step(path: str, options: StepOptions, budget: Budget):
-    """(items, declared unit, deflection in that unit) of a STEP file."""
+def _read_step(path: str, data: bytes, options: StepOptions, budget: Budget):
+    """(items, declared unit, deflection in that unit, exact solids) of a STEP file."""
     from ..cache import TessellationCache
     from .step import read_step
 
@@ -221,6 +230,7 @@ def _read_step(path: str, options: StepOptions, budget: Budget):
     try:
         assembly = read_step(
             path,
+            data=data,
             deflection=options.deflection,
             deflection_unit=(options.units or units_.DEFAULT_UNIT)
             if options.deflection is not None
@@ -231,7 +241,7 @@ def _read_step(path: str, options: StepOptions, budget: Budget):
         )
     except ValueError as exc:
         raise InputError(path, str(exc)) from None
-    return list(assembly.items), assembly.unit, float(assembly.deflection)
+    return list(assembly.items), assembly.unit, float(assembly.deflection), assembly.solids
 
 
 # --------------------------------------------------------------------------------------------
