@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .cache import DecompositionCache, decomposition_key
 from .execute import Executor, LocalPool, Task, default_jobs
 from .load import Body, is_closed, local_geometries
 from .progress import Progress
@@ -424,6 +425,7 @@ def decompose_bodies(
     bodies: Sequence[Body],
     *,
     threshold: float = DEFAULT_THRESHOLD,
+    cache: DecompositionCache | None = None,
     cache_dir: str | None = None,
     jobs: int | None = None,
     options: dict | None = None,
@@ -431,7 +433,6 @@ def decompose_bodies(
     time_limit: float | dict[str, float] | None = DEFAULT_TIME_LIMIT,
     executor: Executor | None = None,
     geometry: dict | None = None,
-    secret: bytes | None = None,
 ) -> list[list[np.ndarray]]:
     """Convex pieces of each body in world coordinates, covering every triangle of the body.
 
@@ -441,8 +442,13 @@ def decompose_bodies(
         Bodies to decompose.
     threshold : float
         CoACD concavity threshold.
+    cache : cache.DecompositionCache, optional
+        The run's decompositions (``cache.open_caches``): entries signed with the run's key are
+        used as they are, others only when they cover their mesh; new ones are stored, signed.
+        None (and no ``cache_dir``) neither reads nor writes a cache.
     cache_dir : str, optional
-        Directory of the decomposition cache; None neither reads nor writes it.
+        Instead of ``cache``: a decomposition cache in this directory, without a key (every entry
+        is checked against its mesh before use).
     jobs : int, optional
         Worker processes; default all cores, never more than meshes to decompose. With a time
         limit, CoACD always runs in workers (one for a single mesh), so an overrun can be killed
@@ -461,22 +467,18 @@ def decompose_bodies(
         this call. A one-process ``Executor`` with a time limit is replaced by one worker.
     geometry : dict, optional
         ``load.local_geometries`` of the bodies, when the caller has it already.
-    secret : bytes, optional
-        The run's cache key (``cache.pair_secret``): entries are signed with it, and entries
-        signed with it are used without checking that they cover their mesh.
 
     Returns
     -------
     pieces : list of list of (n_i, 3) float64
         For each body, its convex pieces' vertices, world coordinates, model units.
     """
+    if cache is not None and cache_dir is not None:
+        raise TypeError("give cache or cache_dir, not both")
+    if cache_dir is not None:
+        cache = DecompositionCache(cache_dir)
     settings = coacd_options(threshold, **(options or {}))
     shapes, placed = _shapes(bodies, local_geometries(bodies) if geometry is None else geometry)
-    cache = None
-    if cache_dir is not None:
-        from .cache import DecompositionCache
-
-        cache = DecompositionCache(cache_dir, secret=secret)
     keys, pieces_of = _from_cache(shapes, cache, settings)
     misses = [d for d in shapes if d not in pieces_of]
     leaders = _near_copies(shapes, pieces_of, misses)
@@ -540,8 +542,6 @@ def _from_cache(shapes: dict[str, Shape], cache, settings: dict) -> tuple[dict, 
     pieces_of: dict[str, list[np.ndarray]] = {}
     if cache is None:
         return keys, pieces_of
-    from .cache import decomposition_key
-
     for digest, shape in shapes.items():
         keys[digest] = decomposition_key(digest, settings)
         hit = cache.lookup(keys[digest])

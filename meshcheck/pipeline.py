@@ -27,7 +27,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .cache import pair_secret
+from .cache import Caches, DecompositionCache, open_caches
 from .config import Approval, approval_reason
 from .decompose import coacd_budgets, decompose_bodies
 from .errors import MeshcheckWarning
@@ -112,6 +112,7 @@ def check(
             executor_for(jobs=settings.jobs, scheduler=settings.scheduler) as executor,
         ):
             warnings.simplefilter("always", MeshcheckWarning)
+            caches = open_caches(settings.cache_dir)  # each cache once, the key read once
             with Progress("loading", 0) as bar:
                 limits = None
                 if settings.max_triangles is not None:
@@ -122,14 +123,14 @@ def check(
                     units=settings.units,
                     file_units=settings.file_units,
                     limits=limits,
-                    cache_dir=settings.cache_dir,
+                    cache=caches.tessellations,
                     step_deflection=settings.step_deflection,
                     progress=bar.update_total,
                     executor=executor,
                     motion=settings.motion,
                 )
             settings = with_mechanisms(bodies, settings)  # robots: adjacent links approved
-            result = check_bodies(bodies, settings, executor=executor)
+            result = check_bodies(bodies, settings, executor=executor, caches=caches)
             result = with_sweeps(result, bodies, settings, executor=executor)  # --sweep
     finally:
         caught = _reissue(caught)
@@ -142,13 +143,15 @@ def check_bodies(
     settings: Settings | None = None,
     *,
     executor: Executor | None = None,
+    caches: Caches | None = None,
     **fields,
 ) -> CheckResult:
     """Run the check on bodies already loaded; see ``check``.
 
     ``settings`` defaults to ``Settings(**fields)`` (there ``cache_dir=None`` means no cache).
     ``executor`` is the run's (left open); default: one for ``settings.jobs`` and
-    ``settings.scheduler``, closed at the end.
+    ``settings.scheduler``, closed at the end. ``caches`` are the run's (``cache.open_caches``);
+    default: opened here from ``settings.cache_dir``.
     """
     if settings is None:
         settings = Settings(**fields)
@@ -157,8 +160,8 @@ def check_bodies(
         warn_overlapping_shells(bodies)
     warn_nothing_to_compare(bodies, is_split=settings.split)
     _check_patterns(settings, names)
-    # The key cache entries are signed with, read once for the run (None: no cache).
-    secret = None if settings.cache_dir is None else pair_secret()
+    if caches is None:
+        caches = open_caches(settings.cache_dir)
 
     geometry = local_geometries(bodies)
     with Progress("comparing hulls", 0):
@@ -188,7 +191,7 @@ def check_bodies(
             settings,
             executor=executor,
             geometry=geometry,
-            secret=secret,
+            cache=caches.decompositions,
         )
         near_surfaces = surfaces_near(pieces, owner, pairs_near, tol_near, reach_near)
         findings = verify_pairs(
@@ -198,10 +201,10 @@ def check_bodies(
             near_surfaces,
             settings,
             executor=executor,
-            secret=secret,
+            cache=caches.verdicts,
             hulls_penetrate=hull_query.status[near] == Status.PENETRATING,
         )
-        findings = confirm_on_brep(bodies, findings, settings, secret=secret)
+        findings = confirm_on_brep(bodies, findings, settings, cache=caches.verdicts)
     findings = sorted(
         [*duplicate_findings(bodies, copies, geometry), *findings], key=lambda f: (f.a, f.b)
     )
@@ -279,12 +282,12 @@ def decompose_parts(
     *,
     executor: Executor | None = None,
     geometry: dict | None = None,
-    secret: bytes | None = None,
+    cache: DecompositionCache | None = None,
 ) -> tuple[ConvexPack, np.ndarray, np.ndarray]:
     """Convex pieces of the parts of the hull-near ``pairs`` (``(k, 2)``, indices into
     ``bodies``): CoACD's where the cost model says they pay (``decompose.coacd_budgets``), the
     hull elsewhere. CoACD runs on ``executor`` (default: ``settings.jobs`` local processes);
-    cached entries are signed with ``secret`` (``decompose.decompose_bodies``).
+    pieces are kept in ``cache``, the run's decompositions (``decompose.decompose_bodies``).
 
     Returns
     -------
@@ -309,13 +312,12 @@ def decompose_parts(
         piece_lists = decompose_bodies(
             chosen,
             threshold=settings.threshold,
-            cache_dir=settings.cache_dir,
+            cache=cache,
             jobs=settings.jobs,
             progress=bar,
             time_limit=budgets,
             executor=executor,
             geometry=geometry,
-            secret=secret,
         )
     count = np.zeros(len(bodies), dtype=np.int64)
     count[needed] = [len(p) for p in piece_lists]

@@ -40,7 +40,7 @@ from meshcheck.cache import TessellationCache, tessellation_key
 from meshcheck.cli import main
 from meshcheck.load import Body, load_bodies, mesh_digest
 from meshcheck.load.step import DEFAULT_DEFLECTION_MM, close_mesh, read_step, step_unit
-from meshcheck.pipeline import check_bodies
+from meshcheck.pipeline import check, check_bodies
 
 EYE = np.eye(4)
 
@@ -516,15 +516,15 @@ def test_brep_verdicts_are_cached_and_a_warm_run_reports_the_same(tmp_path, monk
     assert json.loads(cold.stdout)["results"][0]["depth"] == pytest.approx(0.005, rel=1e-3)
 
 
-def test_no_stage_after_load_opens_the_step_file(tmp_path, monkeypatch):
+def test_no_stage_after_load_opens_the_step_file(tmp_path):
     # The exact solids travel with the bodies (Body.brep): once loaded, the file can be gone,
     # whether load tessellated it or took its tessellation from the cache.
     path = str(tmp_path / "press.step")
     (expected,), _ = fit(path, hole=3.0, pin=3.005)
     assert expected.tolerance < 1e-3  # decided on the B-rep
-    monkeypatch.setenv("MESHCHECK_CACHE_SECRET", "test-secret")
-    cold = load_bodies([path], cache_dir=str(tmp_path / "cache"))
-    warm = load_bodies([path], cache_dir=str(tmp_path / "cache"))
+    cache = TessellationCache(str(tmp_path / "cache"), secret=b"k" * 32)
+    cold = load_bodies([path], cache=cache)
+    warm = load_bodies([path], cache=cache)
     os.rename(path, path + ".gone")
     for bodies in (cold, warm):
         (finding,) = check_bodies(bodies, jobs=1).findings
@@ -544,6 +544,17 @@ def test_the_exact_solids_stay_in_the_process_that_read_them(files):
     with pytest.raises(InputError, match="stay in the process"):
         copy.brep.by_node()
     assert sorted(body.brep.by_node()) == ["base", "block"]
+
+
+def test_a_run_reads_its_cache_key_once(files, tmp_path, monkeypatch):
+    import meshcheck.cache as cache_package
+
+    monkeypatch.setenv("MESHCHECK_CACHE_SECRET", "test-secret")
+    calls = []
+    read_key = cache_package.pair_secret
+    monkeypatch.setattr(cache_package, "pair_secret", lambda: calls.append(1) or read_key())
+    check([files["resting"], files["clear"]], cache_dir=str(tmp_path), jobs=1)
+    assert len(calls) == 1
 
 
 # --------------------------------------------------------------------------------------------

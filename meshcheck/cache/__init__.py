@@ -10,6 +10,9 @@ tessellations kept in it.
 - ``tessellations``: tessellated STEP files, an ``.npz`` per file content and setting
   (``TessellationCache``, ``tessellation_key``).
 
+A run opens them once (``open_caches``: the directory, the key read once) and the pipeline hands
+each stage the one it uses.
+
 Modelled on black's ``src/black/cache.py``: a plain directory (the user's cache directory by
 default, any directory CI can persist), entries named by a key built from the content's hash, the
 settings, the versions of the libraries that computed them and the entry's format version.
@@ -59,6 +62,9 @@ any CI secret.
 
 from __future__ import annotations
 
+import os
+from dataclasses import dataclass
+
 from .decompositions import DecompositionCache, decomposition_key
 from .store import SECRET_VARIABLE, Store, pair_secret
 from .tessellations import Tessellation, TessellationCache, tessellation_key
@@ -66,13 +72,57 @@ from .verdicts import PairCache, pair_key
 
 __all__ = [
     "SECRET_VARIABLE",
+    "Caches",
     "DecompositionCache",
     "PairCache",
     "Store",
     "Tessellation",
     "TessellationCache",
     "decomposition_key",
+    "open_caches",
     "pair_key",
     "pair_secret",
     "tessellation_key",
 ]
+
+
+@dataclass(frozen=True)
+class Caches:
+    """The caches of one run, each None when it is not used.
+
+    Attributes
+    ----------
+    decompositions : DecompositionCache or None
+        Signed with the run's key when there is one; unsigned entries are checked against their
+        mesh before use.
+    verdicts : PairCache or None
+        Mesh and B-rep pair verdicts; only with a key.
+    tessellations : TessellationCache or None
+        Tessellated STEP files; only with a key.
+    """
+
+    decompositions: DecompositionCache | None = None
+    verdicts: PairCache | None = None
+    tessellations: TessellationCache | None = None
+
+
+def open_caches(cache_dir: str | os.PathLike | None) -> Caches:
+    """The run's caches under ``cache_dir``, signed with the run's key (``pair_secret``, read
+    here, once); no cache at all when ``cache_dir`` is None.
+
+    Examples
+    --------
+    >>> open_caches(None)
+    Caches(decompositions=None, verdicts=None, tessellations=None)
+    """
+    if cache_dir is None:
+        return Caches()
+    directory = os.fspath(cache_dir)
+    secret = pair_secret()
+    if secret is None:
+        return Caches(DecompositionCache(directory))
+    return Caches(
+        DecompositionCache(directory, secret=secret),
+        PairCache(directory, secret=secret),
+        TessellationCache(directory, secret=secret),
+    )

@@ -38,6 +38,7 @@ from .scene import STL_HEADER, STL_RECORD, read_scene, stores_float32
 from .threemf import read_3mf
 
 if TYPE_CHECKING:
+    from ..cache import TessellationCache
     from .step import StepSolids
 
 STEP_EXTENSIONS = (".step", ".stp")
@@ -67,9 +68,8 @@ FILES_PER_TASK = 64
 
 @dataclass(frozen=True)
 class StepOptions:
-    """How STEP files are tessellated and cached (``load.step``)."""
+    """How STEP files are tessellated (``load.step``)."""
 
-    cache_dir: str | None
     deflection: float | None
     units: str | None
     motion: object = None  # motion.Motion: the pose and package paths of URDF files
@@ -120,7 +120,9 @@ def is_multi(path: str, items: Sequence) -> bool:
     return len(items) > 1 or ext in STEP_EXTENSIONS or ext in URDF_EXTENSIONS
 
 
-def read(path: str, budget: Budget, step: StepOptions) -> FileRead:
+def read(
+    path: str, budget: Budget, step: StepOptions, cache: TessellationCache | None = None
+) -> FileRead:
     """Read and clean one file, checked against and counted in ``budget``.
 
     Parameters
@@ -129,18 +131,22 @@ def read(path: str, budget: Budget, step: StepOptions) -> FileRead:
     budget : Budget
         The run's budget; the file's triangles and parts are taken from it.
     step : StepOptions
+    cache : cache.TessellationCache, optional
+        The run's STEP tessellations.
 
     Raises
     ------
     InputError
         The file cannot be checked (see ``meshcheck.load``).
     """
-    out = _read(path, budget, step)
+    out = _read(path, budget, step, cache)
     budget.take(path, out.triangles, len(out.items))
     return out
 
 
-def _read(path: str, budget: Budget, step: StepOptions) -> FileRead:
+def _read(
+    path: str, budget: Budget, step: StepOptions, cache: TessellationCache | None = None
+) -> FileRead:
     """``read`` without taking from the budget (its checks still run)."""
     if not os.path.exists(path):
         raise InputError(path, "no such file or directory")
@@ -169,7 +175,7 @@ def _read(path: str, budget: Budget, step: StepOptions) -> FileRead:
         # A reader takes (path, bytes, budget) and returns (node, mesh, placement) items and the
         # unit the file declares (None: undeclared). A STEP reader plugs in here the same way.
         if ext in STEP_EXTENSIONS:
-            items, declared, deflection, solids = _read_step(path, data, step, budget)
+            items, declared, deflection, solids = _read_step(path, data, step, budget, cache)
         elif ext in URDF_EXTENSIONS:
             from .urdf import read_urdf
 
@@ -216,17 +222,12 @@ def _stl_head_check(path: str, budget: Budget):
     return check
 
 
-def _read_step(path: str, data: bytes, options: StepOptions, budget: Budget):
+def _read_step(
+    path: str, data: bytes, options: StepOptions, budget: Budget, cache: TessellationCache | None
+):
     """(items, declared unit, deflection in that unit, exact solids) of a STEP file."""
-    from ..cache import TessellationCache
     from .step import read_step
 
-    cache = None
-    if options.cache_dir is not None:
-        from ..cache import pair_secret
-
-        secret = pair_secret()  # entries are signed, as pair verdicts are (see meshcheck.cache)
-        cache = None if secret is None else TessellationCache(options.cache_dir, secret=secret)
     try:
         assembly = read_step(
             path,
@@ -253,6 +254,7 @@ def read_files(
     budget: Budget,
     step: StepOptions,
     *,
+    cache: TessellationCache | None = None,
     executor=None,
     progress: Callable[[int, int], None] | None = None,
     parallel: bool | None = None,
@@ -263,7 +265,7 @@ def read_files(
     ----------
     paths : sequence of str
         Files, in argument order.
-    budget, step
+    budget, step, cache
         As for ``read``.
     executor : execute.Executor, optional
         The run's executor. Files of ``WORKER_EXTENSIONS`` are read in its processes when it has
@@ -290,7 +292,7 @@ def read_files(
     if not (local and parallel and in_workers):
         out = []
         for done, path in enumerate(paths, start=1):
-            out.append(read(path, budget, step))
+            out.append(read(path, budget, step, cache))
             if progress is not None:
                 progress(done, total)
         return out
@@ -323,7 +325,7 @@ def read_files(
         if k in outcome:
             out.append(_replay(path, budget, outcome[k]))
         else:  # a main-process format, or its worker died: read it here
-            out.append(read(path, budget, step))
+            out.append(read(path, budget, step, cache))
             done = min(done + 1, total)
             if progress is not None:
                 progress(done, total)

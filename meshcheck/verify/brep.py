@@ -100,7 +100,7 @@ def confirm_on_brep(
     findings: Sequence[Finding],
     settings: Settings,
     *,
-    secret: bytes | None = None,
+    cache: PairCache | None = None,
 ) -> list[Finding]:
     """Decide the STEP findings near the tolerance on the exact solids (see the module docstring).
 
@@ -111,9 +111,9 @@ def confirm_on_brep(
     findings : sequence of Finding
         The verify stage's findings, sorted.
     settings : Settings
-        The run's settings (``tolerance``, ``clearance``, ``cache_dir``).
-    secret : bytes, optional
-        The run's cache key; with ``settings.cache_dir``, B-rep verdicts are cached.
+        The run's settings (``tolerance``, ``clearance``).
+    cache : cache.PairCache, optional
+        The run's pair verdicts, where B-rep verdicts are kept too.
 
     Returns
     -------
@@ -122,9 +122,6 @@ def confirm_on_brep(
         are clear), in the same order.
     """
     by_name = {b.name: b for b in bodies}
-    cache = None
-    if settings.cache_dir is not None and secret is not None:
-        cache = PairCache(settings.cache_dir, secret=secret)
     out = []
     for finding in findings:
         a, b = by_name[finding.a], by_name[finding.b]
