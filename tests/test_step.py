@@ -546,6 +546,37 @@ def test_the_exact_solids_stay_in_the_process_that_read_them(files):
     assert sorted(body.brep.by_node()) == ["base", "block"]
 
 
+def brep_text(shape, folder) -> str:
+    """A shape as OpenCASCADE writes it (BRepTools.Write): its topology, geometry, flags and
+    any triangulation it holds."""
+    from OCP.BRepTools import BRepTools
+
+    path = str(folder / "shape.brep")
+    BRepTools.Write_s(shape, path)
+    return open(path).read()
+
+
+def test_the_exact_solids_are_the_file_as_read_whatever_the_cache_held(
+    files, tmp_path, monkeypatch
+):
+    # Tessellated here (the document load read is kept, not read again) or taken from the cache
+    # (the bytes read into a document when asked): the same shapes, untouched by the mesher.
+    from meshcheck.load.step import read
+
+    cache = TessellationCache(str(tmp_path / "cache"), secret=b"k" * 32)
+    tessellated = read_step(files["bolts"], cache=cache).solids
+    from_cache = read_step(files["bolts"], cache=cache).solids
+    monkeypatch.setattr(read, "read_document", None)  # the tessellated file is not read again
+    kept = tessellated.by_node()
+    monkeypatch.undo()
+    fresh = from_cache.by_node()
+    assert sorted(kept) == sorted(fresh) == ["bolt", "bolt_1", "bolt_2", "plate"]
+    for node in kept:
+        text = brep_text(kept[node], tmp_path)
+        assert text == brep_text(fresh[node], tmp_path)
+        assert "Triangulations 0" in text
+
+
 def test_a_run_reads_its_cache_key_once(files, tmp_path, monkeypatch):
     import meshcheck.cache as cache_package
 

@@ -1,5 +1,5 @@
 """A STEP file's bytes -> its tessellated solids (from the cache, or OpenCASCADE) and its exact
-ones (parsed when the verify stage first asks for them)."""
+ones, as read (kept, or read when the verify stage first asks for them)."""
 
 from __future__ import annotations
 
@@ -19,6 +19,7 @@ from .tessellate import (
     MAX_STEP_TRIANGLES,
     placed_meshes,
     tessellate,
+    with_copied_topology,
 )
 from .units import declared_unit, deflection_mm, warn_no_unit
 
@@ -28,14 +29,15 @@ class StepSolids:
     approximate, for the verify stage to confirm a finding on (``meshcheck.verify.brep``).
 
     Made by ``read_step`` from the bytes the load stage read and checked, and kept by the
-    file's bodies (``Body.brep``), so no later stage opens the file. The document read to
-    tessellate the file is not kept (nor its triangulations): the bytes are read into a document
-    of their own on the first call of ``by_node``, and only then; a file whose findings never
-    come near the tolerance is never read twice, and one whose tessellation came from the cache
-    is read once, only if asked.
+    file's bodies (``Body.brep``), so no later stage opens the file. When the file was read to be
+    tessellated, its solids are the instances read then (the mesher worked on a copy of their
+    topology: they hold no triangulation); when the tessellation came from the cache, the bytes
+    are kept and read into a document on the first call of ``by_node``, and only then. Either
+    way the solids are the file as a fresh read gives them, whatever the cache held.
 
     The solids are OpenCASCADE shapes and stay in this process: a pickled copy (a body sent to
-    a worker) keeps the path and digest, not the bytes, and ``by_node`` refuses there.
+    a worker) keeps the path and digest, not the shapes nor the bytes, and ``by_node`` refuses
+    there.
 
     Attributes
     ----------
@@ -45,10 +47,11 @@ class StepSolids:
         Hex SHA-256 of its content.
     """
 
-    def __init__(self, path: str, data: bytes):
+    def __init__(self, path: str, data: bytes, instances: list[Instance] | None = None):
         self.path = path
         self.digest = hashlib.sha256(data).hexdigest()
-        self._data = data
+        self._data = data if instances is None else None
+        self._instances = instances
         self._solids: dict[str, object] | None = None
 
     def by_node(self) -> dict[str, object]:
@@ -62,10 +65,12 @@ class StepSolids:
             As ``read_step`` for the same bytes; or the solids are asked for in another process.
         """
         if self._solids is None:
-            if self._data is None:
-                raise InputError(self.path, "its exact solids stay in the process that read it")
-            self._solids = dict(placed_solids(read_document(self._data, self.path)))
-            self._data = None
+            if self._instances is None:
+                if self._data is None:
+                    raise InputError(self.path, "its exact solids stay in the process that read it")
+                self._instances = read_document(self._data, self.path)
+            self._solids = dict(placed_solids(self._instances))
+            self._data, self._instances = None, None
         return self._solids
 
     def __getstate__(self) -> dict:
@@ -73,7 +78,7 @@ class StepSolids:
 
     def __setstate__(self, state: dict) -> None:
         self.path, self.digest = state["path"], state["digest"]
-        self._data, self._solids = None, None
+        self._data, self._instances, self._solids = None, None, None
 
 
 @dataclass(frozen=True)
@@ -177,6 +182,7 @@ def read_step(
 
     key = tessellation_key(data, wanted_mm, angular, default_scale=ratio) if cache else ""
     found = cache.get(key) if cache is not None else None
+    instances = None
     if found is None or found.unit != unit:
         instances = read_document(data, path)
         found = _tessellation(instances, path, wanted_mm, angular, budget, unit, ratio)
@@ -184,7 +190,7 @@ def read_step(
             cache.put(key, found)
     if declared is None and real_unit is None:
         warn_no_unit(path)
-    return StepAssembly(*found, solids=StepSolids(path, data))
+    return StepAssembly(*found, solids=StepSolids(path, data, instances))
 
 
 def _tessellation(
@@ -196,11 +202,14 @@ def _tessellation(
     unit: str,
     ratio: float,
 ) -> Tessellation:
-    """The instances meshed (``tessellate``), closed and named, in the file's ``unit``."""
+    """The instances meshed (``tessellate``), closed and named, in the file's ``unit``; the
+    mesher works on a copy of their topology (``with_copied_topology``), the instances stay as
+    read."""
     scale = METRES[unit]  # metres per file unit
-    used_mm = tessellate(instances, path, wanted_mm, angular, budget, unit, ratio)
+    meshed = with_copied_topology(instances)
+    used_mm = tessellate(meshed, path, wanted_mm, angular, budget, unit, ratio)
     deflection = used_mm * 1e-3 / scale
-    items = placed_meshes(instances, path, 1e-3 / scale, deflection)
+    items = placed_meshes(meshed, path, 1e-3 / scale, deflection)
     return Tessellation(items, unit, deflection, angular)
 
 

@@ -21,6 +21,8 @@ closed: every edge used by exactly two triangles, consistently wound, facing out
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import trimesh
 
@@ -115,6 +117,22 @@ def _honoured_deflection(
             f"{floor * to_unit:.3g} {unit} or more",
         )
     return deflection_mm
+
+
+def with_copied_topology(instances: list[Instance]) -> list[Instance]:
+    """The instances, each product replaced by a copy of its topology that shares its geometry
+    (one copy per product): the mesher writes its triangulation there, and the instances' own
+    shapes stay exactly as read, for the exact solids (``read.StepSolids``)."""
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_Copy
+
+    copies: dict[str, object] = {}
+    out = []
+    for inst in instances:
+        if inst.product_key not in copies:
+            copy = BRepBuilderAPI_Copy(inst.product, False, False)  # no geometry, no mesh
+            copies[inst.product_key] = copy.Shape()
+        out.append(dataclasses.replace(inst, product=copies[inst.product_key]))
+    return out
 
 
 def shape_diagonal(shape) -> float:
