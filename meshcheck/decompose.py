@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .cache import DecompositionCache, decomposition_key
 from .execute import Executor, LocalPool, Task, default_jobs
 from .load import Body, is_closed, local_geometries
 from .progress import Progress
@@ -424,6 +425,7 @@ def decompose_bodies(
     bodies: Sequence[Body],
     *,
     threshold: float = DEFAULT_THRESHOLD,
+    cache: DecompositionCache | None = None,
     cache_dir: str | None = None,
     jobs: int | None = None,
     options: dict | None = None,
@@ -431,7 +433,6 @@ def decompose_bodies(
     time_limit: float | dict[str, float] | None = DEFAULT_TIME_LIMIT,
     executor: Executor | None = None,
     geometry: dict | None = None,
-    secret: bytes | None = None,
 ) -> list[list[np.ndarray]]:
     """Convex pieces of each body in world coordinates, covering every triangle of the body.
 
@@ -441,8 +442,13 @@ def decompose_bodies(
         Bodies to decompose.
     threshold : float
         CoACD concavity threshold.
+    cache : cache.DecompositionCache, optional
+        The run's decompositions (``cache.open_caches``): entries signed with the run's key are
+        used as they are, others only when they cover their mesh; new ones are stored, signed.
+        None (and no ``cache_dir``) neither reads nor writes a cache.
     cache_dir : str, optional
-        Directory of the decomposition cache; None neither reads nor writes it.
+        Instead of ``cache``: a decomposition cache in this directory, without a key (every entry
+        is checked against its mesh before use).
     jobs : int, optional
         Worker processes; default all cores, never more than meshes to decompose. With a time
         limit, CoACD always runs in workers (one for a single mesh), so an overrun can be killed
@@ -461,48 +467,60 @@ def decompose_bodies(
         this call. A one-process ``Executor`` with a time limit is replaced by one worker.
     geometry : dict, optional
         ``load.local_geometries`` of the bodies, when the caller has it already.
-    secret : bytes, optional
-        The run's cache key (``cache.pair_secret``): entries are signed with it, and entries
-        signed with it are used without checking that they cover their mesh.
 
     Returns
     -------
     pieces : list of list of (n_i, 3) float64
         For each body, its convex pieces' vertices, world coordinates, model units.
     """
-    settings = coacd_options(threshold, **(options or {}))
-    shapes, placed = _shapes(bodies, local_geometries(bodies) if geometry is None else geometry)
-    cache = None
+    if cache is not None and cache_dir is not None:
+        raise TypeError("give cache or cache_dir, not both")
     if cache_dir is not None:
-        from .cache import DecompositionCache
-
-        cache = DecompositionCache(cache_dir, secret=secret)
-    keys, pieces_of = _from_cache(shapes, cache, settings)
+        cache = DecompositionCache(cache_dir)
+    settings = coacd_options(threshold, **(options or {}))
+    shapes, placed = _distinct_shapes(
+        bodies, local_geometries(bodies) if geometry is None else geometry
+    )
+    keys, pieces_of = _cached_pieces(shapes, cache, settings)
     misses = [d for d in shapes if d not in pieces_of]
     leaders = _near_copies(shapes, pieces_of, misses)
-    done = len(pieces_of)
-    _report(progress, done)
-
-    limits = _limits(time_limit, [d for d in misses if d not in leaders])
-    skipped, concave = _plan(shapes, limits)
-    for digest in skipped:
-        pieces_of[digest] = [_hull_vertices(shapes[digest].local)]
-    done += len(skipped)
-    _report(progress, done)
-    fresh = _run_concave(shapes, concave, limits, settings, jobs, executor, progress, done)
-    pieces_of.update(fresh)
+    limits = _time_limits(time_limit, [d for d in misses if d not in leaders])
+    pieces_of.update(
+        _decompose_misses(shapes, limits, settings, jobs, executor, progress, len(pieces_of))
+    )
     for digest, leader in leaders.items():
         shape = shapes[digest]
         pieces_of[digest] = cover_triangles(
             shape.local, shape.faces, [p.copy() for p in pieces_of[leader]]
         )
-    _report(progress, done + len(concave) + len(leaders))
+    _show_done(progress, len(pieces_of))
     if cache is not None:
-        _store(cache, keys, pieces_of, misses, leaders, limits)
+        _store_decomposed(cache, keys, pieces_of, misses, leaders, limits)
     return [_world_pieces(pieces_of[p.digest], p) for p in placed]
 
 
-def _store(cache, keys: dict, pieces_of: dict, misses: list, leaders: dict, limits: dict) -> None:
+def _decompose_misses(shapes, limits, settings, jobs, executor, progress, done) -> dict:
+    """Pieces of the shapes to decompose (the keys of ``limits``, ``done`` others done): the hull
+    where it stands in (``_hull_stands_in``), CoACD's covering pieces elsewhere."""
+    _show_done(progress, done)
+    stands_in = {d: _hull_stands_in(shapes[d], limit) for d, limit in limits.items()}
+    out = {d: [_hull_vertices(shapes[d].local)] for d in limits if stands_in[d]}
+    _show_done(progress, done + len(out))
+    concave = [d for d in limits if not stands_in[d]]
+    out.update(
+        _coacd_or_hull(shapes, concave, limits, settings, jobs, executor, progress, done + len(out))
+    )
+    return out
+
+
+def _store_decomposed(
+    cache: DecompositionCache,
+    keys: dict,
+    pieces_of: dict,
+    misses: list,
+    leaders: dict,
+    limits: dict,
+) -> None:
     """Cache the misses' pieces. A hull that stood in because CoACD would not pay is not a
     decomposition: not cached, so a run where the part has more neighbours decomposes it."""
     unpaid = {d for d, limit in limits.items() if limit == 0.0}
@@ -511,12 +529,15 @@ def _store(cache, keys: dict, pieces_of: dict, misses: list, leaders: dict, limi
             cache.put(keys[digest], pieces_of[digest])
 
 
-def _report(progress: Progress | None, done: int) -> None:
+def _show_done(progress: Progress | None, done: int) -> None:
+    """Tell ``progress`` (when there is one) how many distinct meshes are done."""
     if progress is not None:
         progress.update(done)
 
 
-def _shapes(bodies: Sequence[Body], geometry: dict) -> tuple[dict[str, Shape], list[Placed]]:
+def _distinct_shapes(
+    bodies: Sequence[Body], geometry: dict
+) -> tuple[dict[str, Shape], list[Placed]]:
     """The distinct geometries in order of first appearance, and each body's placement."""
     shapes: dict[str, Shape] = {}
     placed = []
@@ -529,7 +550,9 @@ def _shapes(bodies: Sequence[Body], geometry: dict) -> tuple[dict[str, Shape], l
     return shapes, placed
 
 
-def _from_cache(shapes: dict[str, Shape], cache, settings: dict) -> tuple[dict, dict]:
+def _cached_pieces(
+    shapes: dict[str, Shape], cache: DecompositionCache | None, settings: dict
+) -> tuple[dict, dict]:
     """Cache keys of the shapes, and the pieces of those the cache holds and may be trusted.
 
     The cache is input from outside: an entry is used only when its pieces cover every triangle
@@ -540,10 +563,8 @@ def _from_cache(shapes: dict[str, Shape], cache, settings: dict) -> tuple[dict, 
     pieces_of: dict[str, list[np.ndarray]] = {}
     if cache is None:
         return keys, pieces_of
-    from .cache import cache_key
-
     for digest, shape in shapes.items():
-        keys[digest] = cache_key(digest, settings)
+        keys[digest] = decomposition_key(digest, settings)
         hit = cache.lookup(keys[digest])
         if hit is not None and (hit[1] or covers(shape.local, shape.faces, hit[0])):
             pieces_of[digest] = hit[0]
@@ -570,32 +591,26 @@ def _near_copies(shapes: dict[str, Shape], pieces_of: dict, misses: list[str]) -
     return leaders
 
 
-def _limits(time_limit, digests: list[str]) -> dict[str, float | None]:
-    """Each digest's CoACD time limit: 0 for "not worth it", None for no limit."""
+def _time_limits(time_limit, digests: list[str]) -> dict[str, float | None]:
+    """Each digest's CoACD time limit, from one for all or one per digest (``time_limit``):
+    0 for "not worth it", None for no limit."""
     if isinstance(time_limit, dict):
         return {d: float(time_limit.get(d, 0.0)) for d in digests}
     return dict.fromkeys(digests, time_limit)
 
 
-def _plan(shapes: dict[str, Shape], limits: dict) -> tuple[list[str], list[str]]:
-    """Split the shapes to decompose into those whose hull stands in (no budget, or convex:
-    a convex mesh is its own hull) and the concave ones CoACD runs on."""
+def _hull_stands_in(shape: Shape, limit: float | None) -> bool:
+    """Whether the shape's hull is its only piece: CoACD has no budget for it, or the mesh is
+    convex (its own hull)."""
     import trimesh
 
-    skipped, concave = [], []
-    for digest, limit in limits.items():
-        shape = shapes[digest]
-        if limit == 0.0 or is_convex(trimesh.Trimesh(shape.local, shape.faces, process=False)):
-            skipped.append(digest)
-        else:
-            concave.append(digest)
-    return skipped, concave
+    return limit == 0.0 or is_convex(trimesh.Trimesh(shape.local, shape.faces, process=False))
 
 
-def _run_concave(shapes, concave, limits, settings, jobs, executor, progress, done) -> dict:
+def _coacd_or_hull(shapes, concave, limits, settings, jobs, executor, progress, done) -> dict:
     """CoACD's covering pieces of each concave shape; the hull where it overran or crashed,
     said on ``progress`` as a note (how the run went belongs to no report)."""
-    results = _decompose_concave(
+    results = _map_coacd(
         [shapes[d] for d in concave],
         [limits[d] for d in concave],
         settings,
@@ -631,7 +646,7 @@ def _world_pieces(pieces: list[np.ndarray], placed: Placed) -> list[np.ndarray]:
     return out
 
 
-def _decompose_concave(
+def _map_coacd(
     shapes: list[Shape],
     limits: list[float | None],
     options: dict,

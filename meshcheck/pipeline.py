@@ -27,7 +27,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .cache import pair_secret
+from .cache import Caches, DecompositionCache, open_caches
 from .config import Approval, approval_reason
 from .decompose import coacd_budgets, decompose_bodies
 from .errors import MeshcheckWarning
@@ -107,6 +107,7 @@ def check(
             executor_for(jobs=settings.jobs, scheduler=settings.scheduler) as executor,
         ):
             warnings.simplefilter("always", MeshcheckWarning)
+            caches = open_caches(settings.cache_dir)  # each cache once, the key read once
             with Progress("loading", 0) as bar:
                 limits = None
                 if settings.max_triangles is not None:
@@ -117,7 +118,7 @@ def check(
                     units=settings.units,
                     file_units=settings.file_units,
                     limits=limits,
-                    cache_dir=settings.cache_dir,
+                    cache=caches.tessellations,
                     step_deflection=settings.step_deflection,
                     progress=bar.update_total,
                     executor=executor,
@@ -125,7 +126,9 @@ def check(
                 )
             bodies, mechanisms = assembly.bodies, assembly.mechanisms
             settings = with_adjacent_approvals(settings, bodies, mechanisms)  # adjacent links
-            result = check_bodies(bodies, settings, executor=executor, mechanisms=mechanisms)
+            result = check_bodies(
+                bodies, settings, executor=executor, mechanisms=mechanisms, caches=caches
+            )
     finally:
         caught = _reissue(caught)
     messages = [str(w.message) for w in caught if issubclass(w.category, MeshcheckWarning)]
@@ -138,6 +141,7 @@ def check_bodies(
     *,
     executor: Executor | None = None,
     mechanisms: Sequence[Mechanism] = (),
+    caches: Caches | None = None,
     **fields,
 ) -> CheckResult:
     """Run the check on bodies already loaded; see ``check``.
@@ -145,7 +149,8 @@ def check_bodies(
     ``settings`` defaults to ``Settings(**fields)`` (there ``cache_dir=None`` means no cache).
     ``executor`` is the run's (left open); default: one for ``settings.jobs`` and
     ``settings.scheduler``, closed at the end. ``mechanisms`` are the robots among the bodies
-    (``load.Assembly.mechanisms``), swept when ``settings.motion.sweep`` is set.
+    (``load.Assembly.mechanisms``), swept when ``settings.motion.sweep`` is set. ``caches`` are
+    the run's (``cache.open_caches``); default: opened here from ``settings.cache_dir``.
     """
     if settings is None:
         settings = Settings(**fields)
@@ -154,8 +159,8 @@ def check_bodies(
         warn_overlapping_shells(bodies)
     warn_nothing_to_compare(bodies, is_split=settings.split)
     _check_patterns(settings, names)
-    # The key cache entries are signed with, read once for the run (None: no cache).
-    secret = None if settings.cache_dir is None else pair_secret()
+    if caches is None:
+        caches = open_caches(settings.cache_dir)
 
     geometry = local_geometries(bodies)
     with Progress("comparing hulls", 0):
@@ -180,14 +185,16 @@ def check_bodies(
         if executor is not None
         else executor_for(jobs=settings.jobs, scheduler=settings.scheduler)
     ) as executor:
-        swept = mechanism_pieces(bodies, mechanisms, settings, executor=executor, secret=secret)
+        swept = mechanism_pieces(
+            bodies, mechanisms, settings, executor=executor, cache=caches.decompositions
+        )
         pieces, owner, piece_count = decompose_parts(
             bodies,
             pairs_near,
             settings,
             executor=executor,
             geometry=geometry,
-            secret=secret,
+            cache=caches.decompositions,
             known=swept,
         )
         near_surfaces = surfaces_near(pieces, owner, pairs_near, tol_near, reach_near)
@@ -198,10 +205,10 @@ def check_bodies(
             near_surfaces,
             settings,
             executor=executor,
-            secret=secret,
+            cache=caches.verdicts,
             hulls_penetrate=hull_query.status[near] == Status.PENETRATING,
         )
-        findings = confirm_on_brep(bodies, findings, settings, secret=secret)
+        findings = confirm_on_brep(bodies, findings, settings, cache=caches.verdicts)
         sweeps = sweep_bodies(bodies, mechanisms, settings, pieces=swept)
     findings = sorted(
         [*duplicate_findings(bodies, copies, geometry), *findings], key=lambda f: (f.a, f.b)
@@ -275,14 +282,15 @@ def decompose_parts(
     *,
     executor: Executor | None = None,
     geometry: dict | None = None,
-    secret: bytes | None = None,
+    cache: DecompositionCache | None = None,
     known: dict[int, list[np.ndarray]] | None = None,
 ) -> tuple[ConvexPack, np.ndarray, np.ndarray]:
     """Convex pieces of the parts of the hull-near ``pairs`` (``(k, 2)``, indices into
     ``bodies``): CoACD's where the cost model says they pay (``decompose.coacd_budgets``), the
     hull elsewhere. CoACD runs on ``executor`` (default: ``settings.jobs`` local processes);
-    cached entries are signed with ``secret`` (``decompose.decompose_bodies``). Parts in
-    ``known`` (body index -> world pieces: the sweep's, ``sweep.mechanism_pieces``) keep those.
+    pieces are kept in ``cache``, the run's decompositions (``decompose.decompose_bodies``).
+    Parts in ``known`` (body index -> world pieces: the sweep's, ``sweep.mechanism_pieces``)
+    keep those.
 
     Returns
     -------
@@ -309,13 +317,12 @@ def decompose_parts(
         fresh_lists = decompose_bodies(
             fresh,
             threshold=settings.threshold,
-            cache_dir=settings.cache_dir,
+            cache=cache,
             jobs=settings.jobs,
             progress=bar,
             time_limit=budgets,
             executor=executor,
             geometry=geometry,
-            secret=secret,
         )
     fresh_pieces = iter(fresh_lists)
     piece_lists = [known[i] if i in known else next(fresh_pieces) for i in needed]

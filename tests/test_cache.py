@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import hashlib
 import multiprocessing
 import os
 
@@ -12,8 +11,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from meshcheck import cache as cache_module
-from meshcheck.cache import DecompositionCache, cache_key
+from meshcheck.cache import DecompositionCache, decomposition_key
+from meshcheck.cache import decompositions as decompositions_module
+from meshcheck.cache.store import checksum
 
 KEY = "0f" * 32
 PIECES = [np.arange(12.0).reshape(4, 3) / 7.0, np.array([[1e5, -1e-300, np.pi]])]
@@ -53,15 +53,16 @@ def test_round_trip_property(tmp_path_factory, pieces):
 
 
 def test_key_covers_digest_options_versions(monkeypatch):
-    base = cache_key("a" * 64, {"threshold": 0.1})
-    assert base == cache_key("a" * 64, {"threshold": 0.1})
-    assert base != cache_key("b" * 64, {"threshold": 0.1})
-    assert base != cache_key("a" * 64, {"threshold": 0.2})
-    monkeypatch.setattr(cache_module, "coacd_version", lambda: "0.0.1")
-    assert base != cache_key("a" * 64, {"threshold": 0.1})
+    base = decomposition_key("a" * 64, {"threshold": 0.1})
+    assert base == decomposition_key("a" * 64, {"threshold": 0.1})
+    assert base != decomposition_key("b" * 64, {"threshold": 0.1})
+    assert base != decomposition_key("a" * 64, {"threshold": 0.2})
+    monkeypatch.setattr(decompositions_module, "package_version", lambda name: "0.0.1")
+    assert base != decomposition_key("a" * 64, {"threshold": 0.1})
     monkeypatch.undo()
-    monkeypatch.setattr(cache_module, "FORMAT_VERSION", cache_module.FORMAT_VERSION + 1)
-    assert base != cache_key("a" * 64, {"threshold": 0.1})
+    version = decompositions_module.FORMAT_VERSION
+    monkeypatch.setattr(decompositions_module, "FORMAT_VERSION", version + 1)
+    assert base != decomposition_key("a" * 64, {"threshold": 0.1})
 
 
 def _truncate(path):
@@ -129,7 +130,7 @@ def _nan_point_with_matching_checksum(path):
     fields = list(header.unpack(data[: header.size]))
     body = bytearray(data[header.size :])
     body[-8:] = np.float64(np.nan).tobytes()
-    fields[3] = cache_module._digest(hashlib.sha256(), KEY, bytes(body))
+    fields[3] = checksum(KEY.encode(), bytes(body))
     open(path, "wb").write(header.pack(*fields) + bytes(body))
 
 

@@ -51,6 +51,14 @@ STAGES = [
     ),  # "": the package itself (its lazy names)
 ]
 RANK = {top: k for k, (_, tops) in enumerate(STAGES) for top in tops}
+#: Inside a package, its modules in data-flow order, by the same rule; the package's
+#: ``__init__`` is its face and comes last.
+ROOMS = {
+    # one signed store, then the entries kept in it
+    "meshcheck.cache": [["store"], ["decompositions", "verdicts", "tessellations"]],
+    # bytes -> document (its structure checked) -> meshes; the file's unit beside
+    "meshcheck.load.step": [["units", "assembly"], ["document"], ["tessellate"], ["read"]],
+}
 
 
 def _modules() -> dict[str, str]:
@@ -134,6 +142,29 @@ def test_every_module_has_a_stage():
 def test_no_stage_imports_a_later_one(module):
     later = sorted(t for t in imports(module) if stage(t) > stage(module))
     assert later == [], f"{module} ({STAGES[stage(module)][0]}) imports later stages: {later}"
+
+
+def room(module: str) -> int:
+    package, _, name = module.rpartition(".")
+    if module in ROOMS:  # the face
+        return len(ROOMS[module])
+    return next(k for k, names in enumerate(ROOMS[package]) if name in names)
+
+
+def test_every_module_of_a_divided_package_has_a_room():
+    for package, rooms in ROOMS.items():
+        found = sorted(m.rpartition(".")[2] for m in MODULES if m.startswith(package + "."))
+        assert found == sorted(name for names in rooms for name in names), package
+
+
+@pytest.mark.parametrize(
+    "module", sorted(m for m in MODULES if m in ROOMS or m.rpartition(".")[0] in ROOMS)
+)
+def test_no_room_imports_a_later_one(module):
+    package = module if module in ROOMS else module.rpartition(".")[0]
+    inside = [t for t in imports(module) if t.rpartition(".")[0] == package]
+    later = sorted(t for t in inside if room(t) > room(module))
+    assert later == [], f"{module} imports later modules of {package}: {later}"
 
 
 def test_no_import_cycle():

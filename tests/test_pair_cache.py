@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 import trimesh
 
-from meshcheck import cache as cache_module
 from meshcheck import pipeline
 from meshcheck.cache import PairCache, pair_key, pair_secret
+from meshcheck.cache import verdicts as verdicts_module
 from meshcheck.errors import MeshcheckWarning
 from meshcheck.reports import render
 from meshcheck.results import PairVerdict, Solid, Verdict
@@ -278,6 +278,18 @@ def _sign(cache: PairCache, fields: dict) -> None:
         json.dump(entry, f)
 
 
+@pytest.mark.parametrize("mac", ["\u00e9" * 64, 7, None])
+def test_a_mac_that_is_not_hex_text_is_a_miss(tmp_path, mac):
+    cache = PairCache(tmp_path, secret=b"k")
+    cache.put("ab" * 32, CLEAR)
+    with open(cache.path("ab" * 32)) as f:
+        entry = json.load(f)
+    entry["mac"] = mac
+    with open(cache.path("ab" * 32), "w") as f:
+        json.dump(entry, f)
+    assert cache.get("ab" * 32) is None
+
+
 def test_a_solid_whose_faces_index_no_vertex_is_a_miss(tmp_path):
     cache = PairCache(tmp_path, secret=b"k")
     good = _solid_verdict()
@@ -289,7 +301,7 @@ def test_a_solid_whose_faces_index_no_vertex_is_a_miss(tmp_path):
 
 
 def test_a_verdict_with_a_solid_over_the_limit_is_not_stored(tmp_path, monkeypatch):
-    monkeypatch.setattr(cache_module, "MAX_SOLID_BYTES", 100)
+    monkeypatch.setattr(verdicts_module, "MAX_SOLID_BYTES", 100)
     cache = PairCache(tmp_path, secret=b"k")
     cache.put("ab" * 32, _solid_verdict())
     assert not os.path.exists(cache.path("ab" * 32))
@@ -300,7 +312,7 @@ def test_oversized_entries_are_not_read(tmp_path):
     cache.put("cd" * 32, CLEAR)
     assert cache.get("cd" * 32) == CLEAR
     with open(cache.path("cd" * 32), "a") as f:
-        f.write(" " * (cache_module.MAX_PAIR_FILE_BYTES + 1))
+        f.write(" " * (verdicts_module.MAX_PAIR_FILE_BYTES + 1))
     assert cache.get("cd" * 32) is None
 
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import pickle
 import subprocess
 import sys
 
@@ -35,17 +36,11 @@ from step_writer import (
     write_step,
 )
 
+from meshcheck.cache import TessellationCache, tessellation_key
 from meshcheck.cli import main
 from meshcheck.load import Body, load_bodies, mesh_digest
-from meshcheck.load.step import (
-    DEFAULT_DEFLECTION_MM,
-    TessellationCache,
-    close_mesh,
-    read_step,
-    step_unit,
-    tessellation_key,
-)
-from meshcheck.pipeline import check_bodies
+from meshcheck.load.step import DEFAULT_DEFLECTION_MM, close_mesh, read_step, step_unit
+from meshcheck.pipeline import check, check_bodies
 
 EYE = np.eye(4)
 
@@ -88,7 +83,15 @@ def bodies_of(path, **kwargs) -> list[Body]:
     """The parts of a STEP file, as ``load_bodies`` makes them (in the file's unit)."""
     asm = read_step(str(path), **kwargs)
     return [
-        Body(f"{path}#{n}", str(path), m, t, units=asm.unit, deflection=asm.deflection)
+        Body(
+            f"{path}#{n}",
+            str(path),
+            m,
+            t,
+            units=asm.unit,
+            deflection=asm.deflection,
+            brep=asm.solids,
+        )
         for n, m, t in asm.items
     ]
 
@@ -503,14 +506,86 @@ def test_brep_verdicts_are_cached_and_a_warm_run_reports_the_same(tmp_path, monk
     fit(path, hole=3.0, pin=3.005)
     args = [path, "--cache-dir", str(tmp_path / "cache"), "--format", "json", "--jobs", "1"]
     cold = CliRunner().invoke(main, args)
-    from meshcheck.load import step
+    from meshcheck.load.step import read
 
-    step._LAST.clear()
-    monkeypatch.setattr(step, "brep_solids", None)  # a warm run must not read the file again
+    # a warm run reads no STEP document: neither to tessellate nor for the exact solids
+    monkeypatch.setattr(read, "read_document", None)
     warm = CliRunner().invoke(main, args)
     assert cold.exit_code == warm.exit_code == 1, (cold.output, warm.output)
     assert cold.stdout == warm.stdout
     assert json.loads(cold.stdout)["results"][0]["depth"] == pytest.approx(0.005, rel=1e-3)
+
+
+def test_no_stage_after_load_opens_the_step_file(tmp_path):
+    # The exact solids travel with the bodies (Body.brep): once loaded, the file can be gone,
+    # whether load tessellated it or took its tessellation from the cache.
+    path = str(tmp_path / "press.step")
+    (expected,), _ = fit(path, hole=3.0, pin=3.005)
+    assert expected.tolerance < 1e-3  # decided on the B-rep
+    cache = TessellationCache(str(tmp_path / "cache"), secret=b"k" * 32)
+    cold = load_bodies([path], cache=cache)
+    warm = load_bodies([path], cache=cache)
+    os.rename(path, path + ".gone")
+    for bodies in (cold, warm):
+        (finding,) = check_bodies(bodies, jobs=1).findings
+        assert (finding.status, finding.depth, finding.volume, finding.tolerance) == (
+            expected.status,
+            expected.depth,
+            expected.volume,
+            expected.tolerance,
+        )
+
+
+def test_the_exact_solids_stay_in_the_process_that_read_them(files):
+    # A body may be pickled (to a worker); its B-rep is not: the copy keeps only the identity.
+    body = load_bodies([files["resting"]])[0]
+    copy = pickle.loads(pickle.dumps(body))
+    assert (copy.brep.path, copy.brep.digest) == (body.brep.path, body.brep.digest)
+    with pytest.raises(InputError, match="stay in the process"):
+        copy.brep.by_node()
+    assert sorted(body.brep.by_node()) == ["base", "block"]
+
+
+def brep_text(shape, folder) -> str:
+    """A shape as OpenCASCADE writes it (BRepTools.Write): its topology, geometry, flags and
+    any triangulation it holds."""
+    from OCP.BRepTools import BRepTools
+
+    path = str(folder / "shape.brep")
+    BRepTools.Write_s(shape, path)
+    return open(path).read()
+
+
+def test_the_exact_solids_are_the_file_as_read_whatever_the_cache_held(
+    files, tmp_path, monkeypatch
+):
+    # Tessellated here (the document load read is kept, not read again) or taken from the cache
+    # (the bytes read into a document when asked): the same shapes, untouched by the mesher.
+    from meshcheck.load.step import read
+
+    cache = TessellationCache(str(tmp_path / "cache"), secret=b"k" * 32)
+    tessellated = read_step(files["bolts"], cache=cache).solids
+    from_cache = read_step(files["bolts"], cache=cache).solids
+    monkeypatch.setattr(read, "read_document", None)  # the tessellated file is not read again
+    kept = tessellated.by_node()
+    monkeypatch.undo()
+    fresh = from_cache.by_node()
+    assert sorted(kept) == sorted(fresh) == ["bolt", "bolt_1", "bolt_2", "plate"]
+    for node in kept:
+        text = brep_text(kept[node], tmp_path)
+        assert text == brep_text(fresh[node], tmp_path)
+        assert "Triangulations 0" in text
+
+
+def test_a_run_reads_its_cache_key_once(files, tmp_path, monkeypatch):
+    import meshcheck.cache as cache_package
+
+    monkeypatch.setenv("MESHCHECK_CACHE_SECRET", "test-secret")
+    calls = []
+    read_key = cache_package.pair_secret
+    monkeypatch.setattr(cache_package, "pair_secret", lambda: calls.append(1) or read_key())
+    check([files["resting"], files["clear"]], cache_dir=str(tmp_path), jobs=1)
+    assert len(calls) == 1
 
 
 # --------------------------------------------------------------------------------------------

@@ -63,6 +63,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Iterable, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -81,6 +82,9 @@ from .files import (
 from .joints import pose_parts
 from .limits import IDENTITY, Budget, Limits, box_corners, check_placement
 from .urdf import urdf_mechanism
+
+if TYPE_CHECKING:
+    from ..cache import TessellationCache
 
 __all__ = [
     "SUPPORTED_EXTENSIONS",
@@ -191,7 +195,7 @@ def load_assembly(
     units: str | None = None,
     file_units: Sequence[units_.UnitRule] = (),
     limits: Limits | None = None,
-    cache_dir: str | None = None,
+    cache: TessellationCache | None = None,
     step_deflection: float | None = None,
     progress: Callable[[int, int], None] | None = None,
     executor=None,
@@ -216,8 +220,8 @@ def load_assembly(
         a configuration file, a warning.
     limits : Limits, optional
         Budgets for the run; default ``Limits()``.
-    cache_dir : str, optional
-        Where STEP tessellations are cached (``step.TessellationCache``); None: not cached.
+    cache : cache.TessellationCache, optional
+        The run's STEP tessellations (``cache.open_caches``); None: not cached.
     step_deflection : float, optional
         Tessellation tolerance for STEP files, in ``units`` (default millimetres); default
         ``step.DEFAULT_DEFLECTION_MM``.
@@ -255,7 +259,8 @@ def load_assembly(
     reads = read_files(
         [path for path, _ in files],
         budget,
-        StepOptions(cache_dir, step_deflection, units, motion, tuple(sorted(given.items()))),
+        StepOptions(step_deflection, units, motion, tuple(sorted(given.items()))),
+        cache=cache,
         executor=executor,
         progress=progress,
         parallel=parallel,
@@ -342,7 +347,7 @@ def load_file(path: str, *, units: str | None = None, limits: Limits | None = No
     """
     units = None if units is None else units_.unit_name(units)
     budget = Budget(limits or Limits())
-    file_read = read(path, budget, StepOptions(None, None, units))
+    file_read = read(path, budget, StepOptions(None, units))
     report = units_.report_unit([file_read.declared], units)
     return _place(path, os.path.basename(path), file_read, report, units, budget.limits)[0]
 
@@ -386,6 +391,7 @@ def _place(
             deflection=file_read.deflection * factor,
             is_float32=file_read.is_float32,
             is_rescaled=is_rescaled,
+            brep=file_read.solids,
         )
         bodies.append(body)
     corners = np.vstack(corners)

@@ -5,13 +5,16 @@ from __future__ import annotations
 import functools
 import hashlib
 from dataclasses import dataclass, field
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 import trimesh
 
 from ..mesh import is_closed
 from .robot import Mechanism
+
+if TYPE_CHECKING:
+    from .step import StepSolids
 
 
 @dataclass(frozen=True, eq=False)
@@ -47,6 +50,10 @@ class Body:
         Whether the user gave its file a unit other than the one it was read in (``--units
         FILE=UNIT``): its lengths are not what the file says, so the file's own B-rep (a STEP
         solid, in the declared unit) is not this part (``verify.brep`` leaves it alone).
+    brep : load.step.StepSolids or None
+        The exact solids of its STEP file, kept in the process that loaded it (the verify stage
+        confirms findings on them, ``verify.brep``); None for a mesh file or a part built in
+        Python.
     """
 
     name: str
@@ -58,6 +65,7 @@ class Body:
     deflection: float = 0.0
     is_float32: bool = True
     is_rescaled: bool = False
+    brep: StepSolids | None = field(default=None, repr=False)
 
     def __post_init__(self):
         if not self.relative_name:

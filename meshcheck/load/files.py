@@ -23,6 +23,7 @@ import os
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import trimesh
@@ -37,14 +38,18 @@ from .robot import Robot
 from .scene import STL_HEADER, STL_RECORD, read_scene, stores_float32
 from .threemf import read_3mf
 
+if TYPE_CHECKING:
+    from ..cache import TessellationCache
+    from .step import StepSolids
+
 STEP_EXTENSIONS = (".step", ".stp")
 URDF_EXTENSIONS = (".urdf",)
 SUPPORTED_EXTENSIONS = (
     ".stl", ".obj", ".ply", ".off", ".glb", ".gltf", ".3mf", *STEP_EXTENSIONS, *URDF_EXTENSIONS
 )  # fmt: skip
 #: Read in worker processes when reading in parallel. STEP stays here (its tessellation cache
-#: is written by this process only), and so does 3MF (its reader sizes its stream by what the
-#: run's budget has left, which only this process knows).
+#: is written by this process only, and its exact solids stay here), and so does 3MF (its
+#: reader sizes its stream by what the run's budget has left, which only this process knows).
 WORKER_EXTENSIONS = (".stl", ".obj", ".ply", ".off", ".glb", ".gltf")
 
 #: Estimated seconds of worker time per byte of a file: reading, cleaning, closedness, shells.
@@ -64,9 +69,8 @@ FILES_PER_TASK = 64
 
 @dataclass(frozen=True)
 class StepOptions:
-    """How STEP files are tessellated and cached (``load.step``)."""
+    """How STEP files are tessellated (``load.step``)."""
 
-    cache_dir: str | None
     deflection: float | None
     units: str | None
     motion: object = None  # motion.Motion: the pose and package paths of URDF files
@@ -93,6 +97,8 @@ class FileRead:
     robot : robot.Robot or None
         The robot a URDF describes (its items are the robot's collision elements); None for
         other files.
+    solids : step.StepSolids or None
+        A STEP file's exact solids (``Body.brep``), read in this process only; None otherwise.
     """
 
     items: list[tuple[str, int, np.ndarray]]
@@ -101,6 +107,7 @@ class FileRead:
     deflection: float
     is_float32: bool = True
     robot: Robot | None = None
+    solids: StepSolids | None = None
 
     @property
     def triangles(self) -> int:
@@ -118,7 +125,9 @@ def is_multi(path: str, items: Sequence) -> bool:
     return len(items) > 1 or ext in STEP_EXTENSIONS or ext in URDF_EXTENSIONS
 
 
-def read(path: str, budget: Budget, step: StepOptions) -> FileRead:
+def read(
+    path: str, budget: Budget, step: StepOptions, cache: TessellationCache | None = None
+) -> FileRead:
     """Read and clean one file, checked against and counted in ``budget``.
 
     Parameters
@@ -127,18 +136,22 @@ def read(path: str, budget: Budget, step: StepOptions) -> FileRead:
     budget : Budget
         The run's budget; the file's triangles and parts are taken from it.
     step : StepOptions
+    cache : cache.TessellationCache, optional
+        The run's STEP tessellations.
 
     Raises
     ------
     InputError
         The file cannot be checked (see ``meshcheck.load``).
     """
-    out = _read(path, budget, step)
+    out = _read(path, budget, step, cache)
     budget.take(path, out.triangles, len(out.items))
     return out
 
 
-def _read(path: str, budget: Budget, step: StepOptions) -> FileRead:
+def _read(
+    path: str, budget: Budget, step: StepOptions, cache: TessellationCache | None = None
+) -> FileRead:
     """``read`` without taking from the budget (its checks still run)."""
     if not os.path.exists(path):
         raise InputError(path, "no such file or directory")
@@ -157,7 +170,7 @@ def _read(path: str, budget: Budget, step: StepOptions) -> FileRead:
         check=_stl_head_check(path, budget) if ext == ".stl" else None,
         max_line=MAX_TEXT_LINE if ext in (".obj", ".off") else None,
     )
-    declared, deflection, robot = None, 0.0, None
+    declared, deflection, robot, solids = None, 0.0, None, None
     # Which coordinates went through float32, per reader: glTF (POSITION accessors are float32),
     # binary STL and float PLY; 3MF, text meshes and STEP (OpenCASCADE's mesher, double
     # placements, a float64 tessellation cache) are double.
@@ -167,7 +180,7 @@ def _read(path: str, budget: Budget, step: StepOptions) -> FileRead:
         # A reader takes (path, bytes, budget) and returns (node, mesh, placement) items and the
         # unit the file declares (None: undeclared). A STEP reader plugs in here the same way.
         if ext in STEP_EXTENSIONS:
-            items, declared, deflection = _read_step(path, step, budget)
+            items, declared, deflection, solids = _read_step(path, data, step, budget, cache)
         elif ext in URDF_EXTENSIONS:
             from .urdf import read_urdf
 
@@ -198,7 +211,13 @@ def _read(path: str, budget: Budget, step: StepOptions) -> FileRead:
             warn(name, "mesh is not closed (not watertight); its findings rest on surfaces only")
         out.append((node, g, np.asarray(transform, dtype=np.float64)))
     return FileRead(
-        out, geometries, declared, float(deflection), is_float32=is_float32, robot=robot
+        out,
+        geometries,
+        declared,
+        float(deflection),
+        is_float32=is_float32,
+        robot=robot,
+        solids=solids,
     )
 
 
@@ -214,19 +233,16 @@ def _stl_head_check(path: str, budget: Budget):
     return check
 
 
-def _read_step(path: str, options: StepOptions, budget: Budget):
-    """(items, declared unit, deflection in that unit) of a STEP file."""
-    from .step import TessellationCache, read_step
+def _read_step(
+    path: str, data: bytes, options: StepOptions, budget: Budget, cache: TessellationCache | None
+):
+    """(items, declared unit, deflection in that unit, exact solids) of a STEP file."""
+    from .step import read_step
 
-    cache = None
-    if options.cache_dir is not None:
-        from ..cache import pair_secret
-
-        secret = pair_secret()  # entries are signed, as pair verdicts are (see meshcheck.cache)
-        cache = None if secret is None else TessellationCache(options.cache_dir, secret=secret)
     try:
         assembly = read_step(
             path,
+            data=data,
             deflection=options.deflection,
             deflection_unit=(options.units or units_.DEFAULT_UNIT)
             if options.deflection is not None
@@ -237,7 +253,7 @@ def _read_step(path: str, options: StepOptions, budget: Budget):
         )
     except ValueError as exc:
         raise InputError(path, str(exc)) from None
-    return list(assembly.items), assembly.unit, float(assembly.deflection)
+    return list(assembly.items), assembly.unit, float(assembly.deflection), assembly.solids
 
 
 # --------------------------------------------------------------------------------------------
@@ -249,6 +265,7 @@ def read_files(
     budget: Budget,
     step: StepOptions,
     *,
+    cache: TessellationCache | None = None,
     executor=None,
     progress: Callable[[int, int], None] | None = None,
     parallel: bool | None = None,
@@ -259,7 +276,7 @@ def read_files(
     ----------
     paths : sequence of str
         Files, in argument order.
-    budget, step
+    budget, step, cache
         As for ``read``.
     executor : execute.Executor, optional
         The run's executor. Files of ``WORKER_EXTENSIONS`` are read in its processes when it has
@@ -286,7 +303,7 @@ def read_files(
     if not (local and parallel and in_workers):
         out = []
         for done, path in enumerate(paths, start=1):
-            out.append(read(path, budget, step))
+            out.append(read(path, budget, step, cache))
             if progress is not None:
                 progress(done, total)
         return out
@@ -319,7 +336,7 @@ def read_files(
         if k in outcome:
             out.append(_replay(path, budget, outcome[k]))
         else:  # a main-process format, or its worker died: read it here
-            out.append(read(path, budget, step))
+            out.append(read(path, budget, step, cache))
             done = min(done + 1, total)
             if progress is not None:
                 progress(done, total)

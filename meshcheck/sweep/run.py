@@ -87,11 +87,11 @@ def mechanism_pieces(
     settings,
     *,
     executor=None,
-    secret: bytes | None = None,
+    cache=None,
 ) -> dict[int, list[np.ndarray]]:
     """Convex pieces of every part of the mechanisms a ``--sweep`` poses, by body index; ``{}``
     without ``--sweep``. A ``--sweep-joints`` name no mechanism has is refused first. CoACD
-    runs on ``executor``; cached entries are signed with ``secret`` (``cache.pair_secret``).
+    runs on ``executor``; pieces are kept in ``cache``, the run's decompositions.
 
     Each part is CoACD's decomposition, never a stand-in hull: no time limit (a time-out would
     swap a link's pieces for its hull, and the sweep's classes, the SRDF, would then depend on
@@ -107,11 +107,10 @@ def mechanism_pieces(
         piece_lists = decompose_bodies(
             [bodies[k] for k in ks],
             threshold=settings.threshold,
-            cache_dir=settings.cache_dir,
+            cache=cache,
             jobs=settings.jobs,
             executor=executor,
             time_limit=None,
-            secret=secret,
         )
         out.update(zip(ks, piece_lists, strict=True))
     return out

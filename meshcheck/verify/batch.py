@@ -56,26 +56,22 @@ def verify_pairs(
     settings: Settings,
     *,
     executor: Executor | None = None,
-    secret: bytes | None = None,
+    cache: PairCache | None = None,
     hulls_penetrate: np.ndarray | None = None,
 ) -> list[Finding]:
     """Decide each pair on the real meshes; a finding for each pair that is not clear, sorted.
 
-    With ``secret`` (the run's cache key) and a cache directory, verdicts cached from an earlier
-    run (``cache.PairCache``: same meshes, placement, tolerance and clearance) are reused; the
-    rest are verified, on ``executor``'s processes when their expected serial time
-    (``expected_seconds``; ``hulls_penetrate``, ``(k,)`` bool, marks pairs whose hulls overlap)
-    repays the workers, and then cached. The findings do not depend on where a verdict came
-    from.
+    With ``cache`` (the run's pair verdicts, ``cache.PairCache``), verdicts cached from an
+    earlier run (same meshes, placement, tolerance and clearance) are reused; the rest are
+    verified, on ``executor``'s processes when their expected serial time (``expected_seconds``;
+    ``hulls_penetrate``, ``(k,)`` bool, marks pairs whose hulls overlap) repays the workers, and
+    then cached. The findings do not depend on where a verdict came from.
     """
     pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
     if hulls_penetrate is None:
         hulls_penetrate = np.zeros(len(pairs), dtype=bool)
     cost = expected_seconds(bodies, pairs, near_surfaces, hulls_penetrate)
     pairs = _oriented(bodies, pairs)
-    cache = None
-    if settings.cache_dir is not None and secret is not None:
-        cache = PairCache(settings.cache_dir, secret=secret)
     keys, verdicts = _cached(bodies, pairs, tolerance, near_surfaces, settings.clearance, cache)
     todo = np.array([k for k, v in enumerate(verdicts) if v is None], dtype=np.int64)
     hits = len(pairs) - len(todo)

@@ -11,10 +11,10 @@ triangles came from answer both exactly, so a STEP finding near the tolerance is
 
 - ``interference`` with a depth of at most ``NEAR_TOLERANCES`` tolerances (or no depth), every
   ``touching``, and ``clearance`` within ``NEAR_TOLERANCES`` tolerances, when both parts are
-  closed STEP solids (``load.step.brep_solids``); deeper interference stands as the meshes found
-  it (the triangles lie within the deflections of the solids, so no depth that far above the
-  tolerance can vanish), and a pair the meshes found clear is more than the two deflections
-  apart on the meshes, hence apart on the solids.
+  closed STEP solids (``Body.brep``, handed down by the load stage); deeper interference stands
+  as the meshes found it (the triangles lie within the deflections of the solids, so no depth
+  that far above the tolerance can vanish), and a pair the meshes found clear is more than the
+  two deflections apart on the meshes, hence apart on the solids.
 - On the solids, with the pair's own tolerance ``t`` (the user's ``--tolerance``, or the one a
   mesh file would get: the deflections no longer enter, the solids are exact):
   ``BRepAlgoAPI_Common`` gives the shared solid and ``GProp`` its volume ``V``;
@@ -37,14 +37,13 @@ shells, a solid is open) keeps the tessellation's verdict; when that verdict is 
 Results are deterministic (one thread, no fuzzy value) and cached as pair verdicts are
 (``cache.PairCache``: signed with the run's key), keyed by both files' content, the two solids'
 names and placements, the tolerance, the clearance, this file and OpenCASCADE's version, so a
-warm run gives the same report without reading a file.
+warm run gives the same report without reading a STEP document into OpenCASCADE.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import functools
-import hashlib
 import json
 import math
 import os
@@ -54,6 +53,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..cache import PairCache
+from ..cache.store import checksum, package_version
 from ..errors import InputError, MeshcheckWarning
 from ..load import Body
 from ..load.files import STEP_EXTENSIONS
@@ -101,7 +101,7 @@ def confirm_on_brep(
     findings: Sequence[Finding],
     settings: Settings,
     *,
-    secret: bytes | None = None,
+    cache: PairCache | None = None,
 ) -> list[Finding]:
     """Decide the STEP findings near the tolerance on the exact solids (see the module docstring).
 
@@ -112,9 +112,9 @@ def confirm_on_brep(
     findings : sequence of Finding
         The verify stage's findings, sorted.
     settings : Settings
-        The run's settings (``tolerance``, ``clearance``, ``cache_dir``).
-    secret : bytes, optional
-        The run's cache key; with ``settings.cache_dir``, B-rep verdicts are cached.
+        The run's settings (``tolerance``, ``clearance``).
+    cache : cache.PairCache, optional
+        The run's pair verdicts, where B-rep verdicts are kept too.
 
     Returns
     -------
@@ -123,10 +123,6 @@ def confirm_on_brep(
         are clear), in the same order.
     """
     by_name = {b.name: b for b in bodies}
-    cache = None
-    if settings.cache_dir is not None and secret is not None:
-        cache = PairCache(settings.cache_dir, secret=secret)
-    solids: dict[str, dict] = {}
     out = []
     for finding in findings:
         a, b = by_name[finding.a], by_name[finding.b]
@@ -135,7 +131,7 @@ def confirm_on_brep(
             continue
         tolerance = _own_tolerance(a, b, settings)
         try:
-            verdict = _cached_verdict(a, b, tolerance, settings.clearance, cache, solids)
+            verdict = _cached_verdict(a, b, tolerance, settings.clearance, cache)
         except _Unconfirmed as exc:
             _warn_unconfirmed(finding, str(exc))
             out.append(finding)
@@ -204,7 +200,6 @@ def _cached_verdict(
     tolerance: float,
     clearance: float | None,
     cache: PairCache | None,
-    solids: dict[str, dict],
 ) -> BrepVerdict:
     """The solids' verdict on ``a`` and ``b`` (millimetres), from the cache when it holds it."""
     to_mm = 1.0 / _mm_to(a.units)
@@ -212,27 +207,32 @@ def _cached_verdict(
     hit = cache.get(key) if cache is not None else None
     if hit is not None:
         return _from_fields(hit)
-    shapes = []
-    for body in (a, b):
-        if body.path not in solids:
-            try:
-                from ..load.step import brep_solids
-
-                solids[body.path] = brep_solids(body.path)
-            except InputError as exc:
-                raise _Unconfirmed(f"its file cannot be read again ({exc.reason})") from None
-        node = _node(body)
-        if node not in solids[body.path] or not body.is_closed:
-            raise _Unconfirmed("the part is not one closed solid of its file")
-        shapes.append(solids[body.path][node])
     verdict = decide(
-        *shapes,
+        _exact_solid(a),
+        _exact_solid(b),
         tolerance=tolerance * to_mm,
         clearance=None if clearance is None else clearance * to_mm,
     )
     if cache is not None:
         cache.put(key, _to_fields(verdict))
     return verdict
+
+
+def _exact_solid(body: Body):
+    """The body's solid in its file's B-rep (``Body.brep``), placed, millimetres."""
+    if body.brep is None:
+        raise _Unconfirmed(_NOT_ONE_SOLID)
+    try:
+        solids = body.brep.by_node()
+    except InputError as exc:
+        raise _Unconfirmed(f"its file cannot be read again ({exc.reason})") from None
+    node = _node(body)
+    if node not in solids or not body.is_closed:
+        raise _Unconfirmed(_NOT_ONE_SOLID)
+    return solids[node]
+
+
+_NOT_ONE_SOLID = "the part is not one closed solid of its file"
 
 
 def _key(a: Body, b: Body, tolerance: float, clearance: float | None) -> str:
@@ -244,32 +244,23 @@ def _key(a: Body, b: Body, tolerance: float, clearance: float | None) -> str:
         "clearance": None if clearance is None else float(clearance).hex(),
     }
     text = json.dumps(payload, sort_keys=True, separators=(",", ":"))
-    return hashlib.sha256(text.encode()).hexdigest()
+    return checksum(text.encode()).hex()
 
 
 def _identity(body: Body) -> list[str]:
     """What fixes a solid in the world: its file's content, its node, its placement, the unit."""
-    try:
-        with open(body.path, "rb") as f:
-            content = hashlib.sha256(f.read()).hexdigest()
-    except OSError as exc:
-        raise _Unconfirmed(f"its file cannot be read again ({exc.strerror})") from None
+    if body.brep is None:
+        raise _Unconfirmed(_NOT_ONE_SOLID)
     matrix = np.ascontiguousarray(body.transform, dtype=np.float64).tobytes().hex()
-    return [content, _node(body), matrix, body.units]
+    return [body.brep.digest, _node(body), matrix, body.units]
 
 
 @functools.cache
 def _code_version() -> str:
-    import importlib.metadata
-
-    h = hashlib.sha256()
+    """Digest of what computes a B-rep verdict: this file and OpenCASCADE's version."""
     with open(__file__, "rb") as f:
-        h.update(f.read())
-    try:
-        h.update(importlib.metadata.version("cadquery-ocp-novtk").encode())
-    except importlib.metadata.PackageNotFoundError:  # pragma: no cover - a runtime dependency
-        h.update(b"?")
-    return h.hexdigest()
+        source = f.read()
+    return checksum(source, package_version("cadquery-ocp-novtk", missing="?").encode()).hex()
 
 
 def _to_fields(v: BrepVerdict) -> PairVerdict:

@@ -1,0 +1,234 @@
+"""A STEP file's bytes -> its tessellated solids (from the cache, or OpenCASCADE) and its exact
+ones, as read (kept, or read when the verify stage first asks for them)."""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+
+import numpy as np
+import trimesh
+
+from ...cache import Tessellation, TessellationCache, tessellation_key
+from ...errors import InputError
+from ...units import METRES
+from .assembly import Instance, placed_solids
+from .document import read_document
+from .tessellate import (
+    DEFAULT_ANGULAR_DEFLECTION,
+    MAX_STEP_TRIANGLES,
+    placed_meshes,
+    tessellate,
+    with_copied_topology,
+)
+from .units import declared_unit, deflection_mm, warn_no_unit
+
+
+class StepSolids:
+    """The exact solids of one STEP file, by part node name: what its parts' triangles
+    approximate, for the verify stage to confirm a finding on (``meshcheck.verify.brep``).
+
+    Made by ``read_step`` from the bytes the load stage read and checked, and kept by the
+    file's bodies (``Body.brep``), so no later stage opens the file. When the file was read to be
+    tessellated, its solids are the instances read then (the mesher worked on a copy of their
+    topology: they hold no triangulation); when the tessellation came from the cache, the bytes
+    are kept and read into a document on the first call of ``by_node``, and only then. Either
+    way the solids are the file as a fresh read gives them, whatever the cache held.
+
+    The solids are OpenCASCADE shapes and stay in this process: a pickled copy (a body sent to
+    a worker) keeps the path and digest, not the shapes nor the bytes, and ``by_node`` refuses
+    there.
+
+    Attributes
+    ----------
+    path : str
+        The file, as given.
+    digest : str
+        Hex SHA-256 of its content.
+    """
+
+    def __init__(self, path: str, data: bytes, instances: list[Instance] | None = None):
+        self.path = path
+        self.digest = hashlib.sha256(data).hexdigest()
+        self._data = data if instances is None else None
+        self._instances = instances
+        self._solids: dict[str, object] | None = None
+
+    def by_node(self) -> dict[str, object]:
+        """The placed solids (``TopoDS_Shape``, the assembly's frame, millimetres whatever the
+        file declares), by node name: ``read_step``'s names, from the same walk of the same
+        bytes.
+
+        Raises
+        ------
+        InputError
+            As ``read_step`` for the same bytes; or the solids are asked for in another process.
+        """
+        if self._solids is None:
+            if self._instances is None:
+                if self._data is None:
+                    raise InputError(self.path, "its exact solids stay in the process that read it")
+                self._instances = read_document(self._data, self.path)
+            self._solids = dict(placed_solids(self._instances))
+            self._data, self._instances = None, None
+        return self._solids
+
+    def __getstate__(self) -> dict:
+        return {"path": self.path, "digest": self.digest}
+
+    def __setstate__(self, state: dict) -> None:
+        self.path, self.digest = state["path"], state["digest"]
+        self._data, self._instances, self._solids = None, None, None
+
+
+@dataclass(frozen=True)
+class StepAssembly:
+    """The solids of a STEP file.
+
+    Attributes
+    ----------
+    items : list of (str, trimesh.Trimesh, (4, 4) float64)
+        ``(name, mesh, transform)`` per solid instance, sorted by name. ``name`` is the STEP
+        product name, made unique (``bolt``, ``bolt_1``...); ``mesh`` is in the product's own
+        frame (shared by the instances of one product); ``transform`` places it in the
+        assembly. Lengths in ``unit``.
+    unit : str
+        The length unit the file declares, a key of ``meshcheck.units.METRES`` (``"mm"`` when it
+        declares none that is recognised, with a warning).
+    deflection : float
+        Linear deflection of the tessellation, ``unit``: the triangles lie within this of the
+        CAD faces, so a gap or depth is uncertain by up to twice this.
+    angular_deflection : float
+        Angular deflection of the tessellation, radians.
+    solids : StepSolids
+        The exact solids the items were tessellated from, by name.
+    """
+
+    items: list[tuple[str, trimesh.Trimesh, np.ndarray]]
+    unit: str
+    deflection: float
+    angular_deflection: float
+    solids: StepSolids
+
+
+def read_step(
+    path: str,
+    *,
+    data: bytes | None = None,
+    deflection: float | None = None,
+    deflection_unit: str | None = None,
+    unit: str | None = None,
+    angular_deflection: float | None = None,
+    cache: TessellationCache | None = None,
+    max_triangles: int | None = None,
+) -> StepAssembly:
+    """Tessellate the solids of a STEP file, in the unit the file declares.
+
+    Parameters
+    ----------
+    path : str
+        A STEP (ISO 10303-21) file.
+    data : bytes, optional
+        Its content, when the caller has read it already (the load stage, within its limits);
+        default: read from ``path``.
+    deflection : float, optional
+        Largest distance between a curved face and its triangles, in ``deflection_unit``.
+        Default ``DEFAULT_DEFLECTION_MM`` millimetres, or ``DEFAULT_RELATIVE_DEFLECTION`` of
+        the largest solid's diagonal when that is more.
+    deflection_unit : str, optional
+        Unit of ``deflection``, a key of ``meshcheck.units.METRES``; default the file's own unit.
+    unit : str, optional
+        The unit the file's lengths really are in (``--units FILE=UNIT``): deflections are
+        meant in it; the assembly keeps the file's numbers and declared unit.
+    angular_deflection : float, optional
+        Largest angle between neighbouring facets, radians; default
+        ``DEFAULT_ANGULAR_DEFLECTION``.
+    cache : TessellationCache, optional
+        Where tessellations are kept, by file content and settings.
+    max_triangles : int, optional
+        Triangles the file may be tessellated into (distinct products once); default and upper
+        bound ``MAX_STEP_TRIANGLES``.
+
+    Returns
+    -------
+    StepAssembly
+
+    Raises
+    ------
+    InputError
+        The file cannot be read, is not STEP, holds no solid, has an assembly cycle, a dangling
+        or an external reference, a solid outside every placed product, or the deflection cannot
+        be honoured (see the module docstring).
+    ValueError
+        ``deflection`` or ``angular_deflection`` is not a positive finite number, or
+        ``deflection_unit`` is unknown (options are the caller's to validate).
+
+    Examples
+    --------
+    >>> asm = read_step("sample_meshes/assembly.step")
+    >>> asm.unit, [name for name, _, _ in asm.items][:3]
+    ('mm', ['bolt_m6', 'bolt_m6_1', 'bolt_m6_2'])
+    """
+    _check_deflections(deflection, deflection_unit, angular_deflection)
+    angular = (
+        DEFAULT_ANGULAR_DEFLECTION if angular_deflection is None else float(angular_deflection)
+    )
+    data = _read_bytes(path) if data is None else data
+    declared = declared_unit(data)
+    real_unit = unit
+    unit = declared or "mm"
+    wanted_mm, ratio = deflection_mm(deflection, deflection_unit, unit, real_unit)
+    budget = MAX_STEP_TRIANGLES if max_triangles is None else min(max_triangles, MAX_STEP_TRIANGLES)
+
+    key = tessellation_key(data, wanted_mm, angular, default_scale=ratio) if cache else ""
+    found = cache.get(key) if cache is not None else None
+    instances = None
+    if found is None or found.unit != unit:
+        instances = read_document(data, path)
+        found = _tessellation(instances, path, wanted_mm, angular, budget, unit, ratio)
+        if cache is not None:
+            cache.put(key, found)
+    if declared is None and real_unit is None:
+        warn_no_unit(path)
+    return StepAssembly(*found, solids=StepSolids(path, data, instances))
+
+
+def _tessellation(
+    instances: list[Instance],
+    path: str,
+    wanted_mm: float | None,
+    angular: float,
+    budget: int,
+    unit: str,
+    ratio: float,
+) -> Tessellation:
+    """The instances meshed (``tessellate``), closed and named, in the file's ``unit``; the
+    mesher works on a copy of their topology (``with_copied_topology``), the instances stay as
+    read."""
+    scale = METRES[unit]  # metres per file unit
+    meshed = with_copied_topology(instances)
+    used_mm = tessellate(meshed, path, wanted_mm, angular, budget, unit, ratio)
+    deflection = used_mm * 1e-3 / scale
+    items = placed_meshes(meshed, path, 1e-3 / scale, deflection)
+    return Tessellation(items, unit, deflection, angular)
+
+
+def _check_deflections(deflection, deflection_unit, angular_deflection) -> None:
+    """Refuse (ValueError) an unknown unit or a deflection that is not a positive number."""
+    if deflection_unit is not None and deflection_unit not in METRES:
+        raise ValueError(f"unknown length unit {deflection_unit!r}")
+    for value in (deflection, angular_deflection):
+        if value is not None and not (np.isfinite(value) and value > 0):
+            raise ValueError(f"deflection must be a positive number, not {value!r}")
+
+
+def _read_bytes(path: str) -> bytes:
+    """The content of ``path`` (for callers that have not read it)."""
+    try:
+        with open(path, "rb") as f:
+            data = f.read()
+    except OSError as exc:
+        raise InputError(path, f"cannot be read ({exc.strerror})") from None
+    if not data:
+        raise InputError(path, "empty file")
+    return data

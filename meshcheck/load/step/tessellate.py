@@ -1,0 +1,275 @@
+"""OpenCASCADE's solids -> closed triangle meshes, within a deflection of the CAD faces.
+
+``BRepMesh_IncrementalMesh``, one thread. The chords of a curved face lie inside it, by at most the
+linear deflection: a pin in a hole, both faceted, shows a gap up to one deflection wider (or an
+overlap up to two deflections shallower) than the CAD model. The default,
+``DEFAULT_DEFLECTION_MM``, keeps a 0.1 mm clearance within 0.01 mm and a 0.2 mm interference within
+0.03 mm (tests/test_step.py); the value used is ``StepAssembly.deflection``, in the file's unit.
+
+A deflection is honoured only when it can be with bounded time and memory: it must be at least
+``MIN_DEFLECTION_MM`` (ten times OpenCASCADE's own confusion distance; finer triangles would
+resolve nothing the B-rep holds) and at least ``MIN_RELATIVE_DEFLECTION`` of the largest solid's
+diagonal, and the triangles it would make, estimated from a coarse tessellation before the fine
+one, must fit the budget. Otherwise the file is refused with the deflection that would fit.
+
+Faces are tessellated one by one: each face has its own copy of the vertices of the edges it
+shares, and a few triangles collapse to slivers. Vertices closer than a tolerance far below the
+deflection are merged (in float64), degenerate triangles dropped, and a closed solid comes out
+closed: every edge used by exactly two triangles, consistently wound, facing out
+(``close_mesh``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import trimesh
+
+from ...errors import InputError
+from ...units import METRES
+from .assembly import Instance, order_key, unique_name
+from .document import captured_output
+
+# Linear deflection used when none is given: the largest distance between a curved face and its
+# triangles. 0.005 mm keeps a measured 0.1 mm clearance within 0.01 mm (a pin and its hole are
+# both faceted: the gap can widen by the hole's sag) and a 0.2 mm depth within 0.03 mm; see
+# bench/step.py for what it costs.
+DEFAULT_DEFLECTION_MM = 0.005
+# ... or this fraction of the largest solid's diagonal when that is more (parts of metres or
+# kilometres: 0.005 mm across a 20 km part would be more triangles than any budget).
+DEFAULT_RELATIVE_DEFLECTION = 1e-5
+# Angular deflection, radians: the largest angle between neighbouring facets' normals. OpenCASCADE's
+# usual; it only refines small radii, where the linear deflection already holds.
+DEFAULT_ANGULAR_DEFLECTION = 0.5
+# Deflections below this cannot be honoured: OpenCASCADE's confusion distance (Precision::
+# Confusion, 1e-7 mm) is the size of a point to it, and its mesher fails or runs away below a
+# few times that (1e-9 mm ended in an exception, 1e-6 mm in 1.7 GB and a crash).
+MIN_DEFLECTION_MM = 1e-6
+# ... and below this fraction of the largest solid's bounding-box diagonal: a million chords
+# across a part resolve nothing a collision check can use, and cost memory quadratic in them.
+MIN_RELATIVE_DEFLECTION = 1e-6
+# Triangles one STEP file may be tessellated into (every distinct product once), unless the run's
+# budget (``--max-triangles``) has less left: a million triangles take about 200 MB here.
+MAX_STEP_TRIANGLES = 5_000_000
+
+
+def tessellate(
+    instances: list[Instance],
+    path: str,
+    deflection_mm: float | None,
+    angular: float,
+    budget: int,
+    unit: str,
+    default_scale: float = 1.0,
+) -> float:
+    """Mesh every distinct product at ``deflection_mm`` (None: the default for their size,
+    ``DEFAULT_DEFLECTION_MM`` times ``default_scale``, OpenCASCADE's millimetres per real one)
+    once its cost is known to fit ``budget`` triangles; return the deflection used, mm."""
+    from OCP.BRepMesh import BRepMesh_IncrementalMesh
+    from OCP.BRepTools import BRepTools
+
+    products = list({i.product_key: i.product for i in instances}.values())
+    diagonal = max(shape_diagonal(shape) for shape in products)
+    deflection_mm = _honoured_deflection(deflection_mm, diagonal, path, unit, default_scale)
+    to_unit = 1e-3 / METRES[unit]
+    # Estimate before meshing fine: a doubly curved face needs triangles in proportion to
+    # 1/deflection, a cylinder or a plane's curved border to 1/sqrt(deflection); counting
+    # 1/deflection from a coarse mesh overestimates, which is the safe side.
+    coarse = max(deflection_mm, 1e-3 * diagonal)
+    with captured_output():
+        estimate = 0.0
+        for shape in products:
+            BRepTools.Clean_s(shape)  # from no triangulation, whatever meshed it before
+            BRepMesh_IncrementalMesh(shape, coarse, False, angular, False)
+            estimate += _triangle_count(shape) * coarse / deflection_mm
+        if estimate > budget:
+            fits = coarse * max(1.0, sum(map(_triangle_count, products)) / budget)
+            raise InputError(
+                path,
+                f"STEP deflection {deflection_mm * to_unit:.3g} {unit} would make about "
+                f"{estimate:.3g} triangles (budget {budget}): use {fits * to_unit:.3g} {unit} "
+                "or more, or raise --max-triangles",
+            )
+        if coarse != deflection_mm:
+            for shape in products:
+                BRepTools.Clean_s(shape)
+                BRepMesh_IncrementalMesh(shape, deflection_mm, False, angular, False)
+    return deflection_mm
+
+
+def _honoured_deflection(
+    deflection_mm: float | None, diagonal: float, path: str, unit: str, default_scale: float
+) -> float:
+    """The deflection to mesh at, mm: ``deflection_mm``, or the default for parts of
+    ``diagonal`` mm; refused (``InputError``) below what OpenCASCADE can honour."""
+    floor = max(MIN_DEFLECTION_MM, MIN_RELATIVE_DEFLECTION * diagonal)
+    if deflection_mm is None:
+        deflection_mm = max(
+            DEFAULT_DEFLECTION_MM * default_scale, DEFAULT_RELATIVE_DEFLECTION * diagonal
+        )
+    if deflection_mm < floor:
+        to_unit = 1e-3 / METRES[unit]
+        raise InputError(
+            path,
+            f"STEP deflection {deflection_mm * to_unit:.3g} {unit} is finer than meshcheck can "
+            f"honour (OpenCASCADE's precision, or 1e-6 of the largest part): use "
+            f"{floor * to_unit:.3g} {unit} or more",
+        )
+    return deflection_mm
+
+
+def with_copied_topology(instances: list[Instance]) -> list[Instance]:
+    """The instances, each product replaced by a copy of its topology that shares its geometry
+    (one copy per product): the mesher writes its triangulation there, and the instances' own
+    shapes stay exactly as read, for the exact solids (``read.StepSolids``)."""
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_Copy
+
+    copies: dict[str, object] = {}
+    out = []
+    for inst in instances:
+        if inst.product_key not in copies:
+            copy = BRepBuilderAPI_Copy(inst.product, False, False)  # no geometry, no mesh
+            copies[inst.product_key] = copy.Shape()
+        out.append(dataclasses.replace(inst, product=copies[inst.product_key]))
+    return out
+
+
+def shape_diagonal(shape) -> float:
+    """Diagonal of an OpenCASCADE shape's bounding box, its unit (0 for an empty shape)."""
+    from OCP.Bnd import Bnd_Box
+    from OCP.BRepBndLib import BRepBndLib
+
+    box = Bnd_Box()
+    BRepBndLib.Add_s(shape, box, False)
+    if box.IsVoid():
+        return 0.0
+    return float(box.CornerMin().Distance(box.CornerMax()))
+
+
+def _triangle_count(shape) -> int:
+    from OCP.BRep import BRep_Tool
+    from OCP.TopAbs import TopAbs_FACE
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopLoc import TopLoc_Location
+    from OCP.TopoDS import TopoDS
+
+    n, explorer = 0, TopExp_Explorer(shape, TopAbs_FACE)
+    while explorer.More():
+        tri = BRep_Tool.Triangulation_s(TopoDS.Face(explorer.Current()), TopLoc_Location())
+        n += 0 if tri is None else tri.NbTriangles()
+        explorer.Next()
+    return n
+
+
+def _face_arrays(shape) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices (n, 3) float64 mm, faces (m, 3) int64) of a meshed shape, one copy per face,
+    wound by each face's orientation (outward for a solid)."""
+    from OCP.BRep import BRep_Tool
+    from OCP.TopAbs import TopAbs_FACE, TopAbs_REVERSED
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopLoc import TopLoc_Location
+    from OCP.TopoDS import TopoDS
+
+    vertices, faces, offset = [], [], 0
+    explorer = TopExp_Explorer(shape, TopAbs_FACE)
+    while explorer.More():
+        face = TopoDS.Face(explorer.Current())
+        explorer.Next()
+        location = TopLoc_Location()
+        tri = BRep_Tool.Triangulation_s(face, location)
+        if tri is None or tri.NbTriangles() == 0:
+            continue
+        trsf = location.Transformation()
+        nodes = np.array(
+            [tri.Node(i).Transformed(trsf).Coord() for i in range(1, tri.NbNodes() + 1)],
+            dtype=np.float64,
+        )
+        triangles = np.array(
+            [tri.Triangle(i).Get() for i in range(1, tri.NbTriangles() + 1)], dtype=np.int64
+        )
+        if face.Orientation() == TopAbs_REVERSED:
+            triangles = triangles[:, ::-1]
+        vertices.append(nodes)
+        faces.append(triangles - 1 + offset)
+        offset += len(nodes)
+    if not faces:
+        return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
+    return np.concatenate(vertices), np.concatenate(faces)
+
+
+def placed_meshes(
+    instances: list[Instance], path: str, to_unit: float, deflection: float
+) -> list[tuple[str, trimesh.Trimesh, np.ndarray]]:
+    """(unique product name, closed local mesh, transform) per solid instance, file units."""
+    meshes: dict[str, trimesh.Trimesh] = {}  # one closed mesh per product
+    items = []
+    used: set[str] = set()
+    for inst in sorted(instances, key=order_key):
+        if inst.product_key not in meshes:
+            vertices, faces = _face_arrays(inst.product)
+            if not np.all(np.isfinite(vertices)):
+                raise InputError(f"{path}#{inst.name}", "vertices have NaN or infinite coordinates")
+            meshes[inst.product_key] = close_mesh(vertices * to_unit, faces, deflection)
+        transform = inst.matrix.copy()
+        transform[:3, 3] *= to_unit
+        if not np.all(np.isfinite(transform)):
+            raise InputError(
+                f"{path}#{inst.name}", "placement transform holds NaN or infinite values"
+            )
+        if len(meshes[inst.product_key].faces):
+            items.append((unique_name(inst.name, used), meshes[inst.product_key], transform))
+        else:
+            used.add(unique_name(inst.name, used))  # names in step with placed_solids
+    if not items:
+        raise InputError(path, "holds no solids (nothing OpenCASCADE could tessellate)")
+    items.sort(key=lambda item: item[0])
+    return items
+
+
+def close_mesh(vertices: np.ndarray, faces: np.ndarray, deflection: float) -> trimesh.Trimesh:
+    """Weld a tessellation's faces into one surface: close seams, drop slivers, face outward.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float64
+        Vertices as the mesher wrote them, one copy per face of each shared edge point.
+    faces : (m, 3) int64
+        Triangles.
+    deflection : float
+        The tessellation's linear deflection, same unit: vertices closer than a hundredth of it
+        (but never a thousandth of the mesh's size: a deflection coarser than a part must not
+        merge it to a point; and at least 2**-40 of the coordinates) are one point.
+
+    Returns
+    -------
+    trimesh.Trimesh
+        Vertices merged (the lowest index of each cluster stands for it), triangles with a
+        repeated vertex dropped; inverted when it is closed and encloses a negative volume.
+
+    Examples
+    --------
+    >>> box = trimesh.creation.box()
+    >>> split = box.vertices[box.faces].reshape(-1, 3) + 1e-9  # every face its own vertices
+    >>> mesh = close_mesh(split, np.arange(36).reshape(-1, 3), 1e-3)
+    >>> bool(mesh.is_watertight), len(mesh.vertices), round(float(mesh.volume), 9)
+    (True, 8, 1.0)
+    """
+    vertices = np.asarray(vertices, dtype=np.float64)
+    faces = np.asarray(faces, dtype=np.int64)
+    extent = float(np.abs(vertices).max()) if len(vertices) else 0.0
+    size = float(np.ptp(vertices, axis=0).max()) if len(vertices) else 0.0
+    tol = max(min(0.01 * deflection, 1e-3 * size), 2.0**-40 * extent)
+    rep = np.arange(len(vertices))
+    for group in trimesh.grouping.clusters(vertices, tol):
+        group = np.asarray(group, dtype=np.int64)
+        rep[group] = group.min()
+    faces = rep[faces]
+    keep = (
+        (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 0] != faces[:, 2])
+    )
+    mesh = trimesh.Trimesh(vertices, faces[keep], process=False)
+    mesh.remove_unreferenced_vertices()
+    if mesh.is_watertight and mesh.is_winding_consistent and mesh.volume < 0:
+        mesh.invert()
+    return mesh
