@@ -197,6 +197,7 @@ def test_the_html_report_data_keeps_whole_names_and_their_common_folder():
 
 @pytest.fixture(scope="module")
 def browser():
+    """Debian's chromium through Playwright, as tests/test_html_report.py's browser tests."""
     if os.environ.get("CI"):  # CI installs both: a skip there would hide a broken report
         import playwright  # noqa: F401
     else:
@@ -211,7 +212,7 @@ def browser():
         yield page, errors
 
 
-def test_html_names_below_their_folder_wrap_only_after_a_slash_in_chromium(browser, tmp_path):
+def test_html_names_below_their_folder_wrap_only_after_a_slash_in_a_browser(browser, tmp_path):
     page, errors = browser
     result = long_result(long_config=False, with_bracket=False)
     path = tmp_path / "report.html"
