@@ -5,10 +5,10 @@ extension, because it needs numpy's headers at build time.
 
 The extension uses only CPython's limited API (3.11 and later; numpy's headers support it), so
 one wheel per platform, tagged ``cp311-abi3``, serves every Python from 3.11 on. The kernels
-spend their time in plain C++ loops with the GIL released; ``python bench/gjk.py`` measured the
-abi3 build as fast as the per-version one (README, "Wheels"). ``MESHCHECK_LIMITED_API=0`` builds
-the per-version extension instead (for that comparison, and for free-threaded Pythons, which
-have no stable ABI).
+spend their time in plain C++ loops with the GIL released; ``python bench/abi3.py`` measured
+the abi3 build as fast as the per-version one (docs/internals/benchmarks.md).
+``MESHCHECK_LIMITED_API=0`` builds the per-version extension instead (for that comparison, and
+for free-threaded Pythons, which have no stable ABI).
 """
 
 import os

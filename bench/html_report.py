@@ -131,7 +131,7 @@ def main(argv=None) -> None:
             text = render_html(result, parts, inputs=["parts"], version="bench")
             render_s = time.perf_counter() - t
             size = len(text.encode("utf-8"))
-            export_clashes("a.glb", parts, result.findings)
+            export_clashes("a.glb", parts, result.findings, units=result.units)
             glb = os.path.getsize("a.glb")
             naive = naive_size(parts)
             data = json.loads(re.search(r'id="meshcheck-data">(.*?)</script>', text).group(1))

@@ -1,6 +1,6 @@
 """Public real assemblies: meshcheck cold and warm against trimesh's CollisionManager, one run.
 
-Nothing is fetched at run time. Prepare a folder once (README, Speed, "Real assemblies")::
+Nothing is fetched at run time. Prepare a folder once (figures: docs/internals/benchmarks.md)::
 
     DATA=~/meshcheck-data
     git clone --depth 1 https://github.com/moveit/moveit_resources   $DATA/moveit_resources
@@ -10,10 +10,10 @@ Nothing is fetched at run time. Prepare a folder once (README, Speed, "Real asse
     python bench/real_assemblies.py run $DATA [--repeat 3] [--jobs N] [--only pr2 ...]
 
 ``prepare`` writes two GLB files: the PR2's collision meshes at zero joints
-(``bench/urdf_scene.py``, a stand-in until meshcheck reads URDF) and ``cycloidal.3DXML`` as
-trimesh reads it (instances kept: one glTF mesh placed by several nodes). The licence files stay
-in the clones beside the meshes (moveit_resources: BSD, ``pr2_description/package.xml``;
-3mf-samples: ``LICENSE``; trimesh: ``LICENSE.md``).
+(``bench/urdf_scene.py``: CollisionManager reads no URDF, so both sides read this GLB) and
+``cycloidal.3DXML`` as trimesh reads it (instances kept: one glTF mesh placed by several
+nodes). The licence files stay in the clones beside the meshes (moveit_resources: BSD,
+``pr2_description/package.xml``; 3mf-samples: ``LICENSE``; trimesh: ``LICENSE.md``).
 
 ``run`` times, per assembly and repeat, whole processes in the same run:
 

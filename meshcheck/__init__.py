@@ -2,7 +2,7 @@
 
 Example
 -------
->>> import meshcheck
+>>> import importlib.metadata, meshcheck
 >>> result = meshcheck.check(["sample_meshes/plate.stl", "sample_meshes/bolt_m8_oversized.stl"])
 >>> [(str(f.status), f.a) for f in result.findings]
 [('interference', 'sample_meshes/bolt_m8_oversized.stl')]
@@ -10,6 +10,8 @@ Example
 False
 >>> meshcheck.signed_distance([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 0, 2], [1, 0, 2], [0, 1, 2]])
 2.0
+>>> meshcheck.__version__ == importlib.metadata.version("meshcheck-assembly")
+True
 
 The names below are imported on first use, so ``meshcheck --help`` does not pay for
 trimesh and scipy.
@@ -72,6 +74,8 @@ __all__ = [
 
 
 def __getattr__(name: str):
+    if name == "__version__":  # the one version: pyproject.toml's, as installed
+        return _installed_version()
     if name in _LAZY:
         value = getattr(importlib.import_module(_LAZY[name], __name__), name)
         globals()[name] = value
@@ -79,5 +83,16 @@ def __getattr__(name: str):
     raise AttributeError(f"module 'meshcheck' has no attribute {name!r}")
 
 
+def _installed_version() -> str:
+    """The installed distribution's version (``pyproject.toml``'s ``version``); ``0+unknown`` for
+    a source tree that was never installed."""
+    from importlib import metadata
+
+    try:
+        return metadata.version(DISTRIBUTION)
+    except metadata.PackageNotFoundError:
+        return "0+unknown"
+
+
 def __dir__():
-    return sorted(set(globals()) | set(__all__))
+    return sorted(set(globals()) | set(__all__) | {"__version__"})

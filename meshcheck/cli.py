@@ -30,6 +30,7 @@ from .errors import (
 from .outcome import exit_status
 from .output import STDOUT, check_output, write_output
 from .reports import FORMATS, printable, render, summary_line
+from .units import METRES as UNITS
 
 #: Set (to anything) to print an unexpected error's traceback on stderr instead of to a file.
 DEBUG_ENV = "MESHCHECK_DEBUG"
@@ -187,11 +188,12 @@ def _units(values) -> tuple[str | None, tuple]:
     "units",
     multiple=True,
     metavar="UNIT|FILE=UNIT",
-    help="UNIT: unit of mesh files that declare none (STL, OBJ, PLY, OFF), and of the report: "
-    "um, mm, cm, m, in, ft. Default: the unit every input declares, else mm. Files that declare "
-    "a unit (glTF: metres, 3MF, STEP) are converted. FILE=UNIT (repeatable): the unit of the "
+    help="UNIT: unit of mesh files that declare none (STL, OBJ, PLY, OFF), and of the report. "
+    "Default: the unit every input declares, else mm. Files that declare a unit (glTF: metres, "
+    "3MF, STEP) are converted; URDF robots are metres. FILE=UNIT (repeatable): the unit of the "
     "input files FILE names (a path, or a glob such as 'cad/*.glb'), whatever they declare, "
-    "e.g. --units engine.glb=mm for a glTF exported in millimetres.",
+    "e.g. --units engine.glb=mm for a glTF exported in millimetres. "
+    f"Units: {', '.join(UNITS)} (or their full names: millimetre, inch...).",
 )
 @click.option(
     "--step-deflection",
@@ -301,9 +303,9 @@ def _units(values) -> tuple[str | None, tuple]:
 def main(**options):
     """Check the parts in FILES for interference, contact and clearance.
 
-    FILES are mesh files (STL, OBJ, PLY, OFF, GLB/GLTF, 3MF), STEP files (.step, .stp) or
-    directories (every such file below them). A part is named by its path as given; a body
-    inside a file holding several is PATH#NODE.
+    FILES are mesh files (STL, OBJ, PLY, OFF, GLB/GLTF, 3MF), STEP files (.step, .stp), URDF
+    robots (.urdf) or directories (every such file below them). A part is named by its path as
+    given; a body inside a file holding several is PATH#NODE, a robot's link ROBOT.urdf#LINK.
 
     Exit status: 0 when nothing fails, 1 when a finding fails the run (interference and
     duplicates by default, and clearance violations when --clearance is given), 2 for a usage
@@ -453,7 +455,7 @@ def _check(files, settings, baseline, export_path):
             if export_path is not None:
                 from .reports.gltf import export_clashes
 
-                export_clashes(export_path, result.bodies, result.findings)
+                export_clashes(export_path, result.bodies, result.findings, units=result.units)
         except MeshcheckError as exc:
             error = exc
     for w in caught:

@@ -35,7 +35,7 @@ from .load import Body, is_closed, local_geometries
 from .progress import Progress
 from .settings import DEFAULT_THRESHOLD
 
-# CoACD settings chosen with bench/coacd_settings.py (its figures are in README, "CoACD settings").
+# CoACD settings chosen with bench/coacd_settings.py (figures: docs/internals/benchmarks.md).
 # The verify stage is exact, so the pieces only have to be a good filter: these are about fifty
 # times faster than CoACD's defaults and filter a little worse, well ahead of the bare hull.
 DEFAULT_OPTIONS = {
@@ -318,7 +318,7 @@ class CostModel:
         return self.verify_base + self.verify_per_triangle * (triangles_a + triangles_b)
 
 
-#: Calibrated with ``python bench/cost_model.py`` (README, "When CoACD runs"). CoACD's time per
+#: Calibrated with ``python bench/cost_model.py`` (docs/internals/benchmarks.md). CoACD's time per
 #: triangle is erratic (3e-5 s on plates with holes to 2e-3 s on a pocketed housing): the
 #: median part's, plus a worker's start. Verify: the least-squares line through the five parts'
 #: savings. Filter share: the largest measured (0.39), so the model leans towards decomposing.

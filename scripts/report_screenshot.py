@@ -1,4 +1,4 @@
-"""Make README's screenshot of the sample assembly's HTML report: docs/report.png.
+"""Make the manual's screenshot of the sample assembly's HTML report: docs/report.png.
 
 Run from anywhere (needs the dev extra and Debian's chromium)::
 
@@ -43,7 +43,7 @@ def main(argv=None) -> None:
     from meshcheck.pipeline import check
     from meshcheck.reports.html import render_html
 
-    os.chdir(ROOT)  # part names as README shows them: sample_meshes/...
+    os.chdir(ROOT)  # part names as the manual shows them: sample_meshes/...
     paths = sorted(glob.glob("sample_meshes/*.stl"))
     result = check(paths, jobs=1)
     text = render_html(

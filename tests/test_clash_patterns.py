@@ -109,12 +109,10 @@ def test_identical_parts_clashing_with_each_other_match_either_way_round():
 def test_pattern_groups_render_in_text_json_and_markdown(result):
     (pattern,) = [g for g in clash_groups(result.findings) if g.kind == "pattern"]
     text = render(result, "text").splitlines()
-    head = text.index(
-        f"group {pattern.id}  pattern: 40 interference, copies of two parts at one relative "
-        "placement"
-    )
+    head = text.index(f"group {pattern.id}  pattern: 40 interference,")
+    assert text[head + 1] == " " * 14 + "copies of two parts at one relative placement"
     first = pattern.members[0]
-    assert text[head + 1].split() == [first.id, first.a, "and", first.b]
+    assert text[head + 2].split() == [first.id, first.a, "and", first.b]
     doc = json.loads(render(result, "json"))
     entry = next(g for g in doc["groups"] if g["kind"] == "pattern")
     assert entry == {

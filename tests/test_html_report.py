@@ -21,7 +21,7 @@ from meshcheck.config import Approval
 from meshcheck.load import Body
 from meshcheck.pipeline import check_bodies
 from meshcheck.reports import html as html_report
-from meshcheck.reports.common import ordered
+from meshcheck.reports.common import length, ordered, resolution, volume
 from meshcheck.reports.html import render_html
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(__file__)), "scripts"))
@@ -481,7 +481,8 @@ def test_view_frames_the_worst_failing_clash_on_load(checked, browser_page, tmp_
 
     # The label: anchored at the clash, with the parts and the depth, as text.
     assert label_lines(page) == [
-        f"interference \u00b7 {worst.depth:.6g} mm deep \u00b7 {worst.volume:.6g} mm\u00b3",
+        f"interference \u00b7 {length(worst.depth, resolution(result))} mm deep \u00b7 "
+        f"{volume(worst.volume)} mm\u00b3",  # the figures as every format prints them
         "base.stl",
         "sunk.stl",
     ]
@@ -521,7 +522,7 @@ def test_selecting_a_clearance_frames_its_witness(checked, browser_page, tmp_pat
     ends = project(page, line)
     assert np.all(np.abs(ends.mean(axis=0)[:2]) < 0.1)
     assert label_lines(page) == [
-        f"clearance \u00b7 {near.distance:.6g} mm apart",
+        f"clearance \u00b7 {length(near.distance, resolution(result))} mm apart",
         "base.stl",
         "near.stl",
     ]
@@ -542,8 +543,9 @@ def test_label_keeps_hostile_names_as_text(checked, browser_page, tmp_path):
     hostile = next(f for f in result.findings if f.b == HOSTILE)
     page.locator(f"#findings tbody tr[data-id='{hostile.id}']").click()
     lines = label_lines(page)
-    assert lines[0] == f"interference \u00b7 {hostile.depth:.6g} mm deep \u00b7 " + (
-        f"{hostile.volume:.6g} mm\u00b3 \u00b7 approved"
+    assert lines[0] == (
+        f"interference \u00b7 {length(hostile.depth, resolution(result))} mm deep \u00b7 "
+        f"{volume(hostile.volume)} mm\u00b3 \u00b7 approved"
     )
     assert lines[1:] == ["base.stl", printable(HOSTILE)]
     # Only the label's own elements: the pin, the leader, the card and its three lines.

@@ -15,7 +15,7 @@ import pytest
 from meshcheck.baseline import MAX_BASELINE_BYTES, Baseline, load_baseline
 from meshcheck.errors import ConfigError, ExitStatus
 from meshcheck.outcome import CheckResult, compare, exit_status
-from meshcheck.reports import FORMATS, printable, render
+from meshcheck.reports import FORMATS, View, printable, render
 from meshcheck.reports.github import LIMIT
 from meshcheck.results import Finding, Location, PairVerdict, Part, Verdict, finding_id
 from meshcheck.settings import Settings
@@ -112,7 +112,7 @@ def test_text_report_snapshot_of_a_forged_name():
     result = result_of(finding(HOSTILE["forged line"], "plate.stl"))
     assert render(result, "text") == (
         "ID            STATUS        PART A     PART B\n"
-        f"{result.findings[0].id}  interference  plate.stl  x\\nPASS: 2 parts...terference\\n.stl\n"
+        f"{result.findings[0].id}  interference  plate.stl  x\\nPASS: 2 ...rence\\n.stl\n"
         "              depth 0.25  volume 2.5  at (1, 2, 3)\n"
         "FAIL: 2 parts, 1 interference, 0 touching (tolerance per pair, 0.0001, mm)\n"
     )
@@ -288,7 +288,7 @@ def test_text_says_the_configuration_and_plurals(tmp_path):
     config.write_text("tolerance = 0.001\n")
     settings = Settings.from_options(config=config)
     one = result_of(settings=settings, parts=[Part("solo.stl", "solo.stl", 12, True, 0)])
-    lines = render(one, "text").splitlines()
+    lines = render(one, "text", view=View(width=200)).splitlines()
     assert lines == [
         f"configuration: {config}",
         "PASS: 1 part, 0 interference, 0 touching (tolerance 0.001, mm)",

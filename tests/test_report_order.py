@@ -151,15 +151,16 @@ def test_shortened_names_never_collide_and_fit_when_they_can(names, width):
         assert len(cut[n]) <= width or cut[n] == n
 
 
-def test_the_text_table_fits_a_narrow_width_and_defaults_to_100():
+def test_the_text_table_fits_a_narrow_width_and_defaults_to_80():
     long = finding("x" * 70 + ".stl", "y" * 70 + ".stl", "interference", depth=1.0)
     assert all(
         len(line) <= 60
         for line in render(make_result([long]), "text", view=View(width=60)).splitlines()
     )
-    wide = render(make_result([long]), "text").splitlines()
-    assert max(len(line) for line in wide) <= 100
-    assert max(len(line) for line in wide) > 80
+    default = render(make_result([long]), "text").splitlines()
+    assert max(len(line) for line in default) == 80
+    wide = render(make_result([long]), "text", view=View(width=100)).splitlines()
+    assert 80 < max(len(line) for line in wide) <= 100
 
 
 SAMPLE = sorted(glob.glob(os.path.join(os.path.dirname(__file__), "..", "sample_meshes", "*.stl")))

@@ -117,7 +117,7 @@ def _outputs(result, paths: list[str], where) -> dict[str, str]:
     where.mkdir()
     for ext in ("glb", "gltf"):
         path = str(where / f"clashes.{ext}")
-        export_clashes(path, result.bodies, result.findings)
+        export_clashes(path, result.bodies, result.findings, units=result.units)
         with open(path, "rb") as fh:
             data = fh.read()
         out[f"export.{ext}.json"] = _glb(data) if ext == "glb" else _gltf(data)

@@ -440,7 +440,7 @@ def test_export_writes_parts_and_a_red_node_per_interference(tmp_path):
     finding = results.Finding(a="a.stl", b="b.stl", verdict=v, id="0123456789ab")
     touching = results.Finding("b.stl", "c.stl", results.PairVerdict(Verdict.TOUCHING, 0.0))
     path = tmp_path / "clashes.glb"
-    export_clashes(str(path), bodies, [finding, touching])
+    export_clashes(str(path), bodies, [finding, touching], units="m")
 
     scene = trimesh.load_scene(str(path))
     nodes = {n: scene.geometry[scene.graph[n][1]] for n in scene.graph.nodes_geometry}
@@ -463,7 +463,8 @@ def test_export_marks_a_surface_only_clash_with_its_location_box(tmp_path):
     assert v.solid is None  # nothing to draw but the location's box
     finding = results.Finding(a="a.obj", b="b.stl", verdict=v)
     path = tmp_path / "clashes.glb"
-    export_clashes(str(path), [Body("a.obj", "a.obj", a), Body("b.stl", "b.stl", b)], [finding])
+    bodies = [Body("a.obj", "a.obj", a), Body("b.stl", "b.stl", b)]
+    export_clashes(str(path), bodies, [finding], units="m")
     scene = trimesh.load_scene(str(path))
     assert "interference a.obj x b.stl" in set(scene.graph.nodes_geometry)
 

@@ -1,4 +1,4 @@
-"""What every format shares: safe names, the summary, measurements rounded to the tolerance.
+"""What every format shares: safe names, the summary, figures rounded to one resolution.
 
 Part names come from files (paths, glTF node names, 3MF object names): they may hold newlines,
 terminal escapes, bidirectional overrides or bytes that are not UTF-8. ``printable`` is the one
@@ -116,6 +116,20 @@ def summary(result: CheckResult) -> dict:
 
 def summary_line(result: CheckResult) -> str:
     """``PASS: 6 parts, 1 interference, ...`` without a newline; names no part."""
+    return " ".join(summary_chunks(result))
+
+
+def summary_chunks(result: CheckResult) -> list[str]:
+    """The summary line in the pieces a narrow report may wrap it between (each piece whole):
+    the verdict with the part count, each count, then the tolerance and unit in parentheses.
+
+    Examples
+    --------
+    >>> from meshcheck.outcome import CheckResult
+    >>> from meshcheck.settings import Settings
+    >>> summary_chunks(CheckResult([], [], Settings()))
+    ['PASS: 0 parts,', '0 interference,', '0 touching', '(tolerance per pair, mm)']
+    """
     s = summary(result)
     verdict = "PASS" if s["passed"] else "FAIL"
     parts = [f"{s[Verdict.INTERFERENCE]} interference", f"{s[Verdict.TOUCHING]} touching"]
@@ -128,11 +142,13 @@ def summary_line(result: CheckResult) -> str:
     if s["failed_in_motion"]:
         parts.append(f"{s['failed_in_motion']} colliding in motion")
     if result.baseline is not None:
-        parts.append(f"{s['new']} new, {s['resolved']} resolved")
-    return (
-        f"{verdict}: {plural(len(result.parts), 'part')}, {', '.join(parts)} "
-        f"(tolerance {tolerance_text(result)}, {result.units})"
-    )
+        parts.extend([f"{s['new']} new", f"{s['resolved']} resolved"])
+    counts = [f"{part}," for part in parts[:-1]] + parts[-1:]
+    return [
+        f"{verdict}: {plural(len(result.parts), 'part')},",
+        *counts,
+        f"(tolerance {tolerance_text(result)}, {result.units})",
+    ]
 
 
 def tolerance_text(result: CheckResult) -> str:
@@ -146,14 +162,25 @@ def tolerance_text(result: CheckResult) -> str:
     return f"per pair, {low:.2g}" if low == high else f"per pair, {low:.2g}-{high:.2g}"
 
 
-def resolution(result: CheckResult, finding: Finding) -> float | None:
-    """The tolerance that decided ``finding``: the smallest length its numbers can resolve."""
-    tol = finding.tolerance if finding.tolerance is not None else result.tolerance
-    return tol if tol is not None and math.isfinite(tol) and tol > 0 else None
+def resolution(result: CheckResult) -> float | None:
+    """The one decimal place every length of a report is printed to, as a length: the given
+    tolerance, else the finest tolerance that decided a finding (None: no finding).
+
+    One place for the whole report, so identical clashes print identically whatever tolerance
+    each pair had (the float32 floor grows with a copy's distance from the origin), and a small
+    part's depth never rounds away beside a large part's.
+    """
+    if result.tolerance is not None:
+        used = [result.tolerance]
+    else:
+        used = [f.tolerance for f in result.findings if f.tolerance is not None]
+    used = [t for t in used if math.isfinite(t) and t > 0]
+    return min(used) if used else None
 
 
 def length(value: float, tolerance: float | None = None) -> str:
-    """A length rounded to the decimal place ``tolerance`` resolves; 6 digits without one.
+    """A length rounded to the decimal place ``tolerance`` resolves (``resolution``); 6
+    significant digits without one. Every format that prints a length prints it so.
 
     Examples
     --------
@@ -173,6 +200,27 @@ def length(value: float, tolerance: float | None = None) -> str:
     return "0" if text in ("-0", "") else text
 
 
+def volume(value: float) -> str:
+    """A volume, 4 significant digits (its unit is the cube of the report's).
+
+    Examples
+    --------
+    >>> volume(159.51234), volume(0.000123456)
+    ('159.5', '0.0001235')
+    """
+    return f"{float(value):.4g}"
+
+
+def figures(finding: Finding, tolerance: float | None) -> dict[str, str | None]:
+    """A finding's ``distance``, ``depth`` and ``volume`` as every report prints them (None when
+    the finding has no such figure), lengths to ``tolerance`` (``resolution``)."""
+    return {
+        "distance": length(finding.distance, tolerance),
+        "depth": None if finding.depth is None else length(finding.depth, tolerance),
+        "volume": None if finding.volume is None else volume(finding.volume),
+    }
+
+
 #: Copies a duplicate finding's one-line description names (the JSON report lists them all).
 _MEMBERS_SHOWN = 4
 
@@ -180,9 +228,10 @@ _MEMBERS_SHOWN = 4
 def describe(finding: Finding, tolerance: float | None = None) -> str:
     """One-line measurements of a finding: depth or distance, volume, location.
 
-    Lengths are rounded to what ``tolerance`` (the one that decided the finding) can resolve.
+    Lengths are rounded to what ``tolerance`` (the report's ``resolution``) can resolve.
     """
-    detail = f"distance {length(finding.distance, tolerance)}"
+    shown = figures(finding, tolerance)
+    detail = f"distance {shown['distance']}"
     if finding.status == Verdict.DUPLICATE:
         names = [printable(n) for n in finding.members]
         shown = ", ".join(names[:_MEMBERS_SHOWN])
@@ -190,15 +239,35 @@ def describe(finding: Finding, tolerance: float | None = None) -> str:
             shown += f" and {len(names) - _MEMBERS_SHOWN} more"
         detail = f"{len(names)} copies at the same spot: {shown}"
     if finding.depth is not None:
-        detail = f"depth {length(finding.depth, tolerance)}"
+        detail = f"depth {shown['depth']}"
     if finding.volume is not None:
-        detail += f"  volume {finding.volume:.4g}"
+        detail += f"  volume {shown['volume']}"
     if finding.is_surface_only:
         detail += "  (surface only)"
     if finding.location is not None:
         c = [length(x, tolerance) for x in finding.location.centroid]
         detail += f"  at ({c[0]}, {c[1]}, {c[2]})"
     return detail
+
+
+def shared_prefix(names: list[str]) -> str:
+    """The directory prefix (ending in ``/``) all ``names`` share, or ``""``: the text and HTML
+    reports show part names below it, naming it once.
+
+    Examples
+    --------
+    >>> shared_prefix(["asm/frame.stl", "asm/sub/pin.stl"])
+    'asm/'
+    >>> shared_prefix(["asm/frame.stl"]), shared_prefix(["a/x.stl", "b/y.stl"])
+    ('asm/', '')
+    """
+    if not names:
+        return ""
+    low, high = min(names), max(names)
+    common = 0
+    while common < min(len(low), len(high)) and low[common] == high[common]:
+        common += 1
+    return low[: low.rfind("/", 0, common) + 1]
 
 
 def part_file(paths: dict[str, str], name: str) -> str:
@@ -218,14 +287,14 @@ class View:
     Attributes
     ----------
     width : int
-        Columns the text report fits (the terminal's, or 100 without one).
+        Columns the text report fits (the terminal's, or 80 without one).
     is_quiet : bool
         Only the findings that fail the run, and the summary.
     is_touching_listed : bool
         False leaves touching findings out of the table; the summary still counts them.
     """
 
-    width: int = 100
+    width: int = 80
     is_quiet: bool = False
     is_touching_listed: bool = True
 

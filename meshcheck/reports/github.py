@@ -66,12 +66,13 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
     # most severe first within each level
     annotations: dict[str, list[_Annotation]] = {name: [] for name in LEVELS}
     paths = part_files(result)
+    tol = resolution(result)
     for f in ordered(result):
         extra = f" (approved: {f.approval_reason})" if f.is_approved else ""
         state = result.baseline_state(f)
         title = f"meshcheck {f.status} [{f.id}]" + (f" {state}" if state else "")
         props = f"file={_property(part_file(paths, f.a))},title={_property(title)}"
-        message = f"{f.a} and {f.b}: {f.status}, {describe(f, resolution(result, f))}{extra}"
+        message = f"{f.a} and {f.b}: {f.status}, {describe(f, tol)}{extra}"
         annotations[level(result, f)].append(_Annotation(props, title, message))
     for robot, pair in result.failing_sweeps:
         title = f"meshcheck {pair.verdict} in motion"

@@ -1,6 +1,11 @@
 """Findings -> a glTF file (.glb binary, or .gltf JSON with embedded buffers) a person opens in
 any viewer to see the clashes.
 
+The file is in metres, as glTF defines its lengths: every coordinate is converted from the
+report's unit, which the scene's ``extras`` keep (``{"meshcheck": {"report_units": "mm"}}``), so
+the file opens at its true size in any viewer and reads back into meshcheck without a size
+warning.
+
 Every part becomes a node named after it: parts in an interference in orange, the others in
 translucent grey. Every interference becomes its own red node, named after the finding, holding
 the shared solid the verify stage computed (manifold3d intersection of the two closed meshes) or,
@@ -19,6 +24,7 @@ from .. import results
 from ..errors import ConfigError
 from ..load import Body
 from ..output import check_output, write_output
+from ..units import scale
 
 # RGBA, 0-255.
 PART_COLOR = (160, 160, 160, 90)
@@ -29,8 +35,12 @@ CLASH_COLOR = (230, 0, 0, 255)
 MIN_BOX_EXTENT = 1e-9
 
 
-def _painted(mesh: trimesh.Trimesh, rgba: tuple[int, int, int, int]) -> trimesh.Trimesh:
-    out = trimesh.Trimesh(vertices=mesh.vertices.copy(), faces=mesh.faces.copy(), process=False)
+def _painted(
+    mesh: trimesh.Trimesh, rgba: tuple[int, int, int, int], metres: float
+) -> trimesh.Trimesh:
+    """``mesh`` scaled by ``metres`` (metres per report unit) with one colour."""
+    vertices = np.asarray(mesh.vertices, dtype=np.float64) * metres
+    out = trimesh.Trimesh(vertices=vertices, faces=mesh.faces.copy(), process=False)
     material = trimesh.visual.material.PBRMaterial(
         baseColorFactor=list(rgba),
         alphaMode="BLEND" if rgba[3] < 255 else "OPAQUE",
@@ -78,8 +88,10 @@ def export_type(path: str) -> str:
     return EXPORT_TYPES[extension]
 
 
-def export_clashes(path: str, bodies: Sequence[Body], findings: Sequence[results.Finding]) -> None:
-    """Write the assembly with its interferences marked to a glTF file.
+def export_clashes(
+    path: str, bodies: Sequence[Body], findings: Sequence[results.Finding], *, units: str
+) -> None:
+    """Write the assembly with its interferences marked to a glTF file, in metres.
 
     Parameters
     ----------
@@ -89,6 +101,9 @@ def export_clashes(path: str, bodies: Sequence[Body], findings: Sequence[results
         Every part of the assembly.
     findings : sequence of results.Finding
         The check's findings; interference ones are drawn.
+    units : str
+        The unit of the bodies' world coordinates (the report's, ``CheckResult.units``): the
+        file is converted to metres and keeps it in its scene's ``extras``.
 
     Raises
     ------
@@ -101,10 +116,13 @@ def export_clashes(path: str, bodies: Sequence[Body], findings: Sequence[results
     by_name = {b.name: b for b in bodies}
     clashes = [f for f in findings if f.status == results.Verdict.INTERFERENCE]
     clashing = {name for f in clashes for name in (f.a, f.b)}
+    metres = scale(units, "m")
     scene = trimesh.Scene()
+    scene.metadata["meshcheck"] = {"report_units": units}
     for body in bodies:
         color = CLASHING_PART_COLOR if body.name in clashing else PART_COLOR
-        scene.add_geometry(_painted(body.world, color), node_name=body.name, geom_name=body.name)
+        painted = _painted(body.world, color, metres)
+        scene.add_geometry(painted, node_name=body.name, geom_name=body.name)
     for f in clashes:
         if f.a not in by_name or f.b not in by_name:
             continue
@@ -112,7 +130,7 @@ def export_clashes(path: str, bodies: Sequence[Body], findings: Sequence[results
         if mesh is None:
             continue
         name = f"interference {f.a} x {f.b}" + (f" [{f.id}]" if f.id else "")
-        scene.add_geometry(_painted(mesh, CLASH_COLOR), node_name=name, geom_name=name)
+        scene.add_geometry(_painted(mesh, CLASH_COLOR, metres), node_name=name, geom_name=name)
     if file_type == "glb":
         data = scene.export(file_type="glb")
     else:

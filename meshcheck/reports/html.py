@@ -13,6 +13,9 @@ whole geometry is gzipped and base64-encoded; the browser inflates it with ``Dec
 Everything that comes from the inputs (part names, paths, approval reasons, warnings, units) is
 data: it travels as JSON with ``<``, ``>``, ``&`` and every non-ASCII character escaped, and the
 viewer puts it into the page with ``textContent`` only, showing control characters as escapes.
+Part names are shown below the folder every part shares (``common.shared_prefix``, named once in
+the header), as in the text report, and wrap only after a ``/``; figures are the text every
+format prints (``common.figures``: lengths to the report's one resolution).
 """
 
 from __future__ import annotations
@@ -24,14 +27,24 @@ import json
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from importlib import metadata, resources
+from importlib import resources
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..outcome import CheckResult
 from ..results import Finding, Verdict, clash_groups
-from .common import View, ordered, pose_text, summary, sweep_rows
+from .common import (
+    View,
+    figures,
+    ordered,
+    pose_text,
+    resolution,
+    shared_prefix,
+    summary,
+    sweep_rows,
+    tolerance_text,
+)
 
 if TYPE_CHECKING:
     from ..load import Body
@@ -121,18 +134,11 @@ class _Placed:
 def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None = None) -> str:
     """The report format's entry (``reports.render``): ``render_html`` of the result's bodies,
     with the installed meshcheck's version."""
+    from .. import __version__
+
     return render_html(
-        result, result.bodies, units=result.units, inputs=tuple(inputs), version=_version()
+        result, result.bodies, units=result.units, inputs=tuple(inputs), version=__version__
     )
-
-
-def _version() -> str:
-    from .. import DISTRIBUTION
-
-    try:
-        return metadata.version(DISTRIBUTION)
-    except metadata.PackageNotFoundError:  # pragma: no cover - running from a source tree
-        return "0"
 
 
 def render_html(
@@ -194,13 +200,16 @@ def render_html(
         p.row["mesh"] = p.mesh
         p.row["matrix"] = _columns(_translate(-origin) @ np.asarray(p.body.transform) @ local)
     findings = []
+    tolerance = resolution(result)
     for f in ordered(result):
         solid = line = None
         if f.a in by_name and f.b in by_name:
             solid = _add_clash(f, origin, meshes, mesh_rows)
             if f.closest is not None:
                 line = [_point(p - origin) for p in f.closest]
-        findings.append(_finding_row(result, f, origin, solid=solid, line=line))
+        row = _finding_row(result, f, origin, solid=solid, line=line)
+        row["text"] = figures(f, tolerance)  # as every other format prints them
+        findings.append(row)
     blob, layout = _pack(meshes)
     for row, place in zip(mesh_rows, layout, strict=True):
         row.update(place)
@@ -288,11 +297,17 @@ def _data(result, units, inputs, version, mesh_rows, parts, findings, triangles)
     s = summary(result)
     s["tolerance"] = _number(s["tolerance"])
     s["required_clearance"] = _number(s["required_clearance"])
+    settings = {  # as the text report's summary prints them
+        "tolerance": tolerance_text(result),
+        "clearance": None if result.clearance is None else f"{result.clearance:g}",
+    }
     return {
         "version": str(version),
         "units": str(units),
         "inputs": [str(x) for x in inputs],
+        "prefix": shared_prefix([p["name"] for p in parts]),
         "summary": s,
+        "settings_text": settings,
         "meshes": mesh_rows,
         "parts": parts,
         "findings": findings,

@@ -21,7 +21,8 @@ from .common import View, describe, ordered, part_files, printable, resolution, 
 def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None = None) -> str:
     """The findings, then the clear pairs (or parts), as one ``testsuite``."""
     paths = part_files(result)
-    cases = [_finding_case(result, f, paths) for f in ordered(result)]
+    tol = resolution(result)
+    cases = [_finding_case(result, f, paths, tol) for f in ordered(result)]
     cases.extend(_sweep_case(robot, pair) for robot, pair in result.failing_sweeps)
     cases.extend(_clear_cases(result))
     failures = sum(1 for c in cases if c.find("failure") is not None)
@@ -49,7 +50,9 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + body + "\n"
 
 
-def _finding_case(result: CheckResult, f: Finding, paths: dict[str, str]) -> ET.Element:
+def _finding_case(
+    result: CheckResult, f: Finding, paths: dict[str, str], tol: float | None
+) -> ET.Element:
     """A finding's test case: failed, skipped (approved) or passed with its measurements."""
     a, b = printable(f.a), printable(f.b)
     case = ET.Element(
@@ -59,7 +62,7 @@ def _finding_case(result: CheckResult, f: Finding, paths: dict[str, str]) -> ET.
         file=printable(paths.get(f.a, f.a.split("#")[0])),
         time="0",
     )
-    message = f"{f.status}: {a} and {b}: {describe(f, resolution(result, f))}"
+    message = f"{f.status}: {a} and {b}: {describe(f, tol)}"
     state = result.baseline_state(f)
     if state is not None:
         message += f" ({state} since the baseline)"

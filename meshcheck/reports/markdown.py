@@ -65,9 +65,10 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
             header.insert(2, "Baseline")
         lines.append("| " + " | ".join(header) + " |")
         lines.append("|" + "---|" * len(header))
+        tol = resolution(result)
         for f in rows[:MAX_ROWS]:
             mark = "❌" if result.is_failing(f) else "☑️" if f.is_approved else "⚠️"
-            detail = describe(f, resolution(result, f))
+            detail = describe(f, tol)
             if f.is_approved:
                 detail += f"  approved: {escape(f.approval_reason)}"
             cells = [mark, str(f.status), escape(f.a), escape(f.b), detail, f"`{f.id}`"]

@@ -13,7 +13,6 @@ import json
 import os
 import urllib.parse
 from collections.abc import Sequence
-from importlib import metadata
 
 from ..outcome import CheckResult
 from ..results import FINDING_STATUSES, Finding, Verdict
@@ -48,23 +47,14 @@ def uri(path: str) -> dict:
     return {"uri": urllib.parse.quote(raw.replace(b"\\", b"/")), "uriBaseId": "%SRCROOT%"}
 
 
-def _version() -> str:
-    from .. import DISTRIBUTION
-
-    try:
-        return metadata.version(DISTRIBUTION)
-    except metadata.PackageNotFoundError:  # pragma: no cover - running from a source tree
-        return "0"
-
-
 def _level(result: CheckResult, finding: Finding) -> str:
     if result.is_failing(finding):
         return "error"
     return "note" if finding.is_approved or finding.status == Verdict.TOUCHING else "warning"
 
 
-def _result(result: CheckResult, f: Finding, paths: dict[str, str]) -> dict:
-    detail = describe(f, resolution(result, f))
+def _result(result: CheckResult, f: Finding, paths: dict[str, str], tol: float | None) -> dict:
+    detail = describe(f, tol)
     text = f"{printable(f.a)} and {printable(f.b)}: {f.status}, {detail}"
     entry = {
         "ruleId": str(f.status),
@@ -98,6 +88,8 @@ def _measurements(f: Finding) -> dict:
 
 
 def document(result: CheckResult) -> dict:
+    from .. import __version__
+
     rules = [
         {
             "id": str(status),
@@ -108,7 +100,8 @@ def document(result: CheckResult) -> dict:
         for status in FINDING_STATUSES
     ]
     paths = part_files(result)
-    results = [_result(result, f, paths) for f in ordered(result)]
+    tol = resolution(result)
+    results = [_result(result, f, paths, tol) for f in ordered(result)]
     for robot, pair in result.failing_sweeps:  # a mechanism's parts collide in motion
         results.append(
             {
@@ -138,7 +131,7 @@ def document(result: CheckResult) -> dict:
         "tool": {
             "driver": {
                 "name": "meshcheck",
-                "version": _version(),
+                "version": __version__,
                 "informationUri": "https://pypi.org/project/meshcheck-assembly/",
                 "rules": rules,
             }

@@ -1,8 +1,10 @@
-"""The text report: a table that fits the terminal (100 columns without one), each finding's
+"""The text report: a table that fits the terminal (80 columns without one), each finding's
 detail under its row, the clash groups (a line per group, its findings below), a summary.
 
-Part names are shown after the directory prefix every part shares (named once above the table),
-cut in the middle when they still do not fit; the JSON report keeps them whole.
+Every line fits the width. Part names are shown after the directory prefix every part shares
+(named once above the table), cut in the middle when they still do not fit, the same cut
+wherever a name appears (table, groups, baseline, sweep); the JSON report keeps them whole. The
+summary and group lines wrap between their comma-separated pieces, never inside one.
 """
 
 from __future__ import annotations
@@ -20,33 +22,16 @@ from .common import (
     pose_text,
     printable,
     resolution,
-    summary_line,
+    shared_prefix,
+    summary_chunks,
     sweep_rows,
+    tolerance_text,
     unlisted,
 )
 
-WIDTH = 100
+WIDTH = 80
 _ID_WIDTH = 12
 _INDENT = " " * (_ID_WIDTH + 2)
-
-
-def shared_prefix(names: list[str]) -> str:
-    """The directory prefix (ending in ``/``) all ``names`` share, or ``""``.
-
-    Examples
-    --------
-    >>> shared_prefix(["asm/frame.stl", "asm/sub/pin.stl"])
-    'asm/'
-    >>> shared_prefix(["asm/frame.stl"]), shared_prefix(["a/x.stl", "b/y.stl"])
-    ('asm/', '')
-    """
-    if not names:
-        return ""
-    low, high = min(names), max(names)
-    common = 0
-    while common < min(len(low), len(high)) and low[common] == high[common]:
-        common += 1
-    return low[: low.rfind("/", 0, common) + 1]
 
 
 def shorten(text: str, width: int) -> str:
@@ -165,18 +150,28 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
     prefix = shared_prefix([p.name for p in result.parts])
     has_baseline = result.baseline is not None
     shown = [f for f in ordered(result) if view.shows(result, f)]
+    resolved = result.baseline.resolved(result.findings) if has_baseline else []
+    swept = [row for row in sweep_rows(result) if row[2] or not view.is_quiet]
 
-    def short(name: str) -> str:
+    def below(name: str) -> str:
         return printable(name[len(prefix) :] if name.startswith(prefix) else name)
 
     rows = []
+    tolerance = resolution(result)
     for f in shown:
         status = str(f.status) + (" (approved)" if f.is_approved else "")
         state = result.baseline_state(f) or ""
-        detail = describe(f, resolution(result, f))
+        detail = describe(f, tolerance)
         if f.is_approved:
             detail += f"  approved: {printable(f.approval_reason)}"
-        rows.append((f.id, status, state, short(f.a), short(f.b), detail))
+        rows.append((f.id, status, state, below(f.a), below(f.b), detail))
+    names = [n for f in shown for n in (f.a, f.b)] + [n for r in resolved for n in (r.a, r.b)]
+    names += [n for robot, pair, _ in swept for n in (robot, pair.a, pair.b)]
+    name_width = _name_width(rows, width=width, has_baseline=has_baseline)
+    cut = shorten_all(sorted({below(n) for n in names}), name_width)
+
+    def short(name: str) -> str:
+        return cut[below(name)]
 
     def wrap(text: str, indent: str) -> list[str]:
         return textwrap.wrap(text, width, subsequent_indent=indent, break_on_hyphens=False) or [
@@ -187,23 +182,21 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
     if prefix and rows:
         lines.extend(wrap(f"parts below {printable(prefix)}", "  "))
     if rows:
-        lines.extend(_table(rows, width=width, has_baseline=has_baseline))
+        lines.extend(_table(rows, cut, width=width, has_baseline=has_baseline))
     for group in clash_groups(shown):
         head, rows_below = group_lines(group, short)
-        lines.extend(wrap(f"group {group.id}  {head}", _INDENT))
-        for finding_id, names in rows_below:
-            lines.extend(wrap(f"  {finding_id}  {names}", _INDENT))
+        lines.extend(_pack([f"group {group.id} ", *_pieces(head)], width, _INDENT))
+        for finding_id, pair_names in rows_below:
+            lines.extend(wrap(f"  {finding_id}  {pair_names}", _INDENT))
     note = unlisted(result, view, len(shown))
     if note:
         lines.extend(wrap(note, "  "))
-    if has_baseline and not view.is_quiet:
-        for r in result.baseline.resolved(result.findings):
+    if not view.is_quiet:
+        for r in resolved:
             lines.extend(
                 wrap(f"resolved {r.id}  {r.status}  {short(r.a)} and {short(r.b)}", _INDENT)
             )
-    for robot, pair, fails in sweep_rows(result):  # --sweep: failing pairs even when quiet
-        if view.is_quiet and not fails:
-            continue
+    for robot, pair, fails in swept:  # --sweep: failing pairs even when quiet
         adjacent = " (adjacent)" if pair.is_adjacent else ""
         mark = "FAIL " if fails else ""
         text = f"{mark}sweep {pair.status}{adjacent}  {short(robot)}: {short(pair.a)} / "
@@ -213,8 +206,78 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
         lines.extend(wrap(text, _INDENT))
     if result.settings.config_path:
         lines.extend(wrap(f"configuration: {printable(result.settings.config_path)}", "  "))
-    lines.extend(wrap(summary_line(result), "  "))
+    lines.extend(summary_lines(result, width))
     return "\n".join(lines) + "\n"
+
+
+def summary_lines(result: CheckResult, width: int) -> list[str]:
+    """The summary, its verdict line last: the whole summary line when it fits ``width``; else
+    a verdict line of the counts that fit, below a line of the counts that did not, the
+    tolerance and the unit.
+
+    Examples
+    --------
+    >>> from meshcheck.outcome import CheckResult
+    >>> from meshcheck.settings import Settings
+    >>> for line in summary_lines(CheckResult([], [], Settings(clearance=0.5)), 40):
+    ...     print(line)
+    0 touching, 0 clearance (< 0.5);
+      tolerance per pair; lengths in mm
+    PASS: 0 parts, 0 interference
+    """
+    *counts, settings = summary_chunks(result)
+    whole = " ".join([*counts, settings])
+    if len(whole) <= width:
+        return [whole]
+    kept = counts[:1]
+    for piece in counts[1:]:
+        if len(" ".join([*kept, piece])) > width:
+            break
+        kept.append(piece)
+    moved = [p.rstrip(",") for p in counts[len(kept) :]]
+    above = [", ".join(moved)] if moved else []
+    above += [f"tolerance {tolerance_text(result)}", f"lengths in {result.units}"]
+    verdict = " ".join(kept)
+    return [*_pack(_pieces_after("; ".join(above), "; "), width, "  "), verdict.rstrip(",")]
+
+
+def _pieces(text: str) -> list[str]:
+    """``text`` split after each ``, `` (the comma kept): the places a line may wrap."""
+    return _pieces_after(text, ", ")
+
+
+def _pieces_after(text: str, separator: str) -> list[str]:
+    """``text`` split after each ``separator`` (its mark kept, the space dropped)."""
+    parts = text.split(separator)
+    mark = separator.rstrip()
+    return [p + mark for p in parts[:-1]] + parts[-1:]
+
+
+def _pack(pieces: Sequence[str], width: int, indent: str) -> list[str]:
+    """``pieces`` joined by spaces into lines of at most ``width``, each piece kept whole on
+    one line (lines after the first start with ``indent``); a piece longer than a line is
+    wrapped on its own.
+
+    Examples
+    --------
+    >>> _pack(["FAIL: 6 parts,", "1 interference,", "4 touching", "(mm)"], 32, "  ")
+    ['FAIL: 6 parts, 1 interference,', '  4 touching (mm)']
+    """
+    lines: list[str] = []
+    line = ""
+    for piece in pieces:
+        joined = f"{line} {piece}" if line else piece
+        if len(joined) <= width or not line.strip():
+            line = joined
+            continue
+        lines.append(line)
+        line = indent + piece
+    lines.append(line)
+    out = []
+    for line in lines:  # a piece too long for any line: wrapped inside it, as a last resort
+        rest = textwrap.wrap(line, width, subsequent_indent=indent, break_on_hyphens=False)
+        out.extend(rest or [line])
+    return out
 
 
 def group_lines(group, name) -> tuple[str, list[tuple[str, str]]]:
@@ -243,14 +306,22 @@ def group_lines(group, name) -> tuple[str, list[tuple[str, str]]]:
     return f"{name(group.part)}: {count}", rows
 
 
-def _table(rows: list[tuple], *, width: int, has_baseline: bool) -> list[str]:
-    """The header and a line per row, each row's detail wrapped under it, within ``width``."""
-    header = ("ID", "STATUS", "BASELINE", "PART A", "PART B", "")
+def _name_width(rows: list[tuple], *, width: int, has_baseline: bool) -> int:
+    """Columns each of the table's two name columns may take."""
+    header = ("ID", "STATUS", "BASELINE")
     status_width = max(len(r[1]) for r in (header, *rows))
     state_width = max(len(r[2]) for r in (header, *rows)) if has_baseline else 0
     fixed = _ID_WIDTH + 2 + status_width + 2 + (state_width + 2 if has_baseline else 0) + 2
-    name_width = max((width - fixed) // 2, 12)
-    cut = shorten_all([r[k] for r in rows for k in (3, 4)], name_width)
+    return max((width - fixed) // 2, 12)
+
+
+def _table(rows: list[tuple], cut: dict, *, width: int, has_baseline: bool) -> list[str]:
+    """The header and a line per row (names as ``cut`` shows them), each row's detail wrapped
+    under it, within ``width``."""
+    header = ("ID", "STATUS", "BASELINE", "PART A", "PART B", "")
+    status_width = max(len(r[1]) for r in (header, *rows))
+    state_width = max(len(r[2]) for r in (header, *rows)) if has_baseline else 0
+    name_width = _name_width(rows, width=width, has_baseline=has_baseline)
     a_width = min(name_width, max(len(cut.get(r[3], r[3])) for r in (header, *rows)))
     lines = []
     for r in (header, *rows):
@@ -258,7 +329,11 @@ def _table(rows: list[tuple], *, width: int, has_baseline: bool) -> list[str]:
         if has_baseline:
             cells.append(r[2].ljust(state_width))
         cells += [cut.get(r[3], r[3]).ljust(a_width), cut.get(r[4], r[4])]
-        lines.append("  ".join(cells).rstrip())
+        row = "  ".join(cells).rstrip()
+        if len(row) > width:  # names no cut could tell apart, shown whole: wrapped
+            lines.extend(textwrap.wrap(row, width, subsequent_indent=_INDENT))
+        else:
+            lines.append(row)
         if r[5]:
             lines.extend(
                 textwrap.wrap(

@@ -40,7 +40,7 @@ POOL_SECONDS = 300 * PAIR_SECONDS / 2
 STARTED_POOL_SECONDS = 32 * PAIR_SECONDS / 2
 #: This process verifies too while it waits on a local pool, which then starts one worker fewer
 #: (``Executor.map(here=True)``): on two cores, two workers importing trimesh and scipy while
-#: this process waited cost more than they saved (README, "Real assemblies").
+#: this process waited cost more than they saved (``python bench/real_assemblies.py``).
 VERIFY_HERE_TOO = True
 #: Pairs per task sent to a worker at most: enough to amortise a message, few enough to balance.
 PAIRS_PER_TASK = 16

@@ -27,7 +27,7 @@ triangles came from answer both exactly, so a STEP finding near the tolerance is
     of its surface into it, the midpoint classified inside, its radius the exact distance to the
     surface); a diameter above ``t`` is **interference** with that depth and volume ``V``.
   * Otherwise, when every connected piece of the shared solid is provably thinner than ``t``
-    (its volume's ball, its box), **touching**; short of a proof, **interference** (README's
+    (its volume's ball, its box), **touching**; short of a proof, **interference** (the
     rule for meshes, kept).
 
 A pair that cannot be confirmed (OpenCASCADE's boolean fails, a part was ``--split`` into

@@ -40,10 +40,25 @@
     return node;
   }
 
-  function fmt(x) {
-    if (x === null || x === undefined) return "\u2014";
-    if (x === 0) return "0";
-    return String(Number(x.toPrecision(6)));
+  // Part names are shown below the folder every part shares (named once in the header), as the
+  // text report shows them; the full name is the element's title. Matching parts to findings
+  // always uses the full names.
+  let PREFIX = "";
+  function short(name) {
+    return PREFIX && name.startsWith(PREFIX) ? name.slice(PREFIX.length) : name;
+  }
+
+  // A part name that may wrap after each "/" (never inside a folder or file name).
+  function nameEl(tag, className, name) {
+    const node = document.createElement(tag);
+    if (className) node.className = className;
+    const pieces = visible(short(name)).split(/(?<=\/)/);
+    pieces.forEach((piece, k) => {
+      if (k) node.append(document.createElement("wbr"));
+      node.append(piece);
+    });
+    node.title = visible(name);
+    return node;
   }
 
   async function decodeGeometry(text) {
@@ -103,8 +118,8 @@
     const u = data.units;
     const settings = el("p", "settings");
     const pairs = [
-      ["tolerance", s.tolerance === null ? "per pair" : fmt(s.tolerance) + " " + u],
-      ["clearance", s.required_clearance === null ? "not set" : fmt(s.required_clearance) + " " + u],
+      ["tolerance", data.settings_text.tolerance + " " + u],
+      ["clearance", data.settings_text.clearance === null ? "not set" : data.settings_text.clearance + " " + u],
       ["units", u],
       ["fail on", s.fail_on.length ? s.fail_on.join(", ") : "nothing"],
       ["meshcheck", data.version],
@@ -118,6 +133,12 @@
       settings.append(k + " ", el("b", null, v));
     });
     header.append(settings);
+
+    if (data.prefix) {
+      const below = el("p", "prefix", "parts below ");
+      below.append(el("b", null, data.prefix));
+      header.append(below);
+    }
 
     const inputs = el("details", "inputs");
     inputs.append(el("summary", null, data.inputs.length + " input" + (data.inputs.length === 1 ? "" : "s")));
@@ -138,7 +159,7 @@
       const sl = el("ul");
       for (const r of data.sweeps) {
         const text = (r.failed ? "FAIL " : "") + r.status + (r.adjacent ? " (adjacent)" : "") + ": " +
-          r.a + " / " + r.b + (r.pose ? " — " + r.pose : "") +
+          short(r.a) + " / " + short(r.b) + (r.pose ? " — " + r.pose : "") +
           (r.approved === null ? "" : " (approved: " + r.approved + ")");
         sl.append(el("li", r.failed ? "fail" : null, text));
       }
@@ -298,11 +319,11 @@
 
   function labelText(f, units) {
     let title = f.status;
-    if (f.status === "interference" && f.depth !== null) title += " \u00b7 " + fmt(f.depth) + " " + units + " deep";
-    if (f.status === "interference" && f.volume !== null) title += " \u00b7 " + fmt(f.volume) + " " + units + "\u00b3";
-    if (f.status === "clearance") title += " \u00b7 " + fmt(f.distance) + " " + units + " apart";
+    if (f.status === "interference" && f.text.depth !== null) title += " \u00b7 " + f.text.depth + " " + units + " deep";
+    if (f.status === "interference" && f.text.volume !== null) title += " \u00b7 " + f.text.volume + " " + units + "\u00b3";
+    if (f.status === "clearance") title += " \u00b7 " + f.text.distance + " " + units + " apart";
     if (f.approved !== null) title += " \u00b7 approved";
-    return [title, f.a, f.b];
+    return [title, short(f.a), short(f.b)];
   }
 
   // The other part of each member: a part group's shared part left out; a pattern group (no
@@ -310,6 +331,12 @@
   function memberName(g, f) {
     if (g.part === null) return f.a + " \u00b7 " + f.b;
     return f.a === g.part ? f.b : f.a;
+  }
+
+  // The same, as shown: names below the shared folder.
+  function memberText(g, f) {
+    if (g.part === null) return short(f.a) + " \u00b7 " + short(f.b);
+    return short(f.a === g.part ? f.b : f.a);
   }
 
   function groupNames(g, findings) {
@@ -321,11 +348,11 @@
     if (g.part === null) {
       const title = findings.length + " " + g.status + " \u00b7 pattern group " + g.id;
       const more = findings.length > 1 ? " and " + (findings.length - 1) + " more alike" : "";
-      return [title, memberName(g, findings[0]), "the same clash" + more];
+      return [title, memberText(g, findings[0]), "the same clash" + more];
     }
-    const others = findings.map((f) => memberName(g, f));
+    const others = findings.map((f) => memberText(g, f));
     const more = others.length > 3 ? " and " + (others.length - 3) + " more" : "";
-    return [findings.length + " " + g.status + " \u00b7 group " + g.id, g.part, "with " + others.slice(0, 3).join(", ") + more];
+    return [findings.length + " " + g.status + " \u00b7 group " + g.id, short(g.part), "with " + others.slice(0, 3).join(", ") + more];
   }
 
   function createView(data, buffer) {
@@ -587,14 +614,14 @@
     if (f.surface_only) status.append(" ", el("span", "note", "surface only"));
     if (group) status.append(" ", el("span", "note group-ref", "group " + group.id));
     const parts = el("td", "part");
-    parts.append(el("div", null, f.a), el("div", null, f.b));
+    parts.append(nameEl("div", null, f.a), nameEl("div", null, f.b));
     tr.append(
       el("td", "id", f.id),
       status,
       parts,
-      el("td", "num", f.depth === null ? "\u2014" : fmt(f.depth) + " " + units),
-      el("td", "num", f.volume === null ? "\u2014" : fmt(f.volume) + " " + units + "\u00b3"),
-      el("td", "num", fmt(f.distance) + " " + units),
+      el("td", "num", f.text.depth === null ? "\u2014" : f.text.depth + " " + units),
+      el("td", "num", f.text.volume === null ? "\u2014" : f.text.volume + " " + units + "\u00b3"),
+      el("td", "num", f.text.distance + " " + units),
       el("td", "approved", f.approved === null ? "" : "approved: " + f.approved),
     );
     return tr;
@@ -634,13 +661,13 @@
       node.dataset.id = g.id;
       const head = el("div", "group-head");
       head.append(el("span", "id", g.id), " ", el("span", "badge " + g.status, g.status), " ");
-      head.append(el("span", "part", g.part === null ? "pattern" : g.part), " " + members.length + " findings");
+      head.append(g.part === null ? el("span", "part", "pattern") : nameEl("span", "part", g.part), " " + members.length + " findings");
       activate(head, () => selectGroup(g, members));
       const list = el("ul");
       for (const f of members) {
         const item = el("li");
         item.dataset.id = f.id;
-        item.append(el("span", "id", f.id), " ", el("span", "part", memberName(g, f)));
+        item.append(el("span", "id", f.id), " ", el("span", "part", memberText(g, f)));
         activate(item, () => selectFinding(f));
         list.append(item);
       }
@@ -659,6 +686,7 @@
 
   async function main() {
     const data = JSON.parse(document.getElementById("meshcheck-data").textContent);
+    PREFIX = data.prefix || "";
     buildHeader(data);
     let view = null;
     if (!hasWebGL()) {
