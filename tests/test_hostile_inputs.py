@@ -28,7 +28,7 @@ from meshes import box
 
 from meshcheck.cli import main
 from meshcheck.errors import ExitStatus, InputError
-from meshcheck.load import Limits, load_bodies
+from meshcheck.load import SUPPORTED_EXTENSIONS, Limits, load_bodies
 
 CORE = "http://schemas.microsoft.com/3dmanufacturing/core/2015/02"
 
@@ -165,6 +165,7 @@ def make_zip_bomb(folder) -> list:
     return [path]
 
 
+@pytest.mark.linux_only
 def test_3mf_zip_bomb_is_refused_from_its_declared_sizes(tmp_path):
     (path,) = make_zip_bomb(tmp_path)
     assert os.path.getsize(path) < 1 << 20
@@ -226,6 +227,7 @@ def make_fan_out(folder) -> list:
     return [write_3mf(folder / "fan.3mf", model_xml("".join(objects), '<item objectid="9"/>'))]
 
 
+@pytest.mark.linux_only
 def test_3mf_component_fan_out_is_counted_before_expanding(tmp_path):
     (path,) = make_fan_out(tmp_path)
     assert os.path.getsize(path) < 8192
@@ -448,13 +450,16 @@ def make_fifo(folder) -> list:
     return [path]
 
 
+@pytest.mark.posix_only
 def test_fifo_is_refused_without_blocking(tmp_path):
     (path,) = make_fifo(tmp_path)
     refused(path, "is not a regular file")
 
 
-@pytest.mark.skipif(os.geteuid() == 0, reason="root reads mode-000 files; see the next test")
+@pytest.mark.posix_only
 def test_unreadable_file_is_refused(tmp_path):
+    if os.geteuid() == 0:
+        pytest.skip("root reads mode-000 files: the cases below fail to read for root too")
     path = tmp_path / "secret.stl"
     box().export(str(path))
     path.chmod(0)
@@ -476,6 +481,7 @@ def make_unreadable(folder) -> list:
     return [path]
 
 
+@pytest.mark.linux_only
 def test_unreadable_file_is_refused_even_as_root(tmp_path):
     try:
         with open(WRITE_ONLY, "rb"):
@@ -490,6 +496,88 @@ def test_unreadable_file_is_refused_even_as_root(tmp_path):
     assert (status, len(lines)) == (ExitStatus.INPUT, 1), lines
 
 
+# Inputs that fail to read for root too (CI runs as root, where mode 000 stops nothing): each is
+# one line naming the file, exit 3, no traceback, from the command in a subprocess (a hang would
+# time out rather than stall the suite).
+
+
+def command(args, cwd, *, code: str | None = None) -> tuple[int, list[str]]:
+    """``python -m meshcheck ARGS`` (or ``python -c CODE ARGS``): (exit status, stderr lines)."""
+    head = ["-m", "meshcheck"] if code is None else ["-c", code]
+    proc = subprocess.run(
+        [sys.executable, *head, *map(str, args)],
+        cwd=cwd,
+        capture_output=True,
+        timeout=120,
+        check=False,
+    )
+    stderr = proc.stderr.decode(errors="replace")
+    assert "Traceback" not in stderr, stderr
+    return proc.returncode, without_progress(stderr.splitlines())
+
+
+@pytest.mark.posix_only
+@pytest.mark.parametrize("given", ["the pipe", "its folder"])
+def test_fifo_without_a_writer_is_one_line_and_exit_3(tmp_path, given):
+    (path,) = make_fifo(tmp_path)
+    box(at=(3, 0, 0)).export(str(tmp_path / "other.stl"))
+    args = [path.name, "other.stl"] if given == "the pipe" else ["."]
+    status, lines = command([*args, "--no-cache", "--no-config"], tmp_path)
+    name = "pipe.stl" if given == "the pipe" else os.path.join(".", "pipe.stl")
+    assert (status, lines) == (ExitStatus.INPUT, [f"error: {name}: is not a regular file"])
+
+
+@pytest.mark.parametrize("name", ["part.stl", "part.stl/", "part.step"])
+def test_directory_named_like_a_mesh_is_one_line_and_exit_3(tmp_path, name):
+    (tmp_path / name).mkdir()
+    status, lines = command([name, "--no-cache", "--no-config"], tmp_path)
+    assert status == ExitStatus.INPUT, lines
+    kinds = ", ".join(SUPPORTED_EXTENSIONS)
+    assert lines == [f"error: {name}: directory holds no mesh files ({kinds})"]
+    with pytest.raises(InputError) as info:
+        load_bodies([str(tmp_path / name)])
+    assert info.value.path == str(tmp_path / name)
+
+
+#: A process that has used up its file descriptors (RLIMIT_NOFILE): the command's modules are
+#: loaded first, by a run on a readable part and one on a missing one (as in a long-lived
+#: process), then every descriptor the limit allows is taken, so the open refused is the input's.
+_NO_DESCRIPTORS = """
+import os, resource, sys
+from meshcheck.cli import main
+
+def run(args):
+    try:
+        main([*args, "--no-cache", "--no-config"], prog_name="meshcheck")
+    except SystemExit as exit:
+        return exit.code
+
+target, readable = sys.argv[1:]
+run([readable])
+run([readable + ".missing"])
+print("--- descriptors taken", file=sys.stderr, flush=True)
+soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+resource.setrlimit(resource.RLIMIT_NOFILE, (min(soft, 256), hard))
+taken = []
+try:
+    while True:
+        taken.append(os.open(os.devnull, os.O_RDONLY))
+except OSError:
+    pass
+sys.exit(run([target]))
+"""
+
+
+@pytest.mark.posix_only
+def test_open_refused_under_the_descriptor_limit_is_one_line_and_exit_3(tmp_path):
+    box().export(str(tmp_path / "readable.stl"))
+    box(at=(3, 0, 0)).export(str(tmp_path / "part.stl"))
+    status, lines = command(["part.stl", "readable.stl"], tmp_path, code=_NO_DESCRIPTORS)
+    after = lines[lines.index("--- descriptors taken") + 1 :]
+    assert status == ExitStatus.INPUT, lines
+    assert after == ["error: part.stl: cannot be read (Too many open files)"], lines
+
+
 def make_non_utf8_names(folder) -> list:
     """Two apart boxes, one in a file named b'caf\\xe9.stl' (Latin-1, not UTF-8)."""
     raw = os.fsencode(folder) + b"/caf\xe9.stl"
@@ -500,6 +588,7 @@ def make_non_utf8_names(folder) -> list:
     return [os.fsdecode(raw), other]
 
 
+@pytest.mark.linux_only
 def test_non_utf8_file_name_loads(tmp_path):
     # 0.1: UnicodeEncodeError in trimesh's transform hashing; with --format json stdout was empty
     path, other = make_non_utf8_names(tmp_path)
