@@ -498,14 +498,14 @@ def test_unreadable_file_is_refused_even_as_root(tmp_path):
 
 # Inputs that fail to read for root too (CI runs as root, where mode 000 stops nothing): each is
 # one line naming the file, exit 3, no traceback, from the command in a subprocess (a hang would
-# time out rather than stall the suite).
+# time out rather than stall the suite). An open refused under RLIMIT_NOFILE is exhaustion, not
+# an unreadable file: one line naming the file and exit 6 (tests/test_exhaustion.py).
 
 
-def command(args, cwd, *, code: str | None = None) -> tuple[int, list[str]]:
-    """``python -m meshcheck ARGS`` (or ``python -c CODE ARGS``): (exit status, stderr lines)."""
-    head = ["-m", "meshcheck"] if code is None else ["-c", code]
+def command(args, cwd) -> tuple[int, list[str]]:
+    """``python -m meshcheck ARGS`` in ``cwd``: (exit status, stderr lines)."""
     proc = subprocess.run(
-        [sys.executable, *head, *map(str, args)],
+        [sys.executable, "-m", "meshcheck", *map(str, args)],
         cwd=cwd,
         capture_output=True,
         timeout=120,
@@ -537,45 +537,6 @@ def test_directory_named_like_a_mesh_is_one_line_and_exit_3(tmp_path, name):
     with pytest.raises(InputError) as info:
         load_bodies([str(tmp_path / name)])
     assert info.value.path == str(tmp_path / name)
-
-
-#: A process that has used up its file descriptors (RLIMIT_NOFILE): the command's modules are
-#: loaded first, by a run on a readable part and one on a missing one (as in a long-lived
-#: process), then every descriptor the limit allows is taken, so the open refused is the input's.
-_NO_DESCRIPTORS = """
-import os, resource, sys
-from meshcheck.cli import main
-
-def run(args):
-    try:
-        main([*args, "--no-cache", "--no-config"], prog_name="meshcheck")
-    except SystemExit as exit:
-        return exit.code
-
-target, readable = sys.argv[1:]
-run([readable])
-run([readable + ".missing"])
-print("--- descriptors taken", file=sys.stderr, flush=True)
-soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
-resource.setrlimit(resource.RLIMIT_NOFILE, (min(soft, 256), hard))
-taken = []
-try:
-    while True:
-        taken.append(os.open(os.devnull, os.O_RDONLY))
-except OSError:
-    pass
-sys.exit(run([target]))
-"""
-
-
-@pytest.mark.posix_only
-def test_open_refused_under_the_descriptor_limit_is_one_line_and_exit_3(tmp_path):
-    box().export(str(tmp_path / "readable.stl"))
-    box(at=(3, 0, 0)).export(str(tmp_path / "part.stl"))
-    status, lines = command(["part.stl", "readable.stl"], tmp_path, code=_NO_DESCRIPTORS)
-    after = lines[lines.index("--- descriptors taken") + 1 :]
-    assert status == ExitStatus.INPUT, lines
-    assert after == ["error: part.stl: cannot be read (Too many open files)"], lines
 
 
 def make_non_utf8_names(folder) -> list:
