@@ -5,7 +5,8 @@ Run from the repository root: ``python tests/make_cases.py``. Units are millimet
 The expected verdicts are computed here, independently of ``meshcheck.verify``, from the meshes
 as written (reloaded from the STL, so float32 rounding is included):
 
-- volumes: manifold3d boolean intersection;
+- volumes: the shared height times the area common to the parts' cross-sections (shapely's
+  GEOS), all of them prisms where they meet; never manifold3d, which ``verify.pair`` uses;
 - distances: from the polygon geometry when it has a closed form (aligned regular polygons are
   ``(R - r) cos(pi / n)`` apart; a convex body in a convex cavity is ``min_i (h_i - max_v n_i . v)``
   from its walls), else python-fcl's mesh distance (an independent BVH implementation);
@@ -86,17 +87,49 @@ def torus(major, minor, sections=16, tube=8) -> trimesh.Trimesh:
 # --- truth ----------------------------------------------------------------------------------
 
 
-def _solid(mesh: trimesh.Trimesh):
-    return manifold3d.Manifold(
-        manifold3d.Mesh64(
-            vert_properties=np.ascontiguousarray(mesh.vertices, dtype=np.float64),
-            tri_verts=np.ascontiguousarray(mesh.faces, dtype=np.uint64),
-        )
-    )
+def shared_volume(a: trimesh.Trimesh, b: trimesh.Trimesh) -> float:
+    """Volume two parts share, for parts that are both prisms along z where their heights
+    overlap (every case with a volume: bolts in plates, a pin in a wall, gears): the overlap's
+    height times the area GEOS (shapely) finds common to their cross-sections. Independent of
+    manifold3d, whose boolean ``verify.pair`` computes the volume with."""
+    lo = max(a.bounds[0, 2], b.bounds[0, 2])
+    hi = min(a.bounds[1, 2], b.bounds[1, 2])
+    assert lo < hi, "the parts' heights do not overlap"
+    for mesh in (a, b):
+        z = mesh.triangles[..., 2]
+        across = (z.min(axis=1) < hi) & (z.max(axis=1) > lo)
+        # every face in the overlap is vertical: the cross-section is the same at every height
+        assert np.abs(mesh.face_normals[across, 2]).max() < 1e-9
+    height = 0.5 * (lo + hi)
+    common = cross_section(a, height).intersection(cross_section(b, height))
+    return float((hi - lo) * common.area)
 
 
-def shared_volume(a, b) -> float:
-    return float((_solid(a) ^ _solid(b)).volume())
+def cross_section(mesh: trimesh.Trimesh, z: float):
+    """The region a closed mesh cuts from the plane at height ``z``, as shapely geometry: the
+    triangles' segments joined into closed rings, whose insides are combined even-odd (a hole's
+    ring takes its inside away)."""
+    import shapely
+
+    v, f = np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces)
+    assert np.abs(v[:, 2] - z).min() > 1e-9 * np.abs(v).max(), "a vertex lies in the plane"
+    edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    below = v[:, 2] < z
+    crossing = below[edges[:, 0]] != below[edges[:, 1]]
+    # each crossing edge, lower index first, cut once: the triangles on either side of it
+    # share the very same point, so the segments join exactly
+    p, q = v[edges[:, 0]], v[edges[:, 1]]
+    t = (z - p[:, 2]) / np.where(crossing, q[:, 2] - p[:, 2], 1.0)
+    cut = p[:, :2] + t[:, None] * (q[:, :2] - p[:, :2])
+    segments = cut.reshape(3, len(f), 2).transpose(1, 0, 2)[crossing.reshape(3, len(f)).T]
+    segments = segments.reshape(-1, 2, 2)
+    rings = shapely.line_merge(shapely.MultiLineString(list(segments)))
+    rings = getattr(rings, "geoms", [rings])
+    assert all(ring.is_ring for ring in rings), "the section is not closed rings"
+    region = shapely.Polygon()
+    for ring in rings:
+        region = region.symmetric_difference(shapely.Polygon(ring))
+    return region
 
 
 # --- cases ----------------------------------------------------------------------------------

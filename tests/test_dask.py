@@ -7,10 +7,12 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import signal
 import socket
 import subprocess
 import sys
+import sysconfig
 import time
 
 import pytest
@@ -159,12 +161,15 @@ def _busy_worker(address: str, workers, *, deadline: float) -> subprocess.Popen:
     raise AssertionError("no worker ever ran a task")
 
 
+@pytest.mark.posix_only
 @pytest.mark.slow
 def test_dask_scheduler_and_workers_a_worker_killed_mid_run(tmp_path):
     pytest.importorskip("distributed")
-    dask = os.path.join(os.path.dirname(sys.executable), "dask")
-    if not os.path.exists(dask):
-        pytest.skip("the dask command is not installed beside this Python")
+    # the dask extra installs the command with the package, beside this Python or in the
+    # scripts folder of its install scheme
+    folders = [os.path.dirname(sys.executable), sysconfig.get_path("scripts")]
+    dask = shutil.which("dask", path=os.pathsep.join(folders))
+    assert dask is not None, f"distributed is installed but no dask command in {folders}"
     paths = assembly(tmp_path / "parts", boxes=200)
     expected = json.loads(local_report(paths, tmp_path))
     port = free_port()

@@ -1,17 +1,23 @@
 """Depth = diameter of the largest ball inside the shared solid, against closed-form answers for
-thin and curved overlaps (where sampling fails), an LP oracle for convex ones, and the touching /
-interference split at the tolerance, which must never rest on a depth that could be too low."""
+thin and curved overlaps (where sampling fails), an LP oracle for convex ones, numpy and
+python-fcl point queries (never meshcheck's own) for a shell with no closed form, and the
+touching / interference split at the tolerance, which must never rest on a depth that could be
+too low."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+import trimesh
 from depth_shapes import annulus, crescent, lens, pin, prism_tube, tilted_slab_pair, wedge
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from meshes import brute_point_distances, brute_winding_numbers, fcl_point_distances
 from scipy.optimize import linprog
+from scipy.spatial.transform import Rotation
 
 from meshcheck import results
-from meshcheck.geometry.triangles import point_distances, winding_numbers
-from meshcheck.verify.depth import depth_bounds
+from meshcheck.verify.depth import REL_GAP, depth_bounds
 from meshcheck.verify.pair import outward_faces, shared_solid, verify_pair
 
 SCALES = [1e-3, 1.0, 1e3]
@@ -101,19 +107,50 @@ def test_two_spheres_overlapping_by_a_sliver_share_a_lens(scale, overlap, count)
 def test_the_ball_is_inside_and_the_upper_bound_is_above_every_sampled_ball():
     # A pin with 20 facets in a hole with 48, turned: a shell of varying thickness, no closed
     # form. The lower bound's ball must be inside (winding number) at its exact distance, and no
-    # sampled point of the solid may hold a larger ball than the upper bound allows.
+    # sampled point of the solid may hold a larger ball than the upper bound allows; inside and
+    # distances from numpy over every triangle and from python-fcl, not meshcheck's kernels.
     plate = prism_tube(1.0, 3.0, 0.0, 1.0, 48)
     shaft = pin(1.03, -0.5, 1.5, 20)
     v, f = solid_of(plate, shaft)
+    solid = trimesh.Trimesh(v, f, process=False)
     bounds = depth_bounds(v, f, max_boxes=150)
-    assert winding_numbers(bounds.centre[None], v, f)[0] == pytest.approx(1.0, abs=1e-9)
-    assert point_distances(bounds.centre[None], v, f)[0] == pytest.approx(0.5 * bounds.lower)
+    centre = bounds.centre[None]
+    assert brute_winding_numbers(solid, centre)[0] == pytest.approx(1.0, abs=1e-9)
+    assert brute_point_distances(solid, centre)[0] == pytest.approx(0.5 * bounds.lower)
+    assert fcl_point_distances(solid, centre)[0] == pytest.approx(0.5 * bounds.lower)
     rng = np.random.default_rng(0)
     points = rng.uniform(v.min(axis=0), v.max(axis=0), size=(20000, 3))
-    inside = points[winding_numbers(points, v, f) > 0.5]
-    sampled = 2.0 * point_distances(inside, v, f).max()
+    inside = points[brute_winding_numbers(solid, points) > 0.5]
+    assert len(inside) > 100
+    sampled = 2.0 * brute_point_distances(solid, inside).max()
     assert sampled <= bounds.lower * (1 + 1e-9) <= bounds.upper
     assert sampled <= bounds.upper
+
+
+@pytest.mark.parametrize("extents", [(1.0, 2.0, 3.0), (5.0, 4.0, 0.25), (1e-3, 1e-3, 1e-3)])
+def test_a_box_holds_a_ball_as_wide_as_its_thinnest_side(extents):
+    box = trimesh.creation.box(extents=extents)
+    v = box.vertices @ Rotation.random(random_state=1).as_matrix().T + 100.0 * max(extents)
+    bounds = depth_bounds(v, box.faces)
+    assert bounds.is_certified
+    assert_close_from_below(bounds.lower, min(extents))
+    assert bounds.upper >= min(extents) * (1 - 1e-9)
+
+
+@settings(derandomize=True, deadline=None, max_examples=30)
+@given(st.integers(0, 2**32 - 1), st.integers(5, 40), st.sampled_from(SCALES))
+def test_bounds_bracket_the_linear_programs_ball_in_a_convex_solid(seed, count, scale):
+    # A convex solid (the hull of random points, flattened along a random axis): the largest
+    # ball is the Chebyshev ball of its face half-spaces, scipy's LP.
+    rng = np.random.default_rng(seed)
+    points = rng.normal(size=(count, 3)) * [1.0, 1.0, rng.uniform(0.05, 1.0)]
+    rotation = Rotation.random(random_state=seed).as_matrix()
+    solid = trimesh.Trimesh(scale * points @ rotation.T).convex_hull
+    want = chebyshev_depth(solid)
+    bounds = depth_bounds(solid.vertices, solid.faces)
+    assert bounds.lower <= want * (1 + 1e-9)
+    assert bounds.upper >= want * (1 - 1e-9)
+    assert bounds.lower >= want * (1 - REL_GAP)  # found, not merely bracketed
 
 
 @pytest.mark.parametrize("scale", SCALES)

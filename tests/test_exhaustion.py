@@ -20,9 +20,7 @@ from meshes import box
 
 from meshcheck.errors import ExitStatus
 
-pytestmark = pytest.mark.skipif(
-    sys.platform != "linux", reason="reads /proc/self/status and sets POSIX resource limits"
-)
+pytestmark = pytest.mark.linux_only  # reads /proc/self/status, sets POSIX resource limits
 
 #: Run the command with a limit set after its imports: ``KIND`` is ``memory`` (``AMOUNT`` MiB of
 #: address space beyond what is mapped) or ``files`` (``AMOUNT`` descriptors beyond the lowest

@@ -10,13 +10,13 @@ from __future__ import annotations
 
 import json
 import os
-import resource
 import subprocess
 import sys
 import time
 
 import numpy as np
 import pytest
+import step_writer
 import test_hostile_inputs as hostile_inputs
 from meshes import box
 
@@ -30,6 +30,8 @@ MEMORY_CAP = 3 << 30
 
 def _cap_memory(limit: int = MEMORY_CAP):
     def apply():
+        import resource
+
         resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
 
     return apply
@@ -94,6 +96,7 @@ def one_error(lines, status, code, *needles) -> str:
 # Wrong PASS 1: a singular or non-finite placement is exit 3, naming the file and the node
 
 
+@pytest.mark.posix_only
 def test_3mf_item_scaled_to_zero_is_refused(tmp_path):
     # 0.2: the collapsed cube dropped out of the check, exit 0
     build = '<item objectid="1"/><item objectid="1" transform="0 0 0 0 0 0 0 0 0 0.5 0.2 0.1"/>'
@@ -102,6 +105,7 @@ def test_3mf_item_scaled_to_zero_is_refused(tmp_path):
     one_error(lines, status, ExitStatus.INPUT, f"{path}#cube", "singular")
 
 
+@pytest.mark.posix_only
 @pytest.mark.parametrize(
     "node",
     [
@@ -129,6 +133,7 @@ def test_singular_placement_is_refused_in_the_library(tmp_path):
     assert "singular" in info.value.reason
 
 
+@pytest.mark.posix_only
 def test_gltf_zero_quaternion_is_refused(tmp_path):
     # 0.2: trimesh read a zero rotation as no rotation, placing the part where nobody put it
     nodes = [{"mesh": 0, "name": "base"}, {"mesh": 0, "rotation": [0.0, 0.0, 0.0, 0.0]}]
@@ -152,6 +157,7 @@ def _clash(tmp_path, name: str, overlap: float) -> str:
     return write_gltf(folder / "asm.gltf", nodes)
 
 
+@pytest.mark.posix_only
 def test_moving_a_node_changes_the_finding_id_and_lapses_approval_and_baseline(tmp_path):
     # 0.2: a 0.01 m clash moved to 0.9 m kept its ID: approved by ID and "active" in the baseline
     small, big = _clash(tmp_path, "small", 0.01), _clash(tmp_path, "big", 0.9)
@@ -185,6 +191,7 @@ def test_moving_a_node_changes_the_finding_id_and_lapses_approval_and_baseline(t
 PLATE = os.path.join(os.path.dirname(__file__), "..", "sample_meshes", "plate.stl")
 
 
+@pytest.mark.posix_only
 @pytest.mark.parametrize(
     "address", ["foo://bar:1", "inproc://x", "ucx://10.0.0.5:8786", "tcp://[::1", "tcp://h:99999"]
 )
@@ -235,6 +242,7 @@ while True:
         self.process.wait(timeout=30)
 
 
+@pytest.mark.posix_only
 @pytest.mark.parametrize("mode", ["silent", "garbage", "huge"])
 def test_scheduler_that_never_answers_is_exit_3_within_seconds(mode):
     pytest.importorskip("distributed")
@@ -263,6 +271,7 @@ def _config_cases(folder):
     return {"fifo": fifo, "/dev/zero": "/dev/zero", "nested": deep, "sparse": sparse}
 
 
+@pytest.mark.posix_only
 @pytest.mark.parametrize("case", ["fifo", "/dev/zero", "nested", "sparse"])
 def test_config_that_is_a_fifo_a_device_deep_or_huge_is_one_line(tmp_path, case):
     # 0.2: a FIFO hung, /dev/zero ate 1.8 GB, 50,000-deep TOML was a RecursionError (exit 4),
@@ -275,6 +284,7 @@ def test_config_that_is_a_fifo_a_device_deep_or_huge_is_one_line(tmp_path, case)
     assert time.monotonic() - start < 60
 
 
+@pytest.mark.posix_only
 def test_foreign_pyproject_nested_deep_is_skipped_by_discovery(tmp_path):
     # 0.2: a deeply nested pyproject.toml found by discovery was a RecursionError (exit 4)
     (tmp_path / "pyproject.toml").write_text("x = " + "[" * 50_000 + "]" * 50_000 + "\n")
@@ -294,6 +304,7 @@ def _clash_stl(folder):
     return a, b
 
 
+@pytest.mark.posix_only
 @pytest.mark.parametrize(
     "case",
     ["baseline-path", "baseline-hardlink", "config", "config-found", "mesh-in-dir", "mesh-link"],
@@ -351,6 +362,7 @@ def slow_start(tmp_path):
     return {"PYTHONPATH": f"{folder}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
 
 
+@pytest.mark.linux_only
 def test_under_a_slow_start_progress_is_prefixed_and_the_error_is_last(tmp_path, slow_start):
     a, b = _clash_stl(tmp_path)
     status, _, lines = run([a, b, "--no-config", "-o", "/dev/full"], env=slow_start)
@@ -359,6 +371,7 @@ def test_under_a_slow_start_progress_is_prefixed_and_the_error_is_last(tmp_path,
     assert all(line.startswith(("meshcheck: ", "error: ")) for line in lines), lines
 
 
+@pytest.mark.linux_only
 def test_no_pass_line_follows_an_output_error(tmp_path):
     # 0.2: "error: out/full: cannot write the report" then "PASS: ...; report written to ..."
     a, b = box(), box(at=(3, 0, 0))
@@ -389,6 +402,7 @@ def _ascii_stl(path, mesh) -> str:
     return str(path)
 
 
+@pytest.mark.posix_only
 def test_part_buried_far_from_the_origin_in_ascii_stl_is_interference(tmp_path):
     # 0.2: a 0.01 mm part inside a 1000 mm part at 1e6 mm, both ASCII STL in float64: the float32
     # floor (~0.95 mm there) made the pair touching, exit 0
@@ -416,7 +430,6 @@ def test_each_reader_says_whether_its_coordinates_went_through_float32(tmp_path,
     elif name == "part.3mf":
         write_3mf(path, '<item objectid="1"/>')
     elif name == "part.step":  # OpenCASCADE meshes and places in double
-        step_writer = pytest.importorskip("step_writer")
         products = {"a": step_writer.box((0, 0, 0), (1, 1, 1))}
         step_writer.write_step(str(path), products, [("a", np.eye(4))])
     elif name.endswith(".ply"):
@@ -453,9 +466,9 @@ def _entries(cache):
     ]
 
 
+@pytest.mark.posix_only
 def test_cache_entries_that_are_fifos_are_misses(tmp_path):
     # 0.2: a FIFO in place of a decomposition, pair or tessellation entry hung every run
-    step_writer = pytest.importorskip("step_writer")
     files = list(_clash_stl(tmp_path))
     step = tmp_path / "pair.step"
     products = {
@@ -479,6 +492,7 @@ def test_cache_entries_that_are_fifos_are_misses(tmp_path):
     assert status == ExitStatus.FAILED, lines
 
 
+@pytest.mark.posix_only
 def test_cache_subfolder_symlinks_are_never_followed(tmp_path):
     # 0.2: decompositions-vN/XX -> elsewhere: entries were written outside the cache, and the
     # stale-file clean-up deleted .tmp-* files there
@@ -507,6 +521,7 @@ def test_cache_subfolder_symlinks_are_never_followed(tmp_path):
 # Candidate pairs are budgeted like triangles
 
 
+@pytest.mark.posix_only
 def test_2000_coincident_cubes_are_one_duplicate_finding(tmp_path):
     # 0.2: 2 million candidate pairs, 5,872 done after 60 s at 1.3 GB. Copies at one spot are
     # one duplicate finding (issue 28), decided before any pair is verified.
@@ -520,6 +535,7 @@ def test_2000_coincident_cubes_are_one_duplicate_finding(tmp_path):
     assert time.monotonic() - start < 120
 
 
+@pytest.mark.posix_only
 def test_overlapping_cubes_past_the_pair_budget_are_refused_with_the_count(tmp_path):
     # Not duplicates (each 0.0005 further along x, 30 times the tolerance), all overlapping the
     # unit cube:
@@ -535,9 +551,9 @@ def test_overlapping_cubes_past_the_pair_budget_are_refused_with_the_count(tmp_p
     assert time.monotonic() - start < 120
 
 
+@pytest.mark.posix_only
 def test_2000_coincident_step_instances_are_one_duplicate_not_a_memory_error(tmp_path):
     # 0.2: MemoryError in surfaces_near, exit 4
-    step_writer = pytest.importorskip("step_writer")
     path = tmp_path / "stack.step"
     products = {"cube": step_writer.box((0, 0, 0), (1, 1, 1))}
     step_writer.write_step(str(path), products, [("cube", np.eye(4))] * 2000)
@@ -555,6 +571,7 @@ def test_2000_coincident_step_instances_are_one_duplicate_not_a_memory_error(tmp
 SMALL_MEMORY = 1400 << 20
 
 
+@pytest.mark.posix_only
 def test_500_mb_obj_line_is_refused_as_it_is_read(tmp_path):
     # 0.2: exit 3 only after 15 s and 1.7 GB, reason "MemoryError"
     path = tmp_path / "line.obj"
@@ -567,6 +584,7 @@ def test_500_mb_obj_line_is_refused_as_it_is_read(tmp_path):
     assert time.monotonic() - start < 60
 
 
+@pytest.mark.posix_only
 def test_stl_declaring_more_triangles_than_allowed_is_refused_before_reading(tmp_path):
     # 0.2: a 500 MB STL declaring 10^7 triangles was refused only after 1.2 GB; here 1 GB, so
     # reading it cannot fit the address space
@@ -583,6 +601,7 @@ def test_stl_declaring_more_triangles_than_allowed_is_refused_before_reading(tmp
 # Names that would be runner commands or mentions
 
 
+@pytest.mark.posix_only
 @pytest.mark.parametrize("fmt", ["text", "github"])
 def test_runner_command_syntax_in_a_name_is_escaped(tmp_path, fmt):
     # 0.2: "##[error]FORGED" passed raw into the text and GitHub reports
@@ -596,6 +615,7 @@ def test_runner_command_syntax_in_a_name_is_escaped(tmp_path, fmt):
     assert not any("##[" in line for line in lines), lines
 
 
+@pytest.mark.posix_only
 def test_mention_in_a_name_is_escaped_in_markdown(tmp_path):
     # 0.2: "@user" in a part name pinged the user when the summary was posted on a PR
     a, b = tmp_path / "@octocat.stl", tmp_path / "b.stl"
@@ -611,13 +631,20 @@ def test_mention_in_a_name_is_escaped_in_markdown(tmp_path):
 # Workers
 
 
-def test_jobs_are_capped_by_cores_and_memory():
+def test_jobs_are_capped_by_cores():
     # 0.2: -j 10000 with 40 parts started 40 workers on 2 cores (2.6 GB)
-    from meshcheck.execute import WORKER_BYTES, default_jobs, executor_for
+    from meshcheck.execute import default_jobs, executor_for
 
     with executor_for(jobs=10_000) as executor:
-        assert executor.jobs <= default_jobs()
-        available = [ln for ln in open("/proc/meminfo") if ln.startswith("MemAvailable:")]
-        if available:
-            assert executor.jobs <= max(1, int(available[0].split()[1]) * 1024 // WORKER_BYTES)
+        assert 1 <= executor.jobs <= default_jobs()
         assert not executor.is_started  # nothing was started to find out
+
+
+@pytest.mark.linux_only
+def test_jobs_are_capped_by_available_memory():
+    from meshcheck.execute import WORKER_BYTES, executor_for
+
+    (available,) = [ln for ln in open("/proc/meminfo") if ln.startswith("MemAvailable:")]
+    with executor_for(jobs=10_000) as executor:
+        assert executor.jobs <= max(1, int(available.split()[1]) * 1024 // WORKER_BYTES)
+        assert not executor.is_started

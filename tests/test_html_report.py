@@ -291,13 +291,9 @@ def test_inlined_scripts_cannot_close_their_element():
 
 @pytest.fixture(scope="module")
 def browser_page():
-    if os.environ.get("CI"):  # CI installs both: a skip there would hide a broken report
-        import playwright  # noqa: F401
-    else:
-        pytest.importorskip("playwright")
-    from chromium import chromium_page, find_chromium
+    from chromium import chromium_page, find_chromium  # playwright: the dev extra
 
-    if find_chromium() is None:
+    if find_chromium() is None:  # a system package: optional but in CI, which installs it
         if os.environ.get("CI"):
             pytest.fail("chromium is not installed (.ci/run installs it)")
         pytest.skip("chromium is not installed (apt-get install chromium)")
@@ -312,6 +308,7 @@ def pixel_spread(png: bytes) -> float:
     return float(pixels.std(axis=(0, 1)).mean())
 
 
+@pytest.mark.browser
 @pytest.mark.slow
 def test_report_in_chromium(checked, browser_page, tmp_path):
     page, errors = browser_page
@@ -452,6 +449,7 @@ def solid_box(data, buffer, finding: dict) -> np.ndarray:
     return np.array([v.min(axis=0), v.max(axis=0)])
 
 
+@pytest.mark.browser
 @pytest.mark.slow
 def test_view_frames_the_worst_failing_clash_on_load(checked, browser_page, tmp_path):
     """On load, the camera fits the deepest failing interference's shared solid (not the whole
@@ -508,6 +506,7 @@ def test_view_frames_the_worst_failing_clash_on_load(checked, browser_page, tmp_
     assert errors == []
 
 
+@pytest.mark.browser
 @pytest.mark.slow
 def test_selecting_a_clearance_frames_its_witness(checked, browser_page, tmp_path):
     page, errors = browser_page
@@ -533,6 +532,7 @@ def test_selecting_a_clearance_frames_its_witness(checked, browser_page, tmp_pat
     assert errors == []
 
 
+@pytest.mark.browser
 @pytest.mark.slow
 def test_label_keeps_hostile_names_as_text(checked, browser_page, tmp_path):
     page, errors = browser_page
@@ -570,6 +570,7 @@ def grouped_assembly() -> list[Body]:
     ]
 
 
+@pytest.mark.browser
 @pytest.mark.slow
 def test_clash_groups_are_listed_and_framed(browser_page, tmp_path):
     page, errors = browser_page
@@ -621,6 +622,7 @@ def test_clash_groups_are_listed_and_framed(browser_page, tmp_path):
     assert errors == []
 
 
+@pytest.mark.browser
 @pytest.mark.slow
 def test_pattern_group_names_both_parts_of_each_copy(browser_page, tmp_path):
     """Two brackets each clipped by their peg the same way: one pattern group (no shared part);
@@ -686,6 +688,7 @@ print(json.dumps(seen))
 """
 
 
+@pytest.mark.browser
 @pytest.mark.slow
 def test_report_without_webgl_says_so_and_lists_the_findings(checked, browser_page, tmp_path):
     """Chromium with its 3D APIs off: a sentence where the view was, and the whole table."""
@@ -717,6 +720,7 @@ def test_report_without_webgl_says_so_and_lists_the_findings(checked, browser_pa
     assert seen["errors"] == []
 
 
+@pytest.mark.browser
 @pytest.mark.slow
 def test_report_without_findings_in_chromium(browser_page, tmp_path):
     page, errors = browser_page
@@ -734,6 +738,7 @@ def test_report_without_findings_in_chromium(browser_page, tmp_path):
     assert errors == []
 
 
+@pytest.mark.browser
 def test_a_mechanism_colliding_in_motion_is_listed_and_fails(browser_page, tmp_path):
     """--sweep of a door that hits its stop within its range: the page says FAIL with no
     finding at the pose, counts the pair as colliding in motion, and lists it open, failing

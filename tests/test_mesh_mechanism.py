@@ -251,6 +251,7 @@ def test_degrees_for_a_slide_and_a_pose_of_no_joint_are_usage_errors(tmp_path):
     assert result.exit_code == ExitStatus.USAGE and "no joint named 'elbow'" in result.stderr
 
 
+@pytest.mark.linux_only
 def test_too_many_joint_tables_are_refused_in_a_subprocess(tmp_path):
     """A configuration of MAX_JOINTS + 1 tables is refused before any pattern is matched."""
     box().export(tmp_path / "p.stl")

@@ -184,6 +184,7 @@ def test_runs_with_different_keys_keep_each_others_verdicts(tmp_path, counted, m
     assert len(counted) == 2 * verified
 
 
+@pytest.mark.posix_only
 def test_the_key_file_is_private_and_outside_the_cache(tmp_path):
     secret = pair_secret()
     state = os.environ["XDG_STATE_HOME"]

@@ -93,8 +93,6 @@ def _order(fmt: str, text: str) -> list[str]:
 
 @pytest.mark.parametrize("fmt", FORMATS)
 def test_every_format_lists_failing_findings_first_deepest_then_closest(fmt):
-    if fmt == "html":
-        pytest.importorskip("trimesh")
     text = render(make_result(), fmt)
     order = list(dict.fromkeys(_order(fmt, text)))
     assert order[: len(SEVERE_FIRST)] == SEVERE_FIRST
@@ -221,7 +219,6 @@ def test_one_bracket_clipping_many_bolts_is_one_group_in_every_human_and_json_fo
     ]
     md = render(result, "markdown")
     assert f"- `{group.id}` bracket\\.stl: 3 interference" in md
-    pytest.importorskip("trimesh")
     html = render(result, "html")
     data = re.search(
         r'<script type="application/json" id="meshcheck-data">(.*?)</script>', html, re.S

@@ -280,7 +280,6 @@ def test_surface_distance_agrees_with_fcl():
     (``surface_distance``) is FCL's distance between the posed meshes, at random poses of the
     PR2's forearm and upper arm (a pair whose convex pieces overlap at every pose), and a value
     above ``reach`` when they are farther apart than that."""
-    pytest.importorskip("fcl")
     import trimesh
 
     from meshcheck.sweep.distances import surface_distance
@@ -314,7 +313,6 @@ def test_descent_finds_a_collision_sampling_misses():
     joints (python-fcl's 10,000 samples in bench/sweep.py never hit it): descending the pieces'
     distance from the nearest of a few hundred box centres finds a pose where the real meshes
     collide, and FCL agrees there."""
-    pytest.importorskip("fcl")
     import trimesh
 
     from meshcheck.sweep.kinematics import joint_ranges
@@ -346,7 +344,6 @@ def test_descent_finds_a_collision_sampling_misses():
 def test_panda_wrist_sweep_agrees_with_fcl_sampling():
     """Sweep the panda's last two joints: no never pair collides at 300 fcl-sampled poses, and
     every sometimes pair's witness collides in fcl (or one link is buried in the other)."""
-    pytest.importorskip("fcl")
     settings = Settings(motion=Motion(sweep=("panda_joint6", "panda_joint7")))
     assembly = load_assembly([PANDA])
     bodies, (mech,) = assembly.bodies, assembly.mechanisms

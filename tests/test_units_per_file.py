@@ -103,6 +103,7 @@ def test_the_file_unit_wins_over_what_gltf_3mf_and_the_report_unit_say(tmp_path)
     np.testing.assert_allclose(given.world.extents, [1, 1, 1])
 
 
+@pytest.mark.posix_only
 def test_files_are_named_by_path_real_path_or_glob_and_the_last_rule_wins(tmp_path):
     (tmp_path / "cad").mkdir()
     a, b = tmp_path / "cad" / "a.glb", tmp_path / "cad" / "b.glb"
@@ -266,6 +267,7 @@ def capped(args, cwd) -> tuple[int, list[str]]:
     return proc.returncode, lines
 
 
+@pytest.mark.posix_only
 @pytest.mark.parametrize(
     ("units", "line"),
     [
@@ -283,6 +285,7 @@ def test_bad_file_units_are_one_line_and_exit_2(tmp_path, units, line):
     assert len(err) == 1 and err[0].startswith(line), err
 
 
+@pytest.mark.posix_only
 def test_a_urdf_robot_takes_no_unit(tmp_path):
     (tmp_path / "robot.urdf").write_text(
         '<robot name="r"><link name="base"><collision><geometry><box size="1 1 1"/>'
@@ -312,7 +315,6 @@ def test_bad_units_tables_are_config_errors(tmp_path):
 
 
 def test_a_step_file_given_another_unit_is_rescaled_and_left_out_of_the_brep_check():
-    pytest.importorskip("OCP")
     step = os.path.join(os.path.dirname(__file__), "..", "sample_meshes", "assembly.step")
     mm = check([step], use_cache=False, config=None)
     cm = check([step], units="mm", file_units={step: "cm"}, use_cache=False, config=None)

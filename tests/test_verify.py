@@ -381,7 +381,6 @@ def test_mesh_distance_matches_brute_force_and_is_symmetric(ka, kb, ra, rb, off)
 @settings(derandomize=True, deadline=None, max_examples=40)
 @given(st.integers(0, 2), st.integers(0, 2), angles, angles, offsets)
 def test_mesh_distance_matches_fcl(ka, kb, ra, rb, off):
-    pytest.importorskip("fcl")
     a, b = _placed(ka, ra, (0, 0, 0)), _placed(kb, rb, off)
     is_hit = fcl_collide(a, b)
     v = verify_pair(a, b, tolerance=TOL, clearance=10.0)
