@@ -289,18 +289,6 @@ def test_inlined_scripts_cannot_close_their_element():
 # in a real browser
 
 
-@pytest.fixture(scope="module")
-def browser_page():
-    from chromium import chromium_page, find_chromium  # playwright: the dev extra
-
-    if find_chromium() is None:  # a system package: optional but in CI, which installs it
-        if os.environ.get("CI"):
-            pytest.fail("chromium is not installed (.ci/run installs it)")
-        pytest.skip("chromium is not installed (apt-get install chromium)")
-    with chromium_page(width=1280, height=720, timeout=30) as (page, errors):
-        yield page, errors
-
-
 def pixel_spread(png: bytes) -> float:
     from PIL import Image
 

@@ -196,25 +196,9 @@ def test_the_html_report_data_keeps_whole_names_and_their_common_folder():
     assert all(f["a"].startswith(DEEP) for f in data["findings"])  # matching uses whole names
 
 
-@pytest.fixture(scope="module")
-def browser():
-    """Debian's chromium through Playwright, as tests/test_html_report.py's browser tests."""
-    if os.environ.get("CI"):  # CI installs both: a skip there would hide a broken report
-        import playwright  # noqa: F401
-    else:
-        pytest.importorskip("playwright")
-    from chromium import chromium_page, find_chromium
-
-    if find_chromium() is None:
-        if os.environ.get("CI"):
-            pytest.fail("chromium is not installed (.ci/run installs it)")
-        pytest.skip("chromium is not installed (apt-get install chromium)")
-    with chromium_page(width=1280, height=720, timeout=30) as (page, errors):
-        yield page, errors
-
-
-def test_html_names_below_their_folder_wrap_only_after_a_slash_in_a_browser(browser, tmp_path):
-    page, errors = browser
+@pytest.mark.browser
+def test_html_names_below_their_folder_wrap_only_after_a_slash_in_a_browser(browser_page, tmp_path):
+    page, errors = browser_page
     result = long_result(long_config=False, with_bracket=False)
     path = tmp_path / "report.html"
     path.write_text(render(result, "html"), encoding="utf-8")
