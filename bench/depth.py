@@ -1,9 +1,10 @@
-"""Interference depth before / after issue 19, same process: error against closed-form answers on
-thin overlaps, and time.
+"""Interference depth against a simpler estimate, same process: error against closed-form answers
+on thin overlaps, and time.
 
 Run from the repository root: python bench/depth.py
-"before" is the depth of the previous verify stage (inward-ray seeds, compass search, one
-successive-LP ascent), kept below verbatim so both run on the same shared solids.
+"simple" is an uncertified estimate (inward-ray seeds, compass search, one successive-LP ascent:
+what meshcheck 0.1 reported), kept below so both run on the same shared solids; "meshcheck" is
+``verify.depth.depth_bounds``.
 """
 
 from __future__ import annotations
@@ -26,8 +27,8 @@ from meshcheck.verify.depth import depth_bounds
 from meshcheck.verify.pair import outward_faces, shared_solid, verify_pair
 
 
-def before_depth(v, f):
-    """The depth meshcheck reported before (solid_depth at 8238314, now in verify/pair.py)."""
+def simple_depth(v, f):
+    """The simple estimate (``solid_depth`` of meshcheck 0.1, commit 8238314)."""
     extent = float((v.max(axis=0) - v.min(axis=0)).min())
     a, b, c = v[f[:, 0]] - v[0], v[f[:, 1]] - v[0], v[f[:, 2]] - v[0]
     volume = float(np.einsum("ij,ij->", a, np.cross(b, c))) / 6.0
@@ -89,20 +90,20 @@ def main():
     print("Thin overlaps with a closed-form depth (faceted geometry): relative error of the")
     print("reported depth (negative = too low), and the new upper bound's gap (500 boxes).")
     print(
-        f"{'case':32s} {'tri':>5s} {'before':>10s} {'after':>10s} {'gap':>9s} "
-        f"{'before ms':>9s} {'after ms':>8s}"
+        f"{'case':32s} {'tri':>5s} {'simple':>10s} {'meshcheck':>10s} {'gap':>9s} "
+        f"{'simple ms':>9s} {'mc ms':>8s}"
     )
     errors_before, errors_after, t_before, t_after, certified = [], [], [], [], 0
     rows = list(thin_cases())
     for label, (a, b, want) in rows:
         v, f = solid_of(a, b)
-        old = before_depth(v, f)
+        old = simple_depth(v, f)
         new = depth_bounds(v, f, max_boxes=500)
         certified += new.is_certified
         eb, ea = (old - want) / want, (new.lower - want) / want
         errors_before.append(eb)
         errors_after.append(ea)
-        tb = best_ms(lambda v=v, f=f: before_depth(v, f), 3)
+        tb = best_ms(lambda v=v, f=f: simple_depth(v, f), 3)
         ta = best_ms(lambda v=v, f=f, t=1e-5 * want: depth_bounds(v, f, decide_at=t), 3)
         t_before.append(tb)
         t_after.append(ta)
@@ -110,12 +111,12 @@ def main():
         print(f"{label:32s} {len(f):5d} {eb:10.2e} {ea:10.2e} {gap:9.1e} {tb:9.1f} {ta:8.1f}")
     eb, ea = np.abs(errors_before), np.abs(errors_after)
     print(
-        f"\n{len(rows)} cases. |error| worst / median: before {eb.max():.2e} / "
-        f"{np.median(eb):.2e}, after {ea.max():.2e} / {np.median(ea):.2e}"
+        f"\n{len(rows)} cases. |error| worst / median: simple {eb.max():.2e} / "
+        f"{np.median(eb):.2e}, meshcheck {ea.max():.2e} / {np.median(ea):.2e}"
     )
     print(f"upper bound within 1e-3 of the ball (certified): {certified} of {len(rows)}")
     print(
-        f"depth time, median over the cases: before {np.median(t_before):.1f} ms, after "
+        f"depth time, median over the cases: simple {np.median(t_before):.1f} ms, meshcheck "
         f"{np.median(t_after):.1f} ms (ratio {np.median(np.divide(t_after, t_before)):.2f})"
     )
 
@@ -130,21 +131,21 @@ def main():
     bodies = load_bodies([f"sample_meshes/{n}" for n in ("plate.stl", "bolt_m8_oversized.stl")])
     pairs.append(("sample: plate x bolt_m8_oversized", bodies[0].world, bodies[1].world))
     print(
-        f"{'pair':36s} {'before':>9s} {'after':>9s} {'depth ms before':>15s} "
-        f"{'after':>6s} {'verify_pair ms':>14s}"
+        f"{'pair':36s} {'simple':>9s} {'meshcheck':>9s} {'depth ms simple':>15s} "
+        f"{'meshcheck':>6s} {'verify_pair ms':>14s}"
     )
     for label, a, b in pairs:
         v, f = solid_of(a, b)
         tol = 1e-3
-        old, new = before_depth(v, f), depth_bounds(v, f, decide_at=tol)
-        tb = best_ms(lambda v=v, f=f: before_depth(v, f))
+        old, new = simple_depth(v, f), depth_bounds(v, f, decide_at=tol)
+        tb = best_ms(lambda v=v, f=f: simple_depth(v, f))
         ta = best_ms(lambda v=v, f=f, t=tol: depth_bounds(v, f, decide_at=t))
         tv = best_ms(lambda a=a, b=b, t=tol: verify_pair(a, b, tolerance=t, clearance=None))
         print(f"{label:36s} {old:9.6f} {new.lower:9.6f} {tb:15.1f} {ta:6.1f} {tv:14.1f}")
-    print("(verify_pair before = verify_pair after - depth after + depth before)")
+    print("(verify_pair with the simple estimate = verify_pair - depth + simple depth)")
 
-    print("\nSlivers 0.3 tolerance thick (tolerance 1e-3): touching, now on proof; time of the")
-    print("depth step (before: the ball found was under the tolerance, which proved nothing)")
+    print("\nSlivers 0.3 tolerance thick (tolerance 1e-3): touching, decided on proof; time of the")
+    print("depth step (simple: a ball found under the tolerance, which proves nothing)")
     slivers = [
         ("flat: tilted boxes", tilted_slab_pair(1.0, 3e-4)),
         ("curved: pin in hole, 32 facets", annulus(1.0, 3e-4, 32)),
@@ -152,17 +153,18 @@ def main():
         ("curved: crescent, 32 facets", crescent(1.0, 3e-4, 32)),
     ]
     print(
-        f"{'sliver':36s} {'before':>8s} {'after':>8s} {'upper':>9s} {'ms before':>9s} {'after':>7s}"
+        f"{'sliver':36s} {'simple':>8s} {'meshcheck':>9s} {'upper':>9s} {'ms simple':>9s} "
+        f"{'mc ms':>7s}"
     )
     for label, (a, b, _) in slivers:
         v, f = solid_of(a, b)
         tol = 1e-3
-        old, new = before_depth(v, f), depth_bounds(v, f, decide_at=tol)
-        tb = best_ms(lambda v=v, f=f: before_depth(v, f), 1)
+        old, new = simple_depth(v, f), depth_bounds(v, f, decide_at=tol)
+        tb = best_ms(lambda v=v, f=f: simple_depth(v, f), 1)
         ta = best_ms(lambda v=v, f=f, t=tol: depth_bounds(v, f, decide_at=t), 1)
         verdict = "touch" if new.upper <= tol else "interf"
-        before = "touch" if old <= tol else "interf"
-        print(f"{label:36s} {before:>8s} {verdict:>8s} {new.upper:9.2e} {tb:9.1f} {ta:7.1f}")
+        simple = "touch" if old <= tol else "interf"
+        print(f"{label:36s} {simple:>8s} {verdict:>9s} {new.upper:9.2e} {tb:9.1f} {ta:7.1f}")
 
 
 if __name__ == "__main__":

@@ -1,4 +1,4 @@
-"""Hostile inputs (issue 18): exit status, stderr lines, wall time and peak RSS of each case.
+"""Hostile inputs: exit status, stderr lines, wall time and peak RSS of each case.
 
 Runs ``python -m meshcheck CASE --no-cache`` in a fresh process per case (the cases of
 ``tests/test_hostile_inputs.py``, ``CASES``) and prints one row each. The peer is a run on a plain

@@ -16,7 +16,7 @@ part. In one run the script times whole processes:
 - ``FCL``: trimesh's CollisionManager loading the same files and running
   ``in_collision_internal`` (bench/assemblies.py's peer).
 
-It prints wall times, the ratio of the unchanged re-run to FCL (issue 12's target: at most 0.3 at
+It prints wall times, the ratio of the unchanged re-run to FCL (the target: at most 0.3 at
 10,000 parts) and the extra time of the one-moved run over the unchanged one (target: at most
 2 s at 2,000 parts), and checks that the reports of the unchanged and cold runs are identical.
 """

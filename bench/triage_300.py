@@ -1,4 +1,4 @@
-"""The 300-part sample of issue 28: 50 copies of ``sample_meshes`` in a grid, checked once.
+"""A 300-part sample: 50 copies of ``sample_meshes`` in a grid, checked once.
 
 Run from the repository root::
 
@@ -7,7 +7,7 @@ Run from the repository root::
 
 Each copy goes to its own nested folder (``assembly/row_R/station_C/*.stl``), so the part names
 differ only in the middle, where a plain middle cut would make them equal. It prints the first
-rows of the text report as an 80-column terminal shows them, and checks what issue 28 asks:
+rows of the text report as an 80-column terminal shows them, and checks what triage needs:
 every interference is listed before any touching row, every line fits the width, no two
 different part names were cut to the same text, and the copies' interferences (each oversized
 bolt in its own plate: copies of two parts at one relative placement) are one pattern group.

@@ -1,11 +1,12 @@
-"""STAND-IN until meshcheck reads URDF (issue 29): a URDF's collision meshes at zero joints -> GLB.
+"""A URDF's collision meshes at zero joints -> GLB, for a peer that reads no URDF.
 
-Used only by ``bench/real_assemblies.py prepare`` to turn moveit_resources' PR2 into one file both
-meshcheck and trimesh's CollisionManager read. Every ``<collision>`` with a ``<mesh>`` becomes a
-glTF node named after its link (``LINK`` or ``LINK.K`` for a link's K-th mesh), placed by the
-joint origins from the root down with every joint at 0; one glTF mesh per file, so a mesh used by
-several links is one geometry placed several times. Primitive collision shapes (box, cylinder,
-sphere) are left out: the benchmark is about meshes. Delete this file when ``load/urdf.py`` lands.
+Used only by ``bench/real_assemblies.py prepare`` to turn moveit_resources' PR2 into one file
+both meshcheck and trimesh's CollisionManager read (CollisionManager reads no URDF). Every
+``<collision>`` with a ``<mesh>`` becomes a glTF node named after its link (``LINK`` or
+``LINK.K`` for a link's K-th mesh), placed by the joint origins from the root down with every
+joint at 0; one glTF mesh per file, so a mesh used by several links is one geometry placed
+several times. Primitive collision shapes (box, cylinder, sphere) are left out: the benchmark is
+about meshes.
 """
 
 from __future__ import annotations

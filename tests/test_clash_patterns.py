@@ -1,4 +1,4 @@
-"""Pattern clash groups (issue 28): findings between copies of the same two geometries at the
+"""Pattern clash groups: findings between copies of the same two geometries at the
 same relative placement are one group (IfcClash smart groups, Navisworks grouping), with a stable
 ID, in text, JSON and Markdown."""
 

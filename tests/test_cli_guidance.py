@@ -1,4 +1,4 @@
-"""Issue 28: a run with one part says it compared nothing (and suggests --split when the file
+"""a run with one part says it compared nothing (and suggests --split when the file
 holds several shells); --help lists every format, STEP among the inputs, and two examples."""
 
 from __future__ import annotations

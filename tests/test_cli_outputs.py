@@ -204,7 +204,7 @@ def test_stdout_to_a_full_device_is_one_line_and_exit_5(clash):
         )
     assert proc.returncode == ExitStatus.OUTPUT, proc.stderr
     # The contract: progress lines (a slow start on a busy machine) carry the "meshcheck: "
-    # prefix, and the error is stderr's last line (tests/test_hostile_round3.py, slow start)
+    # prefix, and the error is stderr's last line (tests/test_hostile_inputs_more.py, slow start)
     *progress, last = proc.stderr.splitlines()
     assert last == "error: <stdout>: cannot write the report (No space left on device)"
     assert all(line.startswith("meshcheck: ") for line in progress), progress

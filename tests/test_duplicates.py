@@ -1,4 +1,4 @@
-"""Issue 28: a part placed twice at the same spot is one ``duplicate`` finding per set of copies,
+"""a part placed twice at the same spot is one ``duplicate`` finding per set of copies,
 decided before verification, failing the run by default, in every format."""
 
 from __future__ import annotations

@@ -42,8 +42,8 @@ EXPECTED = "touching sample_meshes/bracket.stl sample_meshes/plate.stl 0.0\npass
 @pytest.mark.slow
 @pytest.mark.parametrize("how", ["script", "-c", "stdin"])
 def test_readme_api_example_runs_without_main_guard(tmp_path, how):
-    # Trap 4 of issue 9: with multiprocessing's spawn, workers re-imported the unguarded script,
-    # which called check() again in every worker: hundreds of tracebacks, no end.
+    # With multiprocessing's spawn, workers would re-import the unguarded script,
+    # which would call check() again in every worker: hundreds of tracebacks, no end.
     code = readme_api_example()
     assert "__main__" not in code
     script = tmp_path / "example.py"

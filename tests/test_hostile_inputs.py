@@ -1,4 +1,4 @@
-"""Hostile inputs (issue 18): every one refused before it costs time or memory, in one line.
+"""Hostile inputs: every one refused before it costs time or memory, in one line.
 
 Each case is a file an attacker (or a broken exporter) could hand to a CI job. The loader must
 refuse it with one ``InputError`` naming the file and the real reason, within a bounded time and

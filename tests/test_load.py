@@ -407,7 +407,7 @@ def test_split_finds_every_disjoint_shell_in_file_order(order, gaps):
 
 
 # ------------------------------------------------------------------------------------------
-# Names: a function of the files alone, the same in every process (issue 19.1)
+# Names: a function of the files alone, the same in every process
 
 
 def _two_primitive_gltf(path) -> str:
@@ -488,7 +488,7 @@ def test_relative_names_are_relative_to_the_argument(tmp_path):
 
 
 # ------------------------------------------------------------------------------------------
-# Closedness on the mesh as given (issue 19.2)
+# Closedness on the mesh as given
 
 
 def _t_vertex_box(extents) -> trimesh.Trimesh:
@@ -533,7 +533,7 @@ def test_t_vertex_mesh_gives_the_clean_meshs_verdict_depth_and_volume(tmp_path, 
 
 
 # ------------------------------------------------------------------------------------------
-# Units (issue 9.5)
+# Units
 
 
 def test_gltf_metres_are_converted_to_the_mm_of_an_stl_beside_it(tmp_path):
@@ -599,7 +599,7 @@ def _3mf_mesh(mesh) -> str:
 
 
 # ------------------------------------------------------------------------------------------
-# Several shells in one file (issue 9.6)
+# Several shells in one file
 
 
 def test_overlapping_closed_shells_warn_and_suggest_split(tmp_path):

@@ -1,4 +1,4 @@
-"""Mechanisms from mesh files (issue 29): ``[[joint]]`` tables turn STL parts into a mechanism
+"""Mechanisms from mesh files: ``[[joint]]`` tables turn STL parts into a mechanism
 posed and swept as a URDF robot is; a door on a hinge with a stop against the closed form, a
 slide into a block, and every mistake in the tables one line with exit 2.
 """

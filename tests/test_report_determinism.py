@@ -1,4 +1,4 @@
-"""A report is a function of the inputs and options only (issue 24): cold or warm, -j 1 or -j 2,
+"""A report is a function of the inputs and options only: cold or warm, -j 1 or -j 2,
 CoACD finished or cut short, the JSON is the same bytes.
 
 The decompositions here really time out: ``MESHCHECK_COACD_BUDGET`` (a hook for tests and

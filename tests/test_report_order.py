@@ -1,4 +1,4 @@
-"""Issue 28: failing findings first in every format, --quiet, touching rows left out, a text
+"""failing findings first in every format, --quiet, touching rows left out, a text
 table that fits the terminal and never cuts two names to the same text."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The sweep (issue 29): never proven, sometimes with a witness, against closed forms, python-fcl
+"""The sweep: never proven, sometimes with a witness, against closed forms, python-fcl
 and random sampling; the motion bound the proof rests on; the SRDF it writes.
 """
 

@@ -1,4 +1,4 @@
-"""A file's own unit (issue 28): ``--units FILE=UNIT`` and the configuration's ``[units]`` table
+"""A file's own unit: ``--units FILE=UNIT`` and the configuration's ``[units]`` table
 win over what a file declares, and implausible sizes warn with the fix."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""URDF robots (issue 29): kinematics with known answers, poses, adjacent links, package://
+"""URDF robots: kinematics with known answers, poses, adjacent links, package://
 resolution, bad files refused in one line, and the moveit_resources robots against python-fcl.
 """
 

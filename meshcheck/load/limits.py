@@ -60,7 +60,7 @@ class Budget:
             before = f" after {self.triangles} in earlier files" if self.triangles else ""
             raise InputError(
                 path,
-                f"{_n(count)} {what}{before} exceed the limit of {_n(limit)} triangles per run "
+                f"{num(count)} {what}{before} exceed the limit of {num(limit)} triangles per run "
                 "(raise it with --max-triangles)",
             )
 
@@ -68,7 +68,10 @@ class Budget:
         """Refuse ``count`` more parts when they would exceed the run's limit."""
         limit = self.limits.max_parts
         if count > limit - self.parts:
-            raise InputError(path, f"{_n(count)} {what} exceed the limit of {_n(limit)} per run")
+            raise InputError(
+                path,
+                f"{num(count)} {what} exceed the limit of {num(limit)} per run",
+            )
 
     def take(self, path: str, triangles: int, parts: int) -> None:
         """Count what a file added, refusing it when it exceeds a limit."""
@@ -95,13 +98,18 @@ def check_candidate_pairs(count: int, parts: int) -> None:
     if count > MAX_CANDIDATE_PAIRS:
         raise InputError(
             None,
-            f"{_n(count)} candidate part pairs (bounding boxes that meet) among {_n(parts)} parts "
-            f"exceed the limit of {_n(MAX_CANDIDATE_PAIRS)} per run: many copies of a part at "
-            "one place? (check fewer parts at once, or split the assembly with [groups])",
+            f"{num(count)} candidate part pairs (bounding boxes that meet) among {num(parts)} "
+            f"parts exceed the limit of {num(MAX_CANDIDATE_PAIRS)} per run: many copies of a part "
+            "at one place? (check fewer parts at once, or split the assembly with [groups])",
         )
 
 
-def _n(count: int) -> str:
+def num(count: int) -> str:
+    """A count as messages print it: ``1_000_000`` from 100,000 on, so big ones read at a glance.
+
+    >>> num(12), num(2_500_000)
+    ('12', '2_500_000')
+    """
     return f"{count:,}".replace(",", "_") if count >= 100_000 else str(count)
 
 
@@ -149,7 +157,8 @@ def read_file(
             raise InputError(path, "empty file")
         if size > limits.max_file_bytes:
             raise InputError(
-                path, f"file has {_n(size)} bytes, over the limit of {_n(limits.max_file_bytes)}"
+                path,
+                f"file has {num(size)} bytes, over the limit of {num(limits.max_file_bytes)}",
             )
         if check is not None:
             check(os.pread(fd, HEAD_BYTES, 0), size)
@@ -184,7 +193,8 @@ def _longest_line(path: str, chunk: bytes, run: int, limit: int) -> int:
         run = len(chunk) - 1 - int(newlines[-1])
     if max(longest, run) > limit:
         raise InputError(
-            path, f"has a line over {_n(limit)} bytes long: not a mesh file meshcheck reads"
+            path,
+            f"has a line over {num(limit)} bytes long: not a mesh file meshcheck reads",
         )
     return run
 

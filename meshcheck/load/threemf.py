@@ -18,7 +18,7 @@ import trimesh
 
 from ..errors import InputError
 from ..units import unit_name
-from .limits import Budget, _n
+from .limits import Budget, num
 from .scene import one_line
 
 Item = tuple[str, trimesh.Trimesh, np.ndarray]
@@ -40,7 +40,7 @@ class _Capped:
         if self.total > self.cap:
             raise InputError(
                 self.path,
-                f"3MF entry {self.what} holds more than the limit of {_n(self.cap)} bytes",
+                f"3MF entry {self.what} holds more than the limit of {num(self.cap)} bytes",
             )
         return chunk
 
@@ -61,15 +61,15 @@ def read_3mf(path: str, data: bytes, budget: Budget) -> tuple[list[Item], str]:
             if info.file_size > limits.max_file_bytes:
                 raise InputError(
                     path,
-                    f"3MF entry {model_name} declares {_n(info.file_size)} bytes uncompressed, "
-                    f"over the limit of {_n(limits.max_file_bytes)}",
+                    f"3MF entry {model_name} declares {num(info.file_size)} bytes uncompressed, "
+                    f"over the limit of {num(limits.max_file_bytes)}",
                 )
             ratio = info.file_size / max(info.compress_size, 1)
             if info.file_size > _SMALL_ENTRY and ratio > BOMB_RATIO:
                 raise InputError(
                     path,
-                    f"3MF entry {model_name} declares {_n(info.file_size)} bytes compressed into "
-                    f"{_n(info.compress_size)} ({ratio:.0f}:1), the ratio of a zip bomb",
+                    f"3MF entry {model_name} declares {num(info.file_size)} bytes compressed into "
+                    f"{num(info.compress_size)} ({ratio:.0f}:1), the ratio of a zip bomb",
                 )
             with z.open(info) as raw:
                 stream = _Capped(raw, limits.max_file_bytes, path, model_name)
@@ -226,7 +226,7 @@ def _model_name(path: str, z: zipfile.ZipFile, cap: int) -> str:
     except KeyError:
         return "3D/3dmodel.model"
     if info.file_size > cap:
-        raise InputError(path, f"3MF entry _rels/.rels declares {_n(info.file_size)} bytes")
+        raise InputError(path, f"3MF entry _rels/.rels declares {num(info.file_size)} bytes")
     with z.open(info) as raw:
         text = _Capped(raw, cap, path, "_rels/.rels").read(cap + 1)
     try:

@@ -165,12 +165,12 @@ def _is_step(body: Body) -> bool:
 
 
 def _own_tolerance(a: Body, b: Body, settings: Settings) -> float:
-    """The pair's tolerance without the tessellation's share: the user's, or the default rule."""
-    if settings.tolerance is not None:
-        return float(settings.tolerance)
+    """The pair's tolerance without the tessellation's share (``tolerances.pair_tolerances``
+    without the deflections): the user's, or the default rule."""
     bounds = np.array([_world_bounds(a), _world_bounds(b)])
-    diagonal, magnitude = part_sizes(bounds[:, 0], bounds[:, 1])
-    return float(pair_tolerances(diagonal, magnitude, np.array([[0, 1]]))[0])
+    diagonal, magnitude = part_sizes(bounds[:, 0], bounds[:, 1], [a.is_float32, b.is_float32])
+    pair = np.array([[0, 1]])
+    return float(pair_tolerances(diagonal, magnitude, pair, tolerance=settings.tolerance)[0])
 
 
 def _world_bounds(body: Body) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""Hostile inputs, round three (issue 26): no wrong PASS, no hang, no crash that reads as a bug.
+"""Hostile inputs: no wrong PASS, no hang, no crash that reads as a bug.
 
 Every case that runs the command runs it in a subprocess with a wall-time cap (``timeout``) and
 an address-space cap (``RLIMIT_AS``), and checks the exit status and that stderr's last line is
@@ -524,7 +524,7 @@ def test_cache_subfolder_symlinks_are_never_followed(tmp_path):
 @pytest.mark.posix_only
 def test_2000_coincident_cubes_are_one_duplicate_finding(tmp_path):
     # 0.2: 2 million candidate pairs, 5,872 done after 60 s at 1.3 GB. Copies at one spot are
-    # one duplicate finding (issue 28), decided before any pair is verified.
+    # one duplicate finding, decided before any pair is verified.
     items = '<item objectid="1"/>' * 2000
     path = write_3mf(tmp_path / "stack.3mf", items)
     start = time.monotonic()
