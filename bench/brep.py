@@ -106,7 +106,7 @@ def verdict(findings) -> str:
 def timed_check(bodies, *, confirm: bool):
     """(findings, seconds in verify, seconds in the B-rep stage) of one check."""
     spent = {"verify": 0.0, "brep": 0.0}
-    verify, confirm_stage = pipeline.verify_pairs, brep.confirm_on_brep
+    verify, confirm_stage = pipeline.verify_classes, brep.confirm_on_brep
 
     def timed_verify(*args, **kwargs):
         t = time.perf_counter()
@@ -122,11 +122,11 @@ def timed_check(bodies, *, confirm: bool):
         spent["brep"] += time.perf_counter() - t
         return out
 
-    pipeline.verify_pairs, pipeline.confirm_on_brep = timed_verify, timed_confirm
+    pipeline.verify_classes, pipeline.confirm_on_brep = timed_verify, timed_confirm
     try:
         findings = pipeline.check_bodies(bodies, jobs=1).findings
     finally:
-        pipeline.verify_pairs, pipeline.confirm_on_brep = verify, confirm_stage
+        pipeline.verify_classes, pipeline.confirm_on_brep = verify, confirm_stage
     return findings, spent["verify"], spent["brep"]
 
 

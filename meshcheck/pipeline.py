@@ -4,14 +4,19 @@ Each stage narrows the part pairs the next one looks at:
 
 1. ``candidate_pairs`` on the parts' boxes, grown by the reach (clearance + tolerance), then the
    groups rule;
-2. ``near_pairs``: GJK on whole-part convex hulls. A part's mesh lies inside its hull, so pairs
-   whose hulls stay beyond the reach are clear, and parts that meet nobody are never decomposed;
-3. ``decompose_parts`` then ``surfaces_near``: GJK on the convex pieces of the remaining parts.
-   The pieces cover every triangle of their part, so pairs whose pieces stay beyond the reach have
-   surfaces beyond the reach: they are clear unless one part is buried inside the other, which the
-   verify stage decides with one point per shell;
-4. ``verify_pairs`` decides the rest on the real meshes;
-5. ``approve`` marks approved findings, in one place.
+2. ``near_pairs``: GJK on whole-part convex hulls (one hull per distinct geometry, placed at
+   each part). A part's mesh lies inside its hull, so pairs whose hulls stay beyond the reach are
+   clear, and parts that meet nobody are never decomposed;
+3. ``pair_classes``: the remaining pairs grouped into classes, one per pair of geometries at one
+   placement in the pair's own frame (``verify.classes``); from here on the work is per class;
+4. ``decompose_parts`` then ``surfaces_near``: GJK on the convex pieces of each class's two
+   geometries, placed in the class's frame. The pieces cover every triangle of their part, so
+   classes whose pieces stay beyond the reach have surfaces beyond the reach: they are clear
+   unless one part is buried inside the other, which the verify stage decides with one point
+   per shell;
+5. ``verify_classes`` decides each class on the real meshes, once, and moves its verdict to
+   each of its pairs;
+6. ``approve`` marks approved findings, in one place.
 
 Every pair is decided with its own tolerance (``tolerances.pair_tolerances``) unless the user
 gave one.
@@ -29,10 +34,10 @@ import numpy as np
 
 from .cache import Caches, DecompositionCache, open_caches
 from .config import Approval, approval_reason
-from .decompose import coacd_budgets, decompose_bodies
+from .decompose import coacd_budgets, decompose_shapes
 from .errors import MeshcheckWarning
 from .execute import Executor, executor_for
-from .geometry import ConvexPack, Status, pack_convex, query_pairs
+from .geometry import ConvexPack, Status, pack_convex, place_packs, query_pairs
 from .geometry.broadphase import candidate_pairs, group_pairs
 from .load import Body, Limits, load_assembly, local_geometries
 from .load.limits import check_candidate_pairs
@@ -44,8 +49,9 @@ from .settings import Settings
 from .sweep import mechanism_pieces, sweep_bodies, with_adjacent_approvals
 from .tolerances import largest_pair_tolerance, pair_tolerances, part_sizes
 from .units import DEFAULT_UNIT
-from .verify import verify_pairs
+from .verify import verify_classes
 from .verify.brep import confirm_on_brep
+from .verify.classes import PairClasses, pair_classes
 from .verify.duplicates import duplicate_findings, duplicate_sets, without_duplicate_pairs
 from .verify.patterns import with_patterns
 from .verify.shells import warn_nothing_to_compare, warn_overlapping_shells
@@ -164,7 +170,7 @@ def check_bodies(
 
     geometry = local_geometries(bodies)
     with Progress("comparing hulls", 0):
-        hulls = pack_convex(_world_hulls(bodies, geometry), is_hull=True)
+        hulls = _world_hulls(bodies, geometry)
         diagonal, magnitude = part_sizes(hulls.lower, hulls.upper, [b.is_float32 for b in bodies])
         deflection = np.array([b.deflection for b in bodies], dtype=np.float64)
         pairs = select_pairs(hulls, settings, names, diagonal, magnitude, deflection)
@@ -179,7 +185,10 @@ def check_bodies(
         reach = tolerance + (settings.clearance or 0.0)
         hull_query = query_pairs(hulls, pairs, tolerance=tolerance, depth=False, max_distance=reach)
         near = may_come_within(hull_query, reach)
-    pairs_near, tol_near, reach_near = pairs[near], tolerance[near], reach[near]
+    pairs_near, tol_near = pairs[near], tolerance[near]
+    # The pairs that remain, grouped into classes (one geometry pair at one placement in the
+    # pair's frame): from here on the work is per class, each decided once in its frame.
+    classes = pair_classes(bodies, pairs_near, tol_near, None, geometry=geometry)
     with (
         contextlib.nullcontext(executor)
         if executor is not None
@@ -188,27 +197,28 @@ def check_bodies(
         swept = mechanism_pieces(
             bodies, mechanisms, settings, executor=executor, cache=caches.decompositions
         )
-        pieces, owner, piece_count = decompose_parts(
+        packs, piece_count = decompose_parts(
             bodies,
-            pairs_near,
+            classes,
             settings,
             executor=executor,
             geometry=geometry,
             cache=caches.decompositions,
             known=swept,
         )
-        near_surfaces = surfaces_near(pieces, owner, pairs_near, tol_near, reach_near)
-        findings = verify_pairs(
+        classes = dataclasses.replace(
+            classes, surfaces_apart=~surfaces_near(packs, classes, settings.clearance)
+        )
+        findings = verify_classes(
             bodies,
-            pairs_near,
-            tol_near,
-            near_surfaces,
+            classes,
             settings,
             executor=executor,
             cache=caches.verdicts,
             hulls_penetrate=hull_query.status[near] == Status.PENETRATING,
         )
-        findings = confirm_on_brep(bodies, findings, settings, cache=caches.verdicts)
+        if any(b.deflection > 0 for b in bodies):  # parts read from CAD (STEP)
+            findings = confirm_on_brep(bodies, findings, settings, cache=caches.verdicts)
         sweeps = sweep_bodies(bodies, mechanisms, settings, pieces=swept)
     findings = sorted(
         [*duplicate_findings(bodies, copies, geometry), *findings], key=lambda f: (f.a, f.b)
@@ -222,9 +232,12 @@ def check_bodies(
 
 def _result(bodies, findings, settings, pairs, piece_count, sweeps) -> CheckResult:
     """The run's ``CheckResult``: findings, parts, the candidate pairs, the bodies, the sweeps."""
+    shape: dict[int, tuple[int, bool]] = {}  # triangles and closedness, once per mesh
+    for b in bodies:
+        if id(b.mesh) not in shape:
+            shape[id(b.mesh)] = (len(b.mesh.faces), b.is_closed)
     parts = [
-        Part(b.name, b.path, len(b.mesh.faces), b.is_closed, int(piece_count[k]))
-        for k, b in enumerate(bodies)
+        Part(b.name, b.path, *shape[id(b.mesh)], int(piece_count[k])) for k, b in enumerate(bodies)
     ]
     return CheckResult(
         findings=findings,
@@ -277,45 +290,55 @@ BUDGET_VARIABLE = "MESHCHECK_COACD_BUDGET"
 
 def decompose_parts(
     bodies: Sequence[Body],
-    pairs: np.ndarray,
+    classes: PairClasses,
     settings: Settings,
     *,
     executor: Executor | None = None,
     geometry: dict | None = None,
     cache: DecompositionCache | None = None,
     known: dict[int, list[np.ndarray]] | None = None,
-) -> tuple[ConvexPack, np.ndarray, np.ndarray]:
-    """Convex pieces of the parts of the hull-near ``pairs`` (``(k, 2)``, indices into
-    ``bodies``): CoACD's where the cost model says they pay (``decompose.coacd_budgets``), the
-    hull elsewhere. CoACD runs on ``executor`` (default: ``settings.jobs`` local processes);
-    pieces are kept in ``cache``, the run's decompositions (``decompose.decompose_bodies``).
-    Parts in ``known`` (body index -> world pieces: the sweep's, ``sweep.mechanism_pieces``)
-    keep those.
+) -> tuple[list[ConvexPack], np.ndarray]:
+    """Convex pieces of each geometry of the pair ``classes`` (``verify.classes``): CoACD's
+    where the cost model says they pay (``decompose.coacd_budgets``, counting the verify work of
+    one pair per class), the hull elsewhere. CoACD runs on ``executor`` (default:
+    ``settings.jobs`` local processes); pieces are kept in ``cache``, the run's decompositions
+    (``decompose.decompose_shapes``). A geometry of a part in ``known`` (body index -> world
+    pieces: the sweep's, ``sweep.mechanism_pieces``) keeps those.
 
     Returns
     -------
-    pieces : ConvexPack
-        The pieces of all needed parts, world coordinates, grouped by part.
-    owner : (p,) int64
-        The part index of each piece.
+    packs : list of ConvexPack
+        The pieces of each of ``classes.shapes``, in the geometry's own frame (its local
+        vertices'), packed once (an empty pack for a geometry no class needs).
     count : (n,) int64
-        Pieces per part; 0 for parts not needed.
+        Pieces of each part's geometry; 0 for parts in no class.
     """
-    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
-    needed = np.unique(pairs)
+    geometry = local_geometries(bodies) if geometry is None else geometry
+    reps = classes.pairs[classes.first]
+    needed = np.unique(reps)
     chosen = [bodies[i] for i in needed]
-    geometry = local_geometries(chosen) if geometry is None else geometry
     rank = np.full(len(bodies), -1, dtype=np.int64)
     rank[needed] = np.arange(len(needed))
     forced = os.environ.get(BUDGET_VARIABLE)
     budgets = coacd_budgets(
-        chosen, rank[pairs], geometry=geometry, forced=float(forced) if forced else None
+        chosen, rank[reps], geometry=geometry, forced=float(forced) if forced else None
     )
     known = known or {}
-    fresh = [bodies[i] for i in needed if i not in known]
-    with Progress("decomposing", len({geometry[id(b.mesh)].digest for b in fresh})) as bar:
-        fresh_lists = decompose_bodies(
-            fresh,
+    shape_of = {g.digest: s for s, g in enumerate(classes.shapes)}
+    local_known: dict[int, list[np.ndarray]] = {}
+    for i in sorted(known):  # the sweep's pieces, back in their geometry's frame
+        g = geometry[id(bodies[i].mesh)]
+        s = shape_of.get(g.digest)
+        if s is not None and s not in local_known:
+            local_known[s] = _local_pieces(known[i], bodies[i].transform, g.corner)
+    fresh: dict[int, Body] = {}  # one body per geometry to decompose
+    for i in needed:
+        s = shape_of[geometry[id(bodies[i].mesh)].digest]
+        if s not in local_known:
+            fresh.setdefault(s, bodies[i])
+    with Progress("decomposing", len(fresh)) as bar:
+        pieces_of, _ = decompose_shapes(
+            list(fresh.values()),
             threshold=settings.threshold,
             cache=cache,
             jobs=settings.jobs,
@@ -324,45 +347,57 @@ def decompose_parts(
             executor=executor,
             geometry=geometry,
         )
-    fresh_pieces = iter(fresh_lists)
-    piece_lists = [known[i] if i in known else next(fresh_pieces) for i in needed]
-    count = np.zeros(len(bodies), dtype=np.int64)
-    count[needed] = [len(p) for p in piece_lists]
-    owner = np.repeat(needed, count[needed]).astype(np.int64)
     # Pieces may carry extra interior points (triangle cover); a support scan over a superset of
     # the hull's vertices is still exact, so Qhull need not run again.
-    pieces = pack_convex([p for plist in piece_lists for p in plist], is_hull=True)
-    return pieces, owner, count
+    packs = [pack_convex([np.zeros(3)], is_hull=True)] * len(classes.shapes)
+    for s, piece_list in local_known.items():
+        packs[s] = pack_convex(piece_list, is_hull=True)
+    for s in fresh:
+        packs[s] = pack_convex(pieces_of[classes.shapes[s].digest], is_hull=True)
+    count = np.zeros(len(bodies), dtype=np.int64)
+    used = np.unique(classes.pairs)
+    pieces_per_shape = np.array([len(p.starts) - 1 for p in packs], dtype=np.int64)
+    if len(used):
+        count[used] = pieces_per_shape[classes.body_shape[used]]
+    return packs, count
 
 
-def surfaces_near(
-    pieces: ConvexPack,
-    owner: np.ndarray,
-    pairs: np.ndarray,
-    tolerance: np.ndarray,
-    reach: np.ndarray,
-) -> np.ndarray:
-    """Which part ``pairs`` have a piece pair within their ``reach`` (or undecided), ``(k,)`` bool.
+def _local_pieces(pieces: list[np.ndarray], transform: np.ndarray, corner: np.ndarray) -> list:
+    """World pieces of a part moved back to its geometry's frame (its local vertices')."""
+    transform = np.asarray(transform, dtype=np.float64)
+    if np.array_equal(transform, np.eye(4)):
+        return [p - corner for p in pieces]
+    inverse = np.linalg.inv(transform[:3, :3])
+    return [(p - transform[:3, 3]) @ inverse.T - corner for p in pieces]
 
-    A part pair without one has surfaces beyond its reach.
+
+def surfaces_near(packs: Sequence[ConvexPack], classes: PairClasses, clearance) -> np.ndarray:
+    """Which ``classes`` have a piece pair within their reach (tolerance + clearance, or
+    undecided), ``(c,)`` bool, each in its own frame: the pieces of its two geometries placed as
+    the verify stage places their meshes (``PairClasses.placed``), so what the pieces prove
+    holds for the very triangles verified. A class without one has surfaces beyond its reach.
     """
-    if len(pairs) == 0:
+    c = len(classes)
+    if c == 0:
         return np.zeros(0, dtype=bool)
-    # Pieces are grouped by part (``decompose_parts``): test each pair's pieces against each
-    # other, rather than sweeping every piece of the assembly.
-    parts = int(max(owner.max(initial=-1), pairs.max())) + 1
-    count = np.bincount(owner, minlength=parts)
-    first = np.searchsorted(owner, np.arange(parts), side="left")
-    if np.any(owner[1:] < owner[:-1]):
-        raise ValueError("pieces must be grouped by part, in part order")
-    piece_pairs, row = group_pairs(
-        pieces.lower, pieces.upper, first, count, pairs, np.asarray(reach, dtype=np.float64)
-    )
+    which = np.empty(2 * c, dtype=np.int64)
+    transforms = np.broadcast_to(np.eye(4), (2 * c, 4, 4)).copy()
+    for k, placed in enumerate(classes.placed):
+        for side, p in enumerate(placed):
+            which[2 * k + side] = p.shape
+            transforms[2 * k + side, :3, :3] = p.linear
+            transforms[2 * k + side, :3, 3] = p.shift
+    pieces = place_packs(packs, which, transforms)
+    count = np.array([len(packs[s].starts) - 1 for s in which], dtype=np.int64)
+    first = np.concatenate([[0], np.cumsum(count)[:-1]]).astype(np.int64)
+    reach = classes.tolerance + (clearance or 0.0)
+    groups = np.arange(2 * c, dtype=np.int64).reshape(c, 2)
+    piece_pairs, row = group_pairs(pieces.lower, pieces.upper, first, count, groups, reach)
     query = query_pairs(
-        pieces, piece_pairs, tolerance=tolerance[row], depth=False, max_distance=reach[row]
+        pieces, piece_pairs, tolerance=classes.tolerance[row], depth=False, max_distance=reach[row]
     )
     hit = may_come_within(query, reach[row])
-    out = np.zeros(len(pairs), dtype=bool)
+    out = np.zeros(c, dtype=bool)
     out[row[hit]] = True
     return out
 
@@ -376,6 +411,10 @@ def approve(
 
     ``names`` maps each part's name to all its names (full and relative) for pattern matching.
     """
+    if not approvals:  # nothing to approve: the findings as they are
+        return [
+            dataclasses.replace(f, approval_reason=None) if f.is_approved else f for f in findings
+        ]
     return [
         dataclasses.replace(
             f, approval_reason=approval_reason(approvals, names[f.a], names[f.b], f.id)
@@ -442,30 +481,39 @@ def _check_patterns(settings: Settings, names: Sequence[tuple[str, ...]]) -> Non
                 break
 
 
-def _world_hulls(bodies: Sequence[Body], geometry: dict) -> list[np.ndarray]:
-    """Hull vertices of each body, world coordinates; qhull runs once per distinct geometry.
+def _world_hulls(bodies: Sequence[Body], geometry: dict) -> ConvexPack:
+    """The convex hull of each body, world coordinates, packed; qhull runs once per distinct
+    geometry and the hull is moved to each body that has it (``geometry.place_packs``).
 
     Geometry is compared up to translation (``load.local_geometry``), so instances of one
     mesh and copies of one part at other places share a hull.
     """
     from scipy.spatial import ConvexHull, QhullError
 
-    by_mesh: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # id(mesh) -> (local hull, corner)
-    by_digest: dict[str, np.ndarray] = {}
-    out = []
-    for body in bodies:
-        if id(body.mesh) not in by_mesh:
-            local, _, corner, digest = geometry[id(body.mesh)]
-            if digest not in by_digest:
+    index: dict[str, int] = {}
+    local: list[np.ndarray] = []
+    which = np.empty(len(bodies), dtype=np.int64)
+    by_mesh: dict[int, int] = {}
+    for k, body in enumerate(bodies):
+        g = by_mesh.get(id(body.mesh))
+        if g is None:
+            points, _, _, digest = geometry[id(body.mesh)]
+            if digest not in index:
                 try:
-                    by_digest[digest] = local[np.sort(ConvexHull(local).vertices)]
+                    hull = points[np.sort(ConvexHull(points).vertices)]
                 except (QhullError, ValueError):  # flat or degenerate: every vertex
-                    by_digest[digest] = local
-            by_mesh[id(body.mesh)] = (by_digest[digest], corner)
-        hull, corner = by_mesh[id(body.mesh)]
-        hull = hull + corner
-        transform = np.asarray(body.transform, dtype=np.float64)
-        if not np.array_equal(transform, np.eye(4)):
-            hull = hull @ transform[:3, :3].T + transform[:3, 3]
-        out.append(hull)
-    return out
+                    hull = points
+                index[digest] = len(local)
+                local.append(hull)
+            g = by_mesh[id(body.mesh)] = index[digest]
+        which[k] = g
+    packs = [pack_convex([hull], is_hull=True) for hull in local]
+    return place_packs(packs, which, *_placements(bodies, geometry))
+
+
+def _placements(bodies: Sequence[Body], geometry: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Each body's transform ``(n, 4, 4)`` and its local geometry's corner ``(n, 3)``: where
+    ``place_packs`` puts what was built once per geometry."""
+    transforms = np.array([b.transform for b in bodies], dtype=np.float64).reshape(-1, 4, 4)
+    corners = np.array([geometry[id(b.mesh)].corner for b in bodies]).reshape(-1, 3)
+    return transforms, corners

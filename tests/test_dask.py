@@ -120,6 +120,32 @@ def test_a_local_cluster_gives_the_local_report(tmp_path, monkeypatch):
     assert not any(n.startswith(".tmp-") for n in entries)
 
 
+@pytest.mark.slow
+def test_an_instanced_plant_on_a_cluster_gives_the_local_report(tmp_path):
+    distributed = pytest.importorskip("distributed")
+    from test_pair_classes import plant_gltf
+
+    path = plant_gltf(tmp_path / "plant.gltf")
+    options = {"config": None, "file_units": {path: "mm"}}
+    expected = render(pipeline.check([path], cache_dir=None, jobs=1, **options), "json")
+    cluster = distributed.LocalCluster(
+        n_workers=2,
+        threads_per_worker=1,
+        processes=True,
+        host="127.0.0.1",
+        dashboard_address=None,
+        env={"OMP_NUM_THREADS": "1"},
+    )
+    try:
+        for _ in range(2):  # cold, then with the verdicts the first run cached, by class
+            result = pipeline.check(
+                [path], cache_dir=tmp_path / "cache", scheduler=cluster.scheduler_address, **options
+            )
+            assert render(result, "json") == expected
+    finally:
+        cluster.close(timeout=20)
+
+
 class _Processes:
     """Processes started by a test, stopped by pid at the end."""
 

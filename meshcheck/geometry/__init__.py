@@ -28,7 +28,7 @@ from .gjk import (
     query_pairs,
     signed_distance,
 )
-from .support import ConvexPack, concat_packs, pack_convex, repeat_pack
+from .support import ConvexPack, concat_packs, pack_convex, place_packs, repeat_pack
 
 __all__ = [
     "Contact",
@@ -38,6 +38,7 @@ __all__ = [
     "concat_packs",
     "intersects",
     "pack_convex",
+    "place_packs",
     "query",
     "query_pairs",
     "repeat_pack",
