@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
-from dataclasses import dataclass, field
+from dataclasses import InitVar, dataclass, field
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
@@ -54,6 +54,10 @@ class Body:
         The exact solids of its STEP file, kept in the process that loaded it (the verify stage
         confirms findings on them, ``verify.brep``); None for a mesh file or a part built in
         Python.
+    known_digest : str, optional
+        ``mesh_digest(mesh)`` when the caller has it (a reader hashes a mesh once, however many
+        instances place it); not kept as a field, so ``dataclasses.replace`` never carries it
+        to another mesh. Default: computed on first use of ``digest``.
     """
 
     name: str
@@ -66,10 +70,13 @@ class Body:
     is_float32: bool = True
     is_rescaled: bool = False
     brep: StepSolids | None = field(default=None, repr=False)
+    known_digest: InitVar[str | None] = None
 
-    def __post_init__(self):
+    def __post_init__(self, known_digest: str | None):
         if not self.relative_name:
             object.__setattr__(self, "relative_name", self.name)
+        if known_digest is not None:
+            self.__dict__["digest"] = known_digest  # the cached value of ``digest``
 
     @functools.cached_property
     def world(self) -> trimesh.Trimesh:
