@@ -31,6 +31,7 @@ import numpy as np
 
 from .cache import DecompositionCache, decomposition_key
 from .execute import Executor, LocalPool, Task, default_jobs
+from .geometry import support_points
 from .load import Body, is_closed, local_geometries
 from .progress import Progress
 from .settings import DEFAULT_THRESHOLD
@@ -537,7 +538,7 @@ def _decompose_misses(shapes, limits, settings, jobs, executor, progress, done) 
     where it stands in (``_hull_stands_in``), CoACD's covering pieces elsewhere."""
     _show_done(progress, done)
     stands_in = {d: _hull_stands_in(shapes[d], limit) for d, limit in limits.items()}
-    out = {d: [_hull_vertices(shapes[d].local)] for d in limits if stands_in[d]}
+    out = {d: [support_points(shapes[d].local)] for d in limits if stands_in[d]}
     _show_done(progress, done + len(out))
     concave = [d for d in limits if not stands_in[d]]
     out.update(

@@ -37,7 +37,7 @@ from .config import Approval, approval_reason
 from .decompose import coacd_budgets, decompose_shapes
 from .errors import MeshcheckWarning
 from .execute import Executor, executor_for
-from .geometry import ConvexPack, Status, pack_convex, place_packs, query_pairs
+from .geometry import ConvexPack, Status, pack_convex, place_packs, query_pairs, support_points
 from .geometry.broadphase import candidate_pairs, group_pairs
 from .load import Body, Limits, load_assembly, local_geometries
 from .load.limits import check_candidate_pairs
@@ -482,14 +482,13 @@ def _check_patterns(settings: Settings, names: Sequence[tuple[str, ...]]) -> Non
 
 
 def _world_hulls(bodies: Sequence[Body], geometry: dict) -> ConvexPack:
-    """The convex hull of each body, world coordinates, packed; qhull runs once per distinct
-    geometry and the hull is moved to each body that has it (``geometry.place_packs``).
+    """The convex hull of each body, world coordinates, packed: its support points
+    (``geometry.support_points``) found once per distinct geometry and moved to each body that
+    has it (``geometry.place_packs``).
 
     Geometry is compared up to translation (``load.local_geometry``), so instances of one
     mesh and copies of one part at other places share a hull.
     """
-    from scipy.spatial import ConvexHull, QhullError
-
     index: dict[str, int] = {}
     local: list[np.ndarray] = []
     which = np.empty(len(bodies), dtype=np.int64)
@@ -499,12 +498,8 @@ def _world_hulls(bodies: Sequence[Body], geometry: dict) -> ConvexPack:
         if g is None:
             points, _, _, digest = geometry[id(body.mesh)]
             if digest not in index:
-                try:
-                    hull = points[np.sort(ConvexHull(points).vertices)]
-                except (QhullError, ValueError):  # flat or degenerate: every vertex
-                    hull = points
                 index[digest] = len(local)
-                local.append(hull)
+                local.append(support_points(points))
             g = by_mesh[id(body.mesh)] = index[digest]
         which[k] = g
     packs = [pack_convex([hull], is_hull=True) for hull in local]

@@ -28,7 +28,14 @@ from .gjk import (
     query_pairs,
     signed_distance,
 )
-from .support import ConvexPack, concat_packs, pack_convex, place_packs, repeat_pack
+from .support import (
+    ConvexPack,
+    concat_packs,
+    pack_convex,
+    place_packs,
+    repeat_pack,
+    support_points,
+)
 
 __all__ = [
     "Contact",
@@ -43,4 +50,5 @@ __all__ = [
     "query_pairs",
     "repeat_pack",
     "signed_distance",
+    "support_points",
 ]

@@ -238,6 +238,28 @@ def repeat_pack(
     )
 
 
+def support_points(points: np.ndarray) -> np.ndarray:
+    """Points whose convex hull is the convex hull of ``points``, as cheaply as a support map
+    allows: all of them when a scan would read them anyway (``HILL_CLIMB_MIN_VERTICES`` or
+    fewer), else the hull's vertices (Qhull; every point when the hull is flat), in index order.
+
+    Parameters
+    ----------
+    points : (n, 3) float64
+
+    Returns
+    -------
+    (k, 3) float64
+    """
+    points = np.asarray(points, dtype=np.float64)
+    if len(points) <= HILL_CLIMB_MIN_VERTICES:
+        return points
+    try:
+        return points[np.sort(ConvexHull(points).vertices)]
+    except (QhullError, ValueError):
+        return points
+
+
 def place_packs(
     packs: Sequence[ConvexPack],
     which: np.ndarray,

@@ -233,8 +233,8 @@ def _place(
     if factor != 1.0:
         transforms = to_report @ transforms
     names = [f"{path}#{node}" if multi else path for node, _, _ in file_read.items]
-    if len(which) == 1:  # one part (a mesh file): checked as it is
-        doubtful = np.ones(1, dtype=bool)
+    if len(which) == 1:  # one part (a mesh file); stored where it sits, it was checked as read
+        doubtful = np.array([not np.array_equal(transforms[0], IDENTITY)])
     else:  # many placements (instances): screened at once, the doubtful checked one by one
         doubtful = doubtful_placements(transforms, lower[which], upper[which], limits)
     for k in np.flatnonzero(doubtful):
