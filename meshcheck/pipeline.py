@@ -52,7 +52,7 @@ from .units import DEFAULT_UNIT
 from .verify import verify_classes
 from .verify.brep import confirm_on_brep
 from .verify.classes import PairClasses, pair_classes
-from .verify.duplicates import duplicate_findings, duplicate_sets, without_duplicate_pairs
+from .verify.duplicates import duplicate_findings, duplicate_sets
 from .verify.patterns import with_patterns
 from .verify.shells import warn_nothing_to_compare, warn_overlapping_shells
 
@@ -173,9 +173,8 @@ def check_bodies(
         hulls = _world_hulls(bodies, geometry)
         diagonal, magnitude = part_sizes(hulls.lower, hulls.upper, [b.is_float32 for b in bodies])
         deflection = np.array([b.deflection for b in bodies], dtype=np.float64)
-        pairs = select_pairs(hulls, settings, names, diagonal, magnitude, deflection)
         copies = duplicate_sets(bodies, geometry, tolerance=settings.tolerance)
-        pairs = without_duplicate_pairs(pairs, copies, len(bodies))
+        pairs = select_pairs(hulls, settings, names, diagonal, magnitude, deflection, copies=copies)
         check_candidate_pairs(len(pairs), len(bodies))  # budgeted, like triangles
         # Triangles of a part read from CAD lie up to its deflection from the true surface:
         # overlaps and gaps within the two deflections cannot be told apart, so they touch.
@@ -261,19 +260,56 @@ def select_pairs(
     diagonal: np.ndarray,
     magnitude: np.ndarray,
     deflection: np.ndarray | None = None,
+    *,
+    copies: Sequence[Sequence[int]] = (),
 ) -> np.ndarray:
     """Part pairs whose boxes come within reach, restricted by the groups rule; ``(k, 2)``.
 
     The boxes grow by the largest tolerance any pair can get (``tolerances``), so no pair within
-    its own reach is pruned.
+    its own reach is pruned. ``copies`` are the duplicate sets (``verify.duplicates``): their
+    pairs are left out (a set is one finding), and the boxes of a set's copies, one box, take
+    part in the broad phase once (2,000 coincident copies are one box, not two million pairs).
     """
     largest = largest_pair_tolerance(
         diagonal, magnitude, tolerance=settings.tolerance, deflection=deflection
     )
-    pairs = candidate_pairs(hulls.lower, hulls.upper, margin=largest + (settings.clearance or 0.0))
+    margin = largest + (settings.clearance or 0.0)
+    lower, upper = hulls.lower, hulls.upper
+    n = len(lower)
+    first = np.arange(n, dtype=np.int64)  # each part's set's first copy (itself when alone)
+    for members in copies:
+        first[members] = members[0]
+    stands = np.flatnonzero(first == np.arange(n))
+    if not copies:
+        pairs = candidate_pairs(lower, upper, margin=margin)
+    else:  # a set stands in with the box around its copies' boxes, then each copy's own decides
+        low, high = lower.copy(), upper.copy()
+        np.minimum.at(low, first, lower)
+        np.maximum.at(high, first, upper)
+        pairs = stands[candidate_pairs(low[stands], high[stands], margin=margin)]
+        pairs = _every_copy(pairs, first)
+        lo, hi = lower - 0.5 * margin, upper + 0.5 * margin  # candidate_pairs' own comparison
+        i, j = pairs[:, 0], pairs[:, 1]
+        pairs = pairs[np.all((lo[j] <= hi[i]) & (lo[i] <= hi[j]), axis=1)]
     if settings.groups is not None:
         pairs = pairs[settings.groups.pair_mask(names, pairs)]
     return pairs
+
+
+def _every_copy(pairs: np.ndarray, first: np.ndarray) -> np.ndarray:
+    """``pairs`` of first copies (``first[i] == i``), each repeated for every copy of either
+    part: ``(k, 2)``, ``i < j``, sorted as ``candidate_pairs`` sorts."""
+    order = np.argsort(first, kind="stable")
+    starts = np.searchsorted(first[order], np.arange(len(first) + 1))
+    count = starts[1:] - starts[:-1]  # copies of each first copy (0 for other parts)
+    a, b = pairs[:, 0], pairs[:, 1]
+    per_pair = count[a] * count[b]
+    row = np.repeat(np.arange(len(pairs)), per_pair)
+    offset = np.arange(len(row)) - np.repeat(np.cumsum(per_pair) - per_pair, per_pair)
+    i = order[starts[a[row]] + offset // count[b[row]]]
+    j = order[starts[b[row]] + offset % count[b[row]]]
+    out = np.stack([np.minimum(i, j), np.maximum(i, j)], axis=1).astype(np.int64)
+    return out[np.lexsort((out[:, 1], out[:, 0]))]
 
 
 def may_come_within(result, reach: np.ndarray) -> np.ndarray:

@@ -122,14 +122,3 @@ def duplicate_id(names: Sequence[str], digest: str, placements: Sequence[np.ndar
     for placement in sorted((np.asarray(p, dtype=np.float64) + 0.0).tobytes() for p in placements):
         h.update(b"\0@" + placement)
     return h.hexdigest()[:12]
-
-
-def without_duplicate_pairs(pairs: np.ndarray, sets: list[list[int]], count: int) -> np.ndarray:
-    """``pairs`` without those inside one duplicate set (their finding is the set's)."""
-    label = np.full(count, -1, dtype=np.int64)
-    for s, members in enumerate(sets):
-        label[members] = s
-    if len(pairs) == 0 or not sets:
-        return pairs
-    same = (label[pairs[:, 0]] == label[pairs[:, 1]]) & (label[pairs[:, 0]] >= 0)
-    return pairs[~same]
