@@ -218,6 +218,42 @@ def _max_vertex_move(bodies, geometry, first, second) -> float:
     return float(np.abs(placed[0] - placed[1]).max())
 
 
+def test_a_class_decided_at_its_first_pairs_world_placement_moves_to_its_members():
+    # The recipe the classes module gives another decision procedure (the B-rep stage): decide
+    # a class on its first pair where it is, take the verdict into the class's frame, move it
+    # to every member. The members get their own verdicts to within the placement rounding.
+    bodies = plant()
+    geometry = local_geometries(bodies)
+    result = check(bodies)
+    index = {b.name: k for k, b in enumerate(bodies)}
+    pairs = np.array([[index[f.a], index[f.b]] for f in result.findings])
+    tolerance = np.array([f.tolerance for f in result.findings])
+    found = classes.pair_classes(bodies, pairs, tolerance, geometry=geometry)
+    by_pair = {(f.a, f.b): f for f in result.findings}
+    for c, rows in enumerate(found.members()):
+        first = found.first[c]
+        i, j = found.pairs[first]
+        here = verify_pair(
+            bodies[i].world, bodies[j].world, tolerance=found.tolerance[c], clearance=None
+        )
+        in_frame = classes.unplaced_verdict(here, *found.frame(first))
+        for k, moved in zip(
+            rows, classes.placed_verdicts(in_frame, *found.frames(rows)), strict=True
+        ):
+            a, b = sorted((bodies[found.pairs[k, 0]].name, bodies[found.pairs[k, 1]].name))
+            own = by_pair[a, b]
+            assert moved.status == own.status
+            assert np.allclose(moved.location.centroid, own.location.centroid, atol=1e-6)
+            if own.depth is not None:
+                assert moved.depth == pytest.approx(own.depth, rel=1e-6)
+    # ... and a verdict taken into a frame and back is where it was
+    rotation, origin = found.frame(0)
+    back = classes.placed_verdict(
+        classes.unplaced_verdict(here, rotation, origin), rotation, origin
+    )
+    assert np.allclose(back.location.centroid, here.location.centroid, atol=1e-9)
+
+
 # ------------------------------------------------------------------------------------------
 # Properties: a moved instance is decided as itself
 

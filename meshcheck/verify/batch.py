@@ -156,8 +156,7 @@ def _findings(bodies, classes: PairClasses, verdicts) -> list[Finding]:
     for c, (rows, verdict) in enumerate(zip(classes.members(), verdicts, strict=True)):
         if verdict.status == Verdict.CLEAR:
             continue
-        first = classes.pairs[rows, 0]
-        moved = placed_verdicts(verdict, classes.rotation[first], classes.origin[first])
+        moved = placed_verdicts(verdict, *classes.frames(rows))
         for k, v in zip(rows, moved, strict=True):
             i, j = classes.pairs[k]
             findings.append(_finding(bodies[i], bodies[j], v, float(classes.tolerance[c])))

@@ -25,9 +25,30 @@ Classes are found with one hash of each pair's rounded placement, in time linear
 which pairs share a class is a function of the inputs only. The pair cache keys on the class
 (``cache.pair_key``), so a warm run, a moved assembly and a Dask run reuse the verdict too.
 
-For another decision procedure (the B-rep stage, say) the same classes serve: ``pair_classes``
-gives each pair's class and the class's placed geometries, ``class_key`` its cache key, and
-``placed_verdict`` moves a verdict computed in the class's frame to any member's.
+Another decision procedure (the B-rep stage, say) can use the same classes:
+
+- ``pair_classes(bodies, pairs, tolerance, geometry=...)`` gives each pair's class
+  (``PairClasses.label``), the pair each class is named by (``first``) and every class's
+  members (``members()``);
+- ``class_identity(classes, c)`` is what a class's verdict depends on (its two placed geometries,
+  tolerance, surfaces flag): with the settings, the arguments of ``cache.pair_key``, to which a
+  procedure adds what else its verdict depends on (a solid's identity, say);
+- ``PairClasses.frame(k)`` is pair ``k``'s frame (rotation and origin); ``unplaced_verdict``
+  takes a verdict decided on a pair at its world placement into its frame, and
+  ``placed_verdict`` (``placed_verdicts``, many at once) moves a verdict in the frame to any
+  member's place. A class decided on its first pair at that pair's world placement and moved
+  so gives its members that pair's verdict, not their own to the bit (they differ by the
+  rounding of their placements, at most 2.4 grid steps); one decided on the placed geometries
+  (``PairClasses.arrays``) gives each member exactly its own.
+
+Example: decide each class on its first pair's world meshes, moved to every member::
+
+    classes = pair_classes(bodies, pairs, tolerance, geometry=local_geometries(bodies))
+    for c, rows in enumerate(classes.members()):
+        i, j = classes.pairs[classes.first[c]]
+        here = decide(bodies[i], bodies[j])  # world coordinates
+        in_frame = unplaced_verdict(here, *classes.frame(classes.first[c]))
+        verdicts = placed_verdicts(in_frame, *classes.frames(rows))  # one per member
 """
 
 from __future__ import annotations
@@ -121,6 +142,16 @@ class PairClasses:
 
     def __len__(self) -> int:
         return len(self.first)
+
+    def frame(self, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """Pair ``k``'s frame (its first part's): rotation ``(3, 3)`` and origin ``(3,)``."""
+        i = self.pairs[k, 0]
+        return self.rotation[i], self.origin[i]
+
+    def frames(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The frames of pairs ``rows``: rotations ``(m, 3, 3)`` and origins ``(m, 3)``."""
+        first = self.pairs[np.asarray(rows, dtype=np.int64), 0]
+        return self.rotation[first], self.origin[first]
 
     def members(self) -> list[np.ndarray]:
         """The rows of each class's pairs, class by class."""
@@ -319,6 +350,14 @@ def placed_verdicts(
     ]
 
 
+def unplaced_verdict(verdict: PairVerdict, rotation: np.ndarray, origin: np.ndarray) -> PairVerdict:
+    """A verdict in world coordinates taken into a pair's frame: ``placed_verdict``'s inverse
+    (rotation transposed, origin first), for a verdict decided at a pair's world placement."""
+    rotation = np.asarray(rotation, dtype=np.float64)
+    inverse = rotation.T
+    return placed_verdict(verdict, inverse, -(inverse @ np.asarray(origin, dtype=np.float64)))
+
+
 def class_meshes(classes: PairClasses, c: int, meshes: dict) -> tuple:
     """Class ``c``'s two placed geometries as ``trimesh.Trimesh``, kept in ``meshes`` (by
     ``PlacedGeometry.key``) so classes that share one share the mesh and ``verify_pair``'s memo."""
@@ -483,4 +522,5 @@ __all__ = [
     "placed_verdict",
     "placed_verdicts",
     "shared_key",
+    "unplaced_verdict",
 ]
