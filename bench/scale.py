@@ -5,6 +5,7 @@ Run from the repository root::
     python bench/scale.py                          # 1,020, 5,100 and 20,400 parts
     python bench/scale.py --modules 19608          # 100,001 parts (CollisionManager not run)
     python bench/scale.py --modules 200 1000 4000 19608
+    python bench/scale.py --modules --step-copies 2000   # the STEP file of 2,000 bolt copies
 
 Each assembly is one GLB in metres, as a plant's CAD export is: one mesh per distinct part (the
 sample's plate, its M6 bolt, its oversized bolt and its L-bracket, ``sample_meshes/``) and a node
@@ -28,6 +29,11 @@ It prints wall times, peak memory, the ratios to CollisionManager, the machine's
 before and after each size (the machine may be shared: compare ratios measured in one run), and
 checks the findings: every planted interference found, every resting bolt and bracket touching,
 nothing else, and the warm report identical to the cold one.
+
+``--step-copies N`` also times a STEP file (AP214, written by OpenCASCADE: the ``dev`` extra) of
+one product, the sample's M6 bolt as ``sample_meshes/make_step_sample.py`` builds it, placed N
+times at one spot, cold and warm, against CollisionManager adding the bolt's tessellation N
+times; the one finding expected is a duplicate of N copies.
 """
 
 from __future__ import annotations
@@ -45,6 +51,8 @@ import trimesh
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 sys.path.insert(0, HERE)
+sys.path.insert(0, os.path.join(ROOT, "tests"))
+sys.path.insert(0, os.path.join(ROOT, "sample_meshes"))
 
 from assemblies import MESHCHECK, timed  # noqa: E402
 
@@ -62,6 +70,16 @@ for node in scene.graph.nodes_geometry:
     manager.add_object(node, scene.geometry[geometry], transform)
 hit, names = manager.in_collision_internal(return_names=True)
 print(json.dumps(sorted(sorted(n) for n in names)))
+"""
+
+STEP_PEER_SCRIPT = """
+import sys, numpy as np, trimesh
+mesh = trimesh.load_mesh(sys.argv[1])
+manager = trimesh.collision.CollisionManager()
+for k in range(int(sys.argv[2])):
+    manager.add_object(f"bolt{k}", mesh, np.eye(4))
+hit, names = manager.in_collision_internal(return_names=True)
+print(len(names))
 """
 
 
@@ -195,6 +213,51 @@ def run_size(modules: int, peer_max: int, jobs: int | None) -> dict:
         return out
 
 
+def run_step(copies: int) -> dict:
+    """Time the STEP file of ``copies`` coincident bolts: cold, warm and CollisionManager."""
+    from make_step_sample import bolt
+    from step_writer import write_step
+
+    from meshcheck.load import load_bodies
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, "bolts.step")
+        one = os.path.join(tmp, "bolt.step")
+        sys.stdout.flush()
+        saved = os.dup(1)  # OpenCASCADE's writer prints its statistics on the process's stdout
+        try:
+            with open(os.devnull, "w") as quiet:
+                os.dup2(quiet.fileno(), 1)
+            write_step(path, {"bolt": bolt(3.0)}, [("bolt", np.eye(4))] * copies)
+            write_step(one, {"bolt": bolt(3.0)}, [("bolt", np.eye(4))])
+        finally:
+            os.dup2(saved, 1)
+            os.close(saved)
+        (body,) = load_bodies([one])
+        stl = os.path.join(tmp, "bolt.stl")
+        body.world.export(stl)
+        cache = os.path.join(tmp, "cache")
+        cmd = [*MESHCHECK, "--no-config", "--format", "json", "--cache-dir", cache, path]
+        env = dict(os.environ, MESHCHECK_CACHE_SECRET="bench-scale")
+        before = load_averages()
+        cold = timed(cmd, env)
+        warm = timed(cmd, env)
+        peer = timed([sys.executable, "-c", STEP_PEER_SCRIPT, stl, str(copies)])
+        after = load_averages()
+        report = json.loads(cold[3])
+        assert json.loads(warm[3]) == report, "the warm report differs from the cold one"
+        statuses = [r["status"] for r in report["results"]]
+        return {
+            "copies": copies,
+            "cold": cold,
+            "warm": warm,
+            "peer": peer,
+            "load": (before, after),
+            "exact": statuses == ["duplicate"],
+            "peer_pairs": int(peer[3]),
+        }
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--modules", nargs="*", type=int, default=[200, 1000, 4000])
@@ -202,6 +265,9 @@ def main(argv=None) -> None:
         "--peer-max", type=int, default=25000, help="largest assembly CollisionManager runs on"
     )
     parser.add_argument("--jobs", type=int, default=None)
+    parser.add_argument(
+        "--step-copies", type=int, default=None, help="also time a STEP file of this many bolts"
+    )
     args = parser.parse_args(argv)
     print(f"{os.cpu_count()} cores; wall seconds of whole processes, peak resident MiB")
     print(
@@ -228,6 +294,17 @@ def main(argv=None) -> None:
                 f"{'':7} CollisionManager: {r['peer_found']} planted interferences among its "
                 f"{r['peer_pairs']} colliding pairs"
             )
+        failed |= not r["exact"]
+    if args.step_copies:
+        r = run_step(args.step_copies)
+        cold, warm, peer = r["cold"], r["warm"], r["peer"]
+        print(
+            f"STEP, {r['copies']} copies of one bolt at one spot: cold {cold[0]:.1f} s "
+            f"({cold[1]:.0f} MiB), warm {warm[0]:.1f} s, CollisionManager {peer[0]:.1f} s "
+            f"({peer[1]:.0f} MiB, {r['peer_pairs']} colliding pairs); cold/CM "
+            f"{cold[0] / peer[0]:.2f}; one duplicate finding ({r['exact']})  "
+            f"load {r['load'][0]} / {r['load'][1]}"
+        )
         failed |= not r["exact"]
     if failed:
         raise SystemExit("meshcheck's findings are not the planted ones")
