@@ -223,7 +223,11 @@ def checked_motion(table: Mapping, *, path: str | None = None) -> dict:
         root = os.path.abspath(base)
         for p in paths:
             inside = os.path.abspath(os.path.join(base, p))
-            if os.path.commonpath([inside, root]) != root:
+            try:
+                is_inside = os.path.commonpath([inside, root]) == root
+            except ValueError:  # another drive
+                is_inside = False
+            if not is_inside:
                 raise ConfigError(
                     path,
                     f"package_paths: {p!r} is outside the configuration's folder (give folders "

@@ -2,12 +2,13 @@
 
 Every case runs the command in a subprocess, capped in wall time (``timeout``) and address
 space (``RLIMIT_AS``), and checks the exit status, that stderr's last line is the one error
-line naming the file, that it took under 60 s and a peak of under 2 GiB, and that nothing
-outside the inputs, the outputs and the cache was opened: the child records every file it
-opens (``sys.addaudithook``, Python's ``open`` event, which every reader of meshcheck goes
-through) and what it opened for writing. The one kind of file read above the inputs is a
-``package.xml``: the package search ROS describes (``load.urdf.package_roots``) reads the name
-each declares, and nothing else of those folders unless the name is the package's.
+line naming the file, that it took under 60 s and a peak of under 2 GiB (read in ``/proc``:
+Linux), and that nothing outside the inputs, the outputs and the cache was opened: the child
+records every file it opens (``sys.addaudithook``, Python's ``open`` event, which every reader
+of meshcheck goes through) and what it opened for writing. The one kind of file read above the
+inputs is a ``package.xml``: the package search ROS describes (``load.urdf.package_roots``)
+reads the name each declares, and nothing else of those folders unless the name is the
+package's.
 """
 
 from __future__ import annotations
@@ -142,6 +143,7 @@ def workspace(tmp_path) -> tuple[str, str]:
 # A URDF reads nothing outside its folder, its package and the package paths
 
 
+@pytest.mark.linux_only
 @pytest.mark.posix_only
 @pytest.mark.parametrize(
     ("filename", "reason"),
@@ -166,6 +168,7 @@ def test_a_mesh_outside_the_robots_folders_is_refused(tmp_path, filename, reason
     assert len(lines) == 1, lines
 
 
+@pytest.mark.linux_only
 @pytest.mark.posix_only
 def test_a_symbolic_link_out_of_the_package_is_refused(tmp_path):
     pkg, secret = workspace(tmp_path)
@@ -177,6 +180,7 @@ def test_a_symbolic_link_out_of_the_package_is_refused(tmp_path):
     one_error(lines, status, ExitStatus.INPUT, urdf, "leads outside package 'pkg'")
 
 
+@pytest.mark.linux_only
 @pytest.mark.posix_only
 def test_a_folder_above_named_like_the_package_is_not_searched(tmp_path):
     """``package://home/...`` from a URDF below a folder named ``home`` (as /home is above
@@ -191,6 +195,7 @@ def test_a_folder_above_named_like_the_package_is_not_searched(tmp_path):
     one_error(lines, status, ExitStatus.INPUT, urdf, "not found in package 'home'")
 
 
+@pytest.mark.linux_only
 @pytest.mark.posix_only
 def test_allow_outside_paths_reads_what_the_user_allows(tmp_path):
     pkg, secret = workspace(tmp_path)
@@ -253,6 +258,7 @@ def _srdf_cases(folder) -> dict:
     return out
 
 
+@pytest.mark.linux_only
 @pytest.mark.posix_only
 @pytest.mark.parametrize(
     "case",
@@ -266,6 +272,7 @@ def test_a_hostile_srdf_is_one_line_exit_3(tmp_path, case):
     assert len(lines) == 1, lines
 
 
+@pytest.mark.linux_only
 @pytest.mark.posix_only
 def test_an_audit_of_a_bad_entry_reads_and_writes_nothing_else(tmp_path):
     """The wrong entry fails the run (exit 1); the corrected SRDF is the one file written

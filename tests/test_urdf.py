@@ -167,6 +167,9 @@ def test_a_finding_names_the_link_and_the_elements_it_involves(tmp_path):
     ]
     text = run_cli(path, "--pose", "slide=0.5", "--no-adjacent").stdout
     assert "collision elements: base/0, base/1 (post)" in " ".join(text.split())
+    html = run_cli(path, "--pose", "slide=0.5", "--no-adjacent", "--format", "html").stdout
+    data = json.loads(html.split('id="meshcheck-data">')[1].split("</script>")[0])
+    assert data["findings"][0]["elements"] == "base/0, base/1 (post)"
     # lifted clear of the plate, only the post is involved
     path = write(tmp_path, plate_and_post(arm_at="0.6 0 0.15"), "lifted.urdf")
     run = run_cli(path, "--pose", "slide=0.5", "--no-adjacent", "--format", "json")

@@ -83,7 +83,8 @@ def load_assembly(
         (``files.parallel_pays``).
     motion : motion.Motion, optional
         The pose URDF robots are placed at and where their packages are (``load.urdf``); the
-        configuration's ``[[joint]]`` mechanism, posed too (``load.joints``).
+        configuration's ``[[joint]]`` mechanism, posed too (``load.joints``); the SRDF to audit,
+        read and given to the URDF robot (``load.srdf``).
 
     Returns
     -------

@@ -666,11 +666,19 @@ def is_inside(path: str, roots: Sequence[str]) -> bool:
     lexical, real = os.path.abspath(path), os.path.realpath(path)
 
     def within(p: str, folders) -> bool:
-        return any(os.path.commonpath([p, r]) == r for r in folders)
+        return any(_contains(r, p) for r in folders)
 
     return within(lexical, [os.path.abspath(r) for r in roots]) and within(
         real, [os.path.realpath(r) for r in roots]
     )
+
+
+def _contains(folder: str, path: str) -> bool:
+    """Whether absolute ``path`` is ``folder`` or below it (False on another drive)."""
+    try:
+        return os.path.commonpath([path, folder]) == folder
+    except ValueError:
+        return False
 
 
 def resolve_mesh(
