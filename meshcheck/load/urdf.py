@@ -25,9 +25,9 @@ ElementTree parser lets through), and with bounded element count and depth.
 Every problem is an ``InputError`` naming the URDF (exit 3): malformed XML, a DOCTYPE, a joint
 whose parent or child link is missing, a link with two parents, a cycle, several root links, an
 unknown joint type, a missing or unreadable mesh, a mesh outside the folders it may be read
-from, non-finite numbers. A pose problem (a joint not
-in the robot, a value beyond the joint's limits, degrees for a slide, a value for a mimic joint)
-is a ``ConfigError`` naming the joint (exit 2).
+from, non-finite numbers. A pose problem (a joint not in the robot, a value beyond the joint's
+limits, degrees for a slide, a value for a mimic joint) is a ``ConfigError`` naming the joint
+(exit 2).
 """
 
 from __future__ import annotations
