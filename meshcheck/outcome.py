@@ -2,8 +2,9 @@
 
 The one place the run's pass/fail is decided (black's ``report.py``): a finding fails the run when
 it is unapproved, has a status the settings fail on and (with ``--fail-on new``) is new against
-the baseline; a ``[[joint]]`` mechanism that collides within its ranges fails it too. The command
-line ends with ``exit_status``.
+the baseline; a ``[[joint]]`` mechanism that collides within its ranges fails it too, and so does
+an audited SRDF entry that disables a collision the sweep shows happening. The command line ends
+with ``exit_status``.
 """
 
 from __future__ import annotations
@@ -12,7 +13,17 @@ from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 from .errors import ExitStatus
-from .results import Finding, PairSweep, Part, RobotSweep, SweepStatus, Verdict
+from .results import (
+    AuditedPair,
+    Finding,
+    PairSweep,
+    Part,
+    RobotPose,
+    RobotSweep,
+    SrdfAudit,
+    SweepStatus,
+    Verdict,
+)
 
 if TYPE_CHECKING:
     from .baseline import Baseline
@@ -42,6 +53,10 @@ class CheckResult:
         The previous report the findings were compared with (``baseline.compare``), if any.
     sweeps : tuple of RobotSweep
         With ``--sweep``: each robot's link pairs classified over the joint ranges.
+    poses : tuple of RobotPose
+        The joint values each robot (and ``[[joint]]`` mechanism) of the run was checked at.
+    audit : SrdfAudit or None
+        With ``--audit-srdf``: the SRDF's disabled pairs, audited over the joint ranges.
     """
 
     findings: list[Finding]
@@ -53,6 +68,8 @@ class CheckResult:
     units: str = "mm"
     baseline: Baseline | None = None
     sweeps: tuple[RobotSweep, ...] = ()
+    poses: tuple[RobotPose, ...] = ()
+    audit: SrdfAudit | None = None
 
     @property
     def tolerance(self) -> float | None:
@@ -102,10 +119,28 @@ class CheckResult:
         )
 
     @property
+    def failing_audits(self) -> list[AuditedPair]:
+        """The audited SRDF entries that fail the run (``is_failing_audit``), in file order."""
+        if self.audit is None:
+            return []
+        return [p for p in self.audit.pairs if self.is_failing_audit(p)]
+
+    def is_failing_audit(self, pair: AuditedPair) -> bool:
+        """True when an audited SRDF entry fails the run: it disables two links the sweep shows
+        colliding at a witness pose (interfering or touching: MoveIt's collision checking
+        reports contact), unless nothing fails the run (``--fail-on none``)."""
+        return pair.is_wrong and bool(self.settings.fail_on)
+
+    @property
     def failed(self) -> bool:
-        """True when an unapproved finding has a status that fails the run, or a mechanism's
-        parts collide within its joint ranges (``failing_sweeps``)."""
-        return any(self.is_failing(f) for f in self.findings) or bool(self.failing_sweeps)
+        """True when an unapproved finding has a status that fails the run, a mechanism's
+        parts collide within its joint ranges (``failing_sweeps``), or an audited SRDF entry
+        disables a collision (``failing_audits``)."""
+        return (
+            any(self.is_failing(f) for f in self.findings)
+            or bool(self.failing_sweeps)
+            or bool(self.failing_audits)
+        )
 
     @property
     def passed(self) -> bool:

@@ -41,12 +41,13 @@ from .outcome import CheckResult
 from .progress import Progress
 from .results import Finding, Part
 from .settings import Settings
-from .sweep import mechanism_pieces, sweep_bodies, with_adjacent_approvals
+from .sweep import audit_srdf, mechanism_pieces, sweep_bodies, with_adjacent_approvals
 from .tolerances import largest_pair_tolerance, pair_tolerances, part_sizes
 from .units import DEFAULT_UNIT
 from .verify import verify_pairs
 from .verify.brep import confirm_on_brep
 from .verify.duplicates import duplicate_findings, duplicate_sets, without_duplicate_pairs
+from .verify.elements import with_elements
 from .verify.patterns import with_patterns
 from .verify.shells import warn_nothing_to_compare, warn_overlapping_shells
 
@@ -209,7 +210,9 @@ def check_bodies(
             hulls_penetrate=hull_query.status[near] == Status.PENETRATING,
         )
         findings = confirm_on_brep(bodies, findings, settings, cache=caches.verdicts)
+        findings = with_elements(bodies, findings, clearance=settings.clearance)
         sweeps = sweep_bodies(bodies, mechanisms, settings, pieces=swept)
+        audit = audit_srdf(bodies, mechanisms, settings, pieces=swept, sweeps=sweeps)
     findings = sorted(
         [*duplicate_findings(bodies, copies, geometry), *findings], key=lambda f: (f.a, f.b)
     )
@@ -217,11 +220,14 @@ def check_bodies(
     findings = approve(
         findings, settings.approvals, dict(zip([b.name for b in bodies], names, strict=True))
     )
-    return _result(bodies, findings, settings, pairs, piece_count, sweeps)
+    return _result(bodies, findings, settings, pairs, piece_count, sweeps, mechanisms, audit)
 
 
-def _result(bodies, findings, settings, pairs, piece_count, sweeps) -> CheckResult:
-    """The run's ``CheckResult``: findings, parts, the candidate pairs, the bodies, the sweeps."""
+def _result(
+    bodies, findings, settings, pairs, piece_count, sweeps, mechanisms=(), audit=None
+) -> CheckResult:
+    """The run's ``CheckResult``: findings, parts, the candidate pairs, the bodies, the sweeps,
+    each robot's pose and the SRDF audit."""
     parts = [
         Part(b.name, b.path, len(b.mesh.faces), b.is_closed, int(piece_count[k]))
         for k, b in enumerate(bodies)
@@ -234,6 +240,8 @@ def _result(bodies, findings, settings, pairs, piece_count, sweeps) -> CheckResu
         bodies=tuple(bodies),
         units=bodies[0].units if bodies else (settings.units or DEFAULT_UNIT),
         sweeps=sweeps,
+        poses=tuple(m.robot_pose() for m in mechanisms),
+        audit=audit,
     )
 
 

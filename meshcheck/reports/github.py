@@ -8,6 +8,10 @@ GitHub shows at most ``LIMIT`` annotations of each type from one step and drops 
 a word. So each type is sorted most severe first; when there are more than ``LIMIT``, the last
 annotation of that type says how many more there are, and those are printed as plain log lines
 (``meshcheck: ...``), so nothing is lost.
+
+An audited SRDF entry that disables a collision is an ``::error`` on its line of the SRDF (a
+``::warning`` when nothing fails the run); the pose each robot was checked at is a log line
+before the summary.
 """
 
 from __future__ import annotations
@@ -19,11 +23,13 @@ from ..outcome import CheckResult
 from ..results import Finding, Verdict
 from .common import (
     View,
+    audit_message,
     describe,
     ordered,
     part_file,
     part_files,
     plural,
+    pose_lines,
     printable,
     resolution,
     summary_line,
@@ -78,6 +84,15 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
         title = f"meshcheck {pair.verdict} in motion"
         props = f"file={_property(robot.path)},title={_property(title)}"
         annotations["error"].append(_Annotation(props, title, sweep_message(robot, pair)))
+    if result.audit is not None:
+        for pair in result.audit.pairs:
+            if not pair.is_wrong:
+                continue
+            title = "meshcheck: SRDF disables a collision"
+            props = f"file={_property(result.audit.path)},line={pair.line},title={_property(title)}"
+            name = "error" if result.is_failing_audit(pair) else "warning"
+            message = audit_message(result.audit, pair)
+            annotations[name].append(_Annotation(props, title, message))
     for w in result.warnings:
         annotations["warning"].append(_Annotation("title=meshcheck input", "meshcheck input", w))
 
@@ -99,5 +114,6 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
                 f"{printable(r.b)}: {r.status} [{r.id}]"
             )
     lines += overflow
+    lines += [f"meshcheck: {line}" for line in pose_lines(result)]
     lines.append(summary_line(result))
     return "\n".join(lines) + "\n"

@@ -36,6 +36,8 @@ from ..outcome import CheckResult
 from ..results import Finding, Verdict, clash_groups
 from .common import (
     View,
+    audit_rows,
+    elements_text,
     figures,
     ordered,
     pose_text,
@@ -209,6 +211,8 @@ def render_html(
                 line = [_point(p - origin) for p in f.closest]
         row = _finding_row(result, f, origin, solid=solid, line=line)
         row["text"] = figures(f, tolerance)  # as every other format prints them
+        if f.elements:
+            row["elements"] = elements_text(f)
         findings.append(row)
     blob, layout = _pack(meshes)
     for row, place in zip(mesh_rows, layout, strict=True):
@@ -314,6 +318,30 @@ def _data(result, units, inputs, version, mesh_rows, parts, findings, triangles)
         "groups": [g.to_dict() for g in clash_groups(ordered(result))],
         "triangles": triangles,
         "sweeps": _sweeps(result),
+        "poses": [{"robot": str(p.path), "text": p.text()} for p in result.poses],
+        "audit": _audit(result),
+    }
+
+
+def _audit(result: CheckResult) -> dict | None:
+    """The SRDF audit as the viewer shows it: its summary line and the entries not proven
+    never (``audit_rows``), failing ones first."""
+    if result.audit is None:
+        return None
+    return {
+        "summary": result.audit.summary(),
+        "rows": [
+            {
+                "a": str(pair.a),
+                "b": str(pair.b),
+                "reason": pair.reason or "no reason",
+                "line": pair.line,
+                "status": str(pair.status),
+                "pose": pose_text(pair.sweep),
+                "failed": fails,
+            }
+            for pair, fails in audit_rows(result)
+        ],
     }
 
 

@@ -8,6 +8,11 @@ With ``--sweep`` the document also has ``sweeps``: per robot (or ``[[joint]]`` m
 counts by class and every link pair, each with its ``pose`` (the witness's joint values, for a
 ``sometimes`` pair; see ``results.PairSweep``).
 
+With ``--audit-srdf`` it has ``audit``: the SRDF, the robot, the reasons audited, the counts by
+sweep status and every audited entry (its links, reason, line, status, whether it is ``wrong``
+and ``failed``, and the witness ``pose``; ``results.AuditedPair``). ``summary.pose`` records the
+joint values every robot was checked at.
+
 Every finding carries ``baseline`` (``"new"``, ``"active"``, or null without a baseline); with a
 baseline the document also has ``resolved``, the baseline's findings this run no longer has.
 Output is ASCII (``\\uXXXX`` escapes), so any name survives any terminal or file encoding.
@@ -42,6 +47,10 @@ def document(result: CheckResult) -> dict:
         for robot, entry in zip(result.sweeps, doc["sweeps"], strict=True):
             for pair, row in zip(robot.pairs, entry["pairs"], strict=True):
                 row["failed"] = result.is_failing_sweep(robot, pair)
+    if result.audit is not None:  # --audit-srdf: every audited entry, a witness for the wrong
+        doc["audit"] = result.audit.to_dict()
+        for pair, row in zip(result.audit.pairs, doc["audit"]["pairs"], strict=True):
+            row["failed"] = result.is_failing_audit(pair)
     if result.baseline is not None:
         doc["resolved"] = [r.to_dict() for r in result.baseline.resolved(result.findings)]
     return doc

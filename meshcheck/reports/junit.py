@@ -3,8 +3,10 @@
 A finding that fails the run is a ``<failure>``, an approved one is ``<skipped>``, others
 (touching, unrequested clearance, findings a ``--fail-on new`` baseline holds) pass with their
 measurements in ``<system-out>``. When the pipeline names the pairs it checked, each clear pair is
-a passing test case; otherwise each part without findings is one. XML 1.0 cannot hold most
-control characters, so every name goes through ``printable``.
+a passing test case; otherwise each part without findings is one. An audited SRDF entry is a
+test case too, failed when it disables a collision (its witness pose in the message). The suite's
+properties record the settings and, per robot, the ``pose`` it was checked at. XML 1.0 cannot
+hold most control characters, so every name goes through ``printable``.
 """
 
 from __future__ import annotations
@@ -15,7 +17,17 @@ from xml.etree import ElementTree as ET
 
 from ..outcome import CheckResult
 from ..results import Finding
-from .common import View, describe, ordered, part_files, printable, resolution, sweep_message
+from .common import (
+    View,
+    audit_message,
+    describe,
+    ordered,
+    part_files,
+    pose_lines,
+    printable,
+    resolution,
+    sweep_message,
+)
 
 
 def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None = None) -> str:
@@ -24,6 +36,7 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
     tol = resolution(result)
     cases = [_finding_case(result, f, paths, tol) for f in ordered(result)]
     cases.extend(_sweep_case(robot, pair) for robot, pair in result.failing_sweeps)
+    cases.extend(_audit_cases(result))
     cases.extend(_clear_cases(result))
     failures = sum(1 for c in cases if c.find("failure") is not None)
     skipped = sum(1 for c in cases if c.find("skipped") is not None)
@@ -40,6 +53,8 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
     for key, value in _settings(result).items():
         text = "" if value is None else printable(str(value))
         ET.SubElement(props, "property", name=key, value=text)
+    for line in pose_lines(result):  # "pose PATH: values", a property per robot
+        ET.SubElement(props, "property", name="pose", value=line.removeprefix("pose "))
     suite.extend(cases)
     if result.warnings:
         ET.SubElement(suite, "system-err").text = "\n".join(
@@ -94,6 +109,32 @@ def _sweep_case(robot, pair) -> ET.Element:
     message = f"{pair.verdict} in motion: {sweep_message(robot, pair)}"
     ET.SubElement(case, "failure", message=message, type=str(pair.verdict))
     return case
+
+
+def _audit_cases(result: CheckResult) -> list[ET.Element]:
+    """A test case per audited SRDF entry: failed when it fails the run, else passed with what
+    the sweep says of it."""
+    audit = result.audit
+    if audit is None:
+        return []
+    cases = []
+    for pair in audit.pairs:
+        case = ET.Element(
+            "testcase",
+            classname=f"meshcheck.srdf.{pair.status}",
+            name=f"{printable(pair.a)} <-> {printable(pair.b)} [srdf {printable(pair.reason)}]",
+            file=printable(audit.path),
+            line=str(pair.line),
+            time="0",
+        )
+        message = audit_message(audit, pair)
+        if result.is_failing_audit(pair):
+            message = f"disables a collision: {message}"
+            ET.SubElement(case, "failure", message=message, type=str(pair.sweep.verdict))
+        else:
+            ET.SubElement(case, "system-out").text = f"{pair.status}: {message}"
+        cases.append(case)
+    return cases
 
 
 def _clear_cases(result: CheckResult) -> list[ET.Element]:

@@ -14,6 +14,7 @@ from ..outcome import CheckResult
 from ..results import clash_groups
 from .common import (
     View,
+    audit_rows,
     describe,
     ordered,
     plural,
@@ -101,6 +102,9 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
                 lines.append(f"- {r.status}: {escape(r.a)} and {escape(r.b)} `{r.id}`")
             lines.append("")
     lines += _sweep_lines(result)
+    lines += _audit_lines(result)
+    for pose in result.poses:
+        lines += [f"Pose of {escape(pose.path)}: {escape(pose.text())}", ""]
     if result.settings.config_path:
         lines += [f"Configuration: {escape(result.settings.config_path)}", ""]
     if result.warnings:
@@ -131,3 +135,37 @@ def _sweep_lines(result: CheckResult) -> list[str]:
     if len(rows) > MAX_ROWS:
         lines += ["", f"... and {plural(len(rows) - MAX_ROWS, 'more pair')} (see the report)"]
     return [*lines, ""]
+
+
+def _audit_lines(result: CheckResult) -> list[str]:
+    """The audited SRDF entries not proven never, with their witness poses, those that fail
+    the run first and marked; then the audit's counts."""
+    if result.audit is None:
+        return []
+    audit = result.audit
+    lines = ["SRDF audit:", ""]
+    rows = audit_rows(result)
+    if rows:
+        lines += [
+            "| Class | Reason | Line | Link A | Link B | Witness |",
+            "|---|---|---|---|---|---|",
+        ]
+        for pair, fails in rows[:MAX_ROWS]:
+            status = ("FAIL " if fails else "") + pair.status
+            cells = [
+                status,
+                escape(pair.reason or "no reason"),
+                str(pair.line),
+                escape(pair.a),
+                escape(pair.b),
+                escape(pose_text(pair.sweep)),
+            ]
+            lines.append("| " + " | ".join(cells) + " |")
+        if len(rows) > MAX_ROWS:
+            left = len(rows) - MAX_ROWS
+            lines += [
+                "",
+                f"... and {left} more {'entry' if left == 1 else 'entries'} (see the report)",
+            ]
+        lines.append("")
+    return [*lines, escape(audit.summary()), ""]

@@ -4,7 +4,9 @@ Each result names the file of the pair's first part as its artifact location (th
 file as a related location), carries the finding's stable ID as ``partialFingerprints`` (so code
 scanning follows one clash across runs), its level (``error`` when it fails the run), approvals as
 external suppressions, and with a baseline its ``baselineState`` (``new``, ``unchanged``; resolved
-findings as ``absent``). Messages go through ``printable``; URIs are percent-encoded.
+findings as ``absent``). An audited SRDF entry that disables a collision is a result on the SRDF's
+line, with its witness pose. The run's properties hold the summary and, with robots, the ``pose``
+each was checked at. Messages go through ``printable``; URIs are percent-encoded.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from ..outcome import CheckResult
 from ..results import FINDING_STATUSES, Finding, Verdict
 from .common import (
     View,
+    audit_message,
     describe,
     ordered,
     part_file,
@@ -113,6 +116,31 @@ def document(result: CheckResult) -> dict:
                 "properties": {"a": pair.a, "b": pair.b, "pose": dict(pair.witness or {})},
             }
         )
+    if result.audit is not None:  # SRDF entries that disable a collision, on their line
+        for pair in result.audit.pairs:
+            if not pair.is_wrong:
+                continue
+            location = {
+                "artifactLocation": uri(result.audit.path),
+                "region": {"startLine": pair.line},
+            }
+            results.append(
+                {
+                    "ruleId": str(pair.sweep.verdict),
+                    "ruleIndex": FINDING_STATUSES.index(pair.sweep.verdict),
+                    "level": "error" if result.is_failing_audit(pair) else "warning",
+                    "message": {
+                        "text": f"disables a collision: {audit_message(result.audit, pair)}"
+                    },
+                    "locations": [{"physicalLocation": location}],
+                    "properties": {
+                        "a": pair.a,
+                        "b": pair.b,
+                        "reason": pair.reason,
+                        "pose": dict(pair.sweep.witness or {}),
+                    },
+                }
+            )
     if result.baseline is not None:
         for r in result.baseline.resolved(result.findings):
             results.append(
@@ -148,6 +176,8 @@ def document(result: CheckResult) -> dict:
         "results": results,
         "properties": {"summary": summary_line(result)},
     }
+    if result.poses:
+        run["properties"]["pose"] = {p.path: p.to_dict() for p in result.poses}
     return {"$schema": SCHEMA, "version": "2.1.0", "runs": [run]}
 
 

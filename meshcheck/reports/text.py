@@ -17,6 +17,7 @@ from ..outcome import CheckResult
 from ..results import clash_groups
 from .common import (
     View,
+    audit_rows,
     describe,
     ordered,
     pose_text,
@@ -152,6 +153,7 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
     shown = [f for f in ordered(result) if view.shows(result, f)]
     resolved = result.baseline.resolved(result.findings) if has_baseline else []
     swept = [row for row in sweep_rows(result) if row[2] or not view.is_quiet]
+    audited = [row for row in audit_rows(result) if row[1] or not view.is_quiet]
 
     def below(name: str) -> str:
         return printable(name[len(prefix) :] if name.startswith(prefix) else name)
@@ -167,6 +169,9 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
         rows.append((f.id, status, state, below(f.a), below(f.b), detail))
     names = [n for f in shown for n in (f.a, f.b)] + [n for r in resolved for n in (r.a, r.b)]
     names += [n for robot, pair, _ in swept for n in (robot, pair.a, pair.b)]
+    if result.audit is not None:
+        names += [n for pair, _ in audited for n in (pair.a, pair.b)] + [result.audit.path]
+    names += [pose.path for pose in result.poses]
     name_width = _name_width(rows, width=width, has_baseline=has_baseline)
     cut = shorten_all(sorted({below(n) for n in names}), name_width)
 
@@ -204,6 +209,18 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
         if pair.approval_reason is not None:
             text += f" (approved: {printable(pair.approval_reason)})"
         lines.extend(wrap(text, _INDENT))
+    if result.audit is not None:  # --audit-srdf: the entries not proven, failing ones even quiet
+        audit = result.audit
+        for pair, fails in audited:
+            mark = "FAIL " if fails else ""
+            text = f"{mark}srdf {pair.status} ({printable(pair.reason or 'no reason')})  "
+            text += f"{short(audit.path)}:{pair.line}: {short(pair.a)} / {short(pair.b)}  "
+            text += printable(pose_text(pair.sweep))
+            lines.extend(wrap(text, _INDENT))
+        if not view.is_quiet:
+            lines.extend(wrap(f"srdf {printable(audit.summary())}", "  "))
+    for pose in result.poses:  # the pose the report was made at, even when quiet
+        lines.extend(wrap(f"pose {short(pose.path)}: {printable(pose.text())}", "  "))
     if result.settings.config_path:
         lines.extend(wrap(f"configuration: {printable(result.settings.config_path)}", "  "))
     lines.extend(summary_lines(result, width))
