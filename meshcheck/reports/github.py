@@ -8,6 +8,9 @@ GitHub shows at most ``LIMIT`` annotations of each type from one step and drops 
 a word. So each type is sorted most severe first; when there are more than ``LIMIT``, the last
 annotation of that type says how many more there are, and those are printed as plain log lines
 (``meshcheck: ...``), so nothing is lost.
+
+In a run of clash tests each annotation's title and message start with its test's name, and a
+log line per test (its name and summary line) comes before the run's summary line.
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ from .common import (
     plural,
     printable,
     resolution,
+    sections,
     summary_line,
     sweep_message,
 )
@@ -70,9 +74,10 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
     for f in ordered(result):
         extra = f" (approved: {f.approval_reason})" if f.is_approved else ""
         state = result.baseline_state(f)
-        title = f"meshcheck {f.status} [{f.id}]" + (f" {state}" if state else "")
+        test = f"{f.test}: " if f.test else ""
+        title = f"meshcheck {test}{f.status} [{f.id}]" + (f" {state}" if state else "")
+        message = f"{test}{f.a} and {f.b}: {f.status}, {describe(f, tol)}{extra}"
         props = f"file={_property(part_file(paths, f.a))},title={_property(title)}"
-        message = f"{f.a} and {f.b}: {f.status}, {describe(f, tol)}{extra}"
         annotations[level(result, f)].append(_Annotation(props, title, message))
     for robot, pair in result.failing_sweeps:
         title = f"meshcheck {pair.verdict} in motion"
@@ -99,5 +104,7 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
                 f"{printable(r.b)}: {r.status} [{r.id}]"
             )
     lines += overflow
+    for section in sections(result):  # a run of clash tests: each test's summary
+        lines.append(f"meshcheck: test {printable(section.test.name)}: {summary_line(section)}")
     lines.append(summary_line(result))
     return "\n".join(lines) + "\n"
