@@ -52,6 +52,7 @@ from .verify.clash_tests import (
     judged,
     largest_clearance,
     largest_tolerance,
+    pair_clearances,
     verify_plans,
     widest_tolerances,
 )
@@ -183,7 +184,7 @@ def check_bodies(
         # Triangles of a part read from CAD lie up to its deflection from the true surface:
         # overlaps and gaps within the two deflections cannot be told apart, so they touch.
         tolerance = widest_tolerances(diagonal, magnitude, pairs, settings, deflection=deflection)
-        reach = tolerance + (largest_clearance(settings) or 0.0)
+        reach = tolerance + pair_clearances(settings, names, pairs)
         hull_query = query_pairs(hulls, pairs, tolerance=tolerance, depth=False, max_distance=reach)
         near = may_come_within(hull_query, reach)
     pairs_near, tol_near, reach_near = pairs[near], tolerance[near], reach[near]

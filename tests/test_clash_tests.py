@@ -186,7 +186,7 @@ def test_baseline_states_are_per_test(tmp_path, result):
 @pytest.fixture
 def verify_calls(monkeypatch):
     """Every call of the verify stage's ``verify_pair`` (run in this process: jobs=1), by the
-    names of its two meshes."""
+    names of its two meshes; the clearance of each call in ``clearances``."""
     import meshcheck.verify.batch as batch
 
     real = batch.verify_pair
@@ -194,7 +194,9 @@ def verify_calls(monkeypatch):
     names = {}
 
     def counted(a, b, **options):
-        calls.append(frozenset((names[id(a)], names[id(b)])))
+        pair = frozenset((names[id(a)], names[id(b)]))
+        calls.append(pair)
+        clearances[pair] = options["clearance"]
         return real(a, b, **options)
 
     monkeypatch.setattr(batch, "verify_pair", counted)
@@ -202,9 +204,12 @@ def verify_calls(monkeypatch):
     def run(parts, settings):
         names.update({id(b.world): b.name for b in parts})
         calls.clear()
+        clearances.clear()
         out = check_bodies(parts, settings)
         return out, list(calls)
 
+    clearances: dict = {}
+    run.clearances = clearances
     return run
 
 
@@ -222,6 +227,13 @@ def test_verify_runs_once_per_pair_whatever_the_number_of_tests(tmp_path, verify
             ("cable.stl", "housing.stl"),
         ]
     ]
+    # each pair with the largest clearance of the tests that hold it, none for the fasteners'
+    assert {min(p): c for p, c in verify_calls.clearances.items()} == {
+        "arm.stl": 1.0,
+        "cable.stl": 1.0,
+        "bolt_1.stl": None,
+        "bolt_2.stl": None,
+    }
     twice = tests + tuple(
         ClashTest(f"copy {k}", t.sides, t.clearance, t.fail_on) for k, t in enumerate(tests)
     )

@@ -2,13 +2,14 @@
 
 A run of clash tests (``Settings.tests``) loads, prunes and verifies once:
 
-- the broad phase and the convex filters reach as far as the farthest-reaching test: the largest
-  tolerance any test gives a pair (``widest_tolerances``) plus the largest clearance
-  (``largest_clearance``), and keep only the pairs some test holds (``held_by_any``);
-- ``verify_plans`` verifies each pair once per distinct tolerance among the tests, with the
-  largest clearance of the tests sharing that tolerance; tests that agree on the tolerance (the
-  usual case: none sets its own) share one verification, each pair verified once whatever the
-  number of tests;
+- the broad phase reaches as far as the farthest-reaching test (the largest tolerance and the
+  largest clearance of any test), then keeps only the pairs some test holds (``held_by_any``);
+  the convex filters reach, for each pair, the largest tolerance (``widest_tolerances``) plus
+  the largest clearance (``pair_clearances``) of the tests that hold it;
+- ``verify_plans`` verifies each pair once per distinct tolerance among the tests that hold it,
+  with the largest clearance of those tests; tests that agree on the tolerance (the usual case:
+  none sets its own) share one verification, each pair verified once whatever the number of
+  tests, and a pair no test with a clearance holds is verified without one;
 - ``judged`` gives every test the verdicts of its pairs: interference and touching as verified
   (both depend on the tolerance alone, which the test shares with its verification), a clearance
   verdict only when its exact distance is below the test's own clearance (the distance of a pair
@@ -52,7 +53,8 @@ class VerifyPlan:
         and ``clearance`` (the largest of its tests'): what ``verify_pairs`` and
         ``confirm_on_brep`` are given.
     tests : tuple of str
-        The clash tests judged from this plan's verdicts; empty without clash tests.
+        The clash tests of the plan's tolerance, which judge the verdicts of the pairs they hold;
+        empty without clash tests.
     """
 
     mask: np.ndarray
@@ -112,6 +114,30 @@ def widest_tolerances(
     ).reshape(-1)
 
 
+def pair_clearances(
+    settings: Settings, names: Sequence[tuple[str, ...]], pairs: np.ndarray
+) -> np.ndarray:
+    """The largest clearance of the tests that hold each of ``pairs``, ``(k,)`` float64, 0
+    where none has one: what the convex filters reach beyond the tolerance. Without tests, the
+    run's clearance for every pair."""
+    if not settings.tests:
+        return np.full(len(pairs), settings.clearance or 0.0)
+    return np.nan_to_num(_clearances(settings.tests, names, pairs), nan=0.0)
+
+
+def _clearances(
+    tests: Sequence[ClashTest], names: Sequence[tuple[str, ...]], pairs: np.ndarray
+) -> np.ndarray:
+    """The largest clearance of ``tests`` holding each pair, ``(k,)`` float64, NaN where none
+    with a clearance does."""
+    out = np.full(len(pairs), np.nan)
+    for test in tests:
+        if test.clearance is not None:
+            held = test.holds(names, pairs)
+            out[held] = np.fmax(out[held], test.clearance)
+    return out
+
+
 def held_by_any(
     tests: Sequence[ClashTest], names: Sequence[tuple[str, ...]], pairs: np.ndarray
 ) -> np.ndarray:
@@ -131,8 +157,9 @@ def verify_plans(
     *,
     deflection: np.ndarray | None = None,
 ) -> list[VerifyPlan]:
-    """The verifications of ``pairs`` ((k, 2) part indices): one per distinct tolerance among
-    the tests, of the pairs its tests hold, with their largest clearance.
+    """The verifications of ``pairs`` ((k, 2) part indices): for each distinct tolerance among
+    the tests, the pairs its tests hold, split by the largest clearance of those tests that hold
+    each pair (none first, then by value), so every pair is verified once per tolerance.
 
     Without tests, one plan of every pair at the run's tolerance and clearance.
 
@@ -156,13 +183,18 @@ def verify_plans(
     plans = []
     for key in tolerances_of_tests(settings):
         tests = [t for t in settings.tests if t.tolerance == key]
-        mask = held_by_any(tests, names, pairs)
-        tolerance = pair_tolerances(
-            diagonal, magnitude, pairs[mask], tolerance=key, deflection=deflection
-        )
-        clearance = _largest([t.clearance for t in tests])
-        plan_settings = settings.replace(tolerance=key, clearance=clearance)
-        plans.append(VerifyPlan(mask, tolerance, plan_settings, tuple(t.name for t in tests)))
+        held = held_by_any(tests, names, pairs)
+        clearance = _clearances(tests, names, pairs)
+        values = np.unique(clearance[held & ~np.isnan(clearance)])
+        for value in [None, *(float(v) for v in values)]:
+            mask = held & (np.isnan(clearance) if value is None else clearance == value)
+            if not mask.any():
+                continue
+            tolerance = pair_tolerances(
+                diagonal, magnitude, pairs[mask], tolerance=key, deflection=deflection
+            )
+            plan_settings = settings.replace(tolerance=key, clearance=value)
+            plans.append(VerifyPlan(mask, tolerance, plan_settings, tuple(t.name for t in tests)))
     return plans
 
 
@@ -208,12 +240,13 @@ def judged(
     index = {b.name: k for k, b in enumerate(bodies)}
     out: list[Finding] = []
     for test in settings.tests:
-        k = next(k for k, plan in enumerate(plans) if test.name in plan.tests)
-        clearance = plans[k].settings.clearance
         own = [
             f
-            for f in _held(test, verified[k], index, names)
-            if f.status != Verdict.CLEARANCE or _is_within(f, test.clearance, clearance)
+            for plan, found in zip(plans, verified, strict=True)
+            if test.name in plan.tests
+            for f in _held(test, found, index, names)
+            if f.status != Verdict.CLEARANCE
+            or _is_within(f, test.clearance, plan.settings.clearance)
         ]
         own += [f for f in duplicates if _holds_a_copy_pair(test, f, index, names)]
         own = sorted(own, key=lambda f: (f.a, f.b))
@@ -263,6 +296,7 @@ __all__ = [
     "judged",
     "largest_clearance",
     "largest_tolerance",
+    "pair_clearances",
     "tolerances_of_tests",
     "verify_plans",
     "widest_tolerances",
