@@ -184,6 +184,17 @@ def _units(values) -> tuple[str | None, tuple]:
     "Default: interference, plus clearance when a clearance is set.",
 )
 @click.option(
+    "--test",
+    "tests",
+    multiple=True,
+    metavar="NAME:A:B[:KEY=VALUE]...",
+    help="A clash test: the parts A names against those B names (comma lists of globs; * for "
+    "every part), with its own clearance=, tolerance= and fail_on= (a comma list), e.g. "
+    "--test 'fasteners:bolt_*:plate.stl:fail_on=interference'. Repeatable; replaces the config "
+    "file's [[test]] tables; unset values are the run's. Each test is a section of the report, "
+    "and the run fails when one of them does.",
+)
+@click.option(
     "--units",
     "units",
     multiple=True,
@@ -384,6 +395,7 @@ def _run(
     quiet=None,
     hide_touching=None,
     units=(),
+    tests=(),
     **options,
 ):
     """Refuse what can be refused, check, write the reports, exit with the run's status."""
@@ -408,6 +420,7 @@ def _run(
             file_units=file_units,
             quiet=quiet,
             hide_touching=hide_touching,
+            tests=tests or None,  # none given: the configuration's
             **options,
         )
         _refuse_robot_options(

@@ -194,6 +194,9 @@ class Finding:
     elements : tuple of CollisionElement
         For a part made of several collision elements (a URDF link's): the elements the finding
         involves (``verify.elements``), the first part's then the second's; empty otherwise.
+    test : str
+        The clash test that judged the pair (``config.ClashTest``; its name is in ``id``);
+        ``""`` in a run without clash tests.
     """
 
     a: str
@@ -205,6 +208,7 @@ class Finding:
     members: tuple[str, ...] = ()
     pattern: str = ""
     elements: tuple[CollisionElement, ...] = ()
+    test: str = ""
 
     @property
     def status(self) -> Verdict:
@@ -257,6 +261,7 @@ class Finding:
             "tolerance": None if self.tolerance is None else float(self.tolerance),
             **({"members": list(self.members)} if self.members else {}),
             **({"elements": [e.to_dict() for e in self.elements]} if self.elements else {}),
+            **({"test": self.test} if self.test else {}),
         }
 
 
@@ -574,6 +579,21 @@ def finding_id(
     return h.hexdigest()[:12]
 
 
+def finding_id_in(test: str, pair_id: str) -> str:
+    """Stable 12-hex-digit ID of a clash test's finding: the test's name and the pair's
+    ``finding_id``, so one pair judged by two tests has two IDs (each approved, and followed
+    against a baseline, on its own).
+
+    Examples
+    --------
+    >>> pair = finding_id("a", "1", "b", "2")
+    >>> finding_id_in("fasteners", pair) != finding_id_in("clearance", pair)
+    True
+    """
+    text = f"test\0{test}\0{pair_id}"
+    return hashlib.sha256(text.encode("utf-8", "surrogateescape")).hexdigest()[:12]
+
+
 def _name(part: tuple) -> tuple[str, str]:
     return part[0], part[1]
 
@@ -595,6 +615,8 @@ class ClashGroup:
     status : Verdict
     members : tuple of Finding
         Most severe first, as the reports list findings.
+    test : str
+        The clash test of its members (``Finding.test``); ``""`` without clash tests.
     """
 
     id: str
@@ -602,6 +624,7 @@ class ClashGroup:
     status: Verdict
     members: tuple[Finding, ...]
     kind: str = "part"
+    test: str = ""
 
     def to_dict(self) -> dict:
         return {
@@ -610,6 +633,7 @@ class ClashGroup:
             "part": self.part,
             "status": str(self.status),
             "findings": [f.id for f in self.members],
+            **({"test": self.test} if self.test else {}),
         }
 
 
@@ -624,6 +648,8 @@ def clash_groups(findings: Sequence[Finding]) -> list[ClashGroup]:
     each, largest first. Of the rest, the part named by most findings of one status makes the
     next group, its findings leave the pool, and so on while a part is named twice. Each finding
     is in at most one group; ties go by names, so the same findings always give the same groups.
+    Findings of different clash tests (``Finding.test``) are never grouped together: each
+    test's groups come in the order its first finding does, their IDs hold the test's name.
 
     Examples
     --------
@@ -633,7 +659,15 @@ def clash_groups(findings: Sequence[Finding]) -> list[ClashGroup]:
     [('plate', 3)]
     """
     pool = [f for f in findings if f.status in GROUPED_STATUSES and not f.is_approved]
-    groups = _pattern_groups(pool)
+    by_test: dict[str, list[Finding]] = {}
+    for f in pool:
+        by_test.setdefault(f.test, []).append(f)
+    return [g for test, found in by_test.items() for g in _groups_of(test, found)]
+
+
+def _groups_of(test: str, pool: list[Finding]) -> list[ClashGroup]:
+    """The clash groups of one test's unapproved findings of the grouped statuses."""
+    groups = _pattern_groups(test, pool)
     taken = {id(f) for g in groups for f in g.members}
     pool = [f for f in pool if id(f) not in taken]
     while True:
@@ -646,12 +680,14 @@ def clash_groups(findings: Sequence[Finding]) -> list[ClashGroup]:
             return groups
         (part, status), _ = best
         members = [f for f in pool if f.status == status and part in (f.a, f.b)]
-        groups.append(ClashGroup(group_id(part, status), part, status, _by_severity(members)))
+        groups.append(
+            ClashGroup(group_id(part, status, test), part, status, _by_severity(members), test=test)
+        )
         taken = {id(f) for f in members}
         pool = [f for f in pool if id(f) not in taken]
 
 
-def _pattern_groups(pool: Sequence[Finding]) -> list[ClashGroup]:
+def _pattern_groups(test: str, pool: Sequence[Finding]) -> list[ClashGroup]:
     """A group per pattern key and status held by two findings or more, largest first."""
     by_key: dict[tuple[str, Verdict], list[Finding]] = {}
     for f in pool:
@@ -659,11 +695,12 @@ def _pattern_groups(pool: Sequence[Finding]) -> list[ClashGroup]:
             by_key.setdefault((f.pattern, f.status), []).append(f)
     groups = [
         ClashGroup(
-            group_id(f"pattern\0{key}", status),
+            group_id(f"pattern\0{key}", status, test),
             None,
             status,
             _by_severity(members),
             kind="pattern",
+            test=test,
         )
         for (key, status), members in by_key.items()
         if len(members) > 1
@@ -675,8 +712,8 @@ def _by_severity(members: list[Finding]) -> tuple[Finding, ...]:
     return tuple(sorted(members, key=lambda f: (-(f.depth or 0.0), f.distance, f.a, f.b)))
 
 
-def group_id(part: str, status: str) -> str:
+def group_id(part: str, status: str, test: str = "") -> str:
     """Stable 12-hex-digit ID of a clash group: its shared part's name (or ``pattern\\0KEY``
-    for a pattern) and its status."""
-    text = "\0".join(("group", str(status), part))
+    for a pattern), its status, and its clash test's name when there is one."""
+    text = "\0".join(("group", str(status), part, *((test,) if test else ())))
     return hashlib.sha256(text.encode("utf-8", "surrogateescape")).hexdigest()[:12]

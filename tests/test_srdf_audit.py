@@ -211,6 +211,18 @@ def test_nothing_fails_with_fail_on_none_but_the_entry_is_listed(tmp_path):
     assert status == ExitStatus.OK and pair["wrong"] and not pair["failed"]
 
 
+def test_a_wrong_entry_fails_a_run_of_passing_clash_tests_and_its_summary_says_why(tmp_path):
+    urdf = write(tmp_path, "door.urdf", door(STOP_ANGLE + 0.05))
+    path = write(tmp_path, "door.srdf", srdf(("door", "stop", "Never")))
+    args = (urdf, "--audit-srdf", path, "--test", "all:*:*:fail_on=duplicate")
+    status, doc = audited(*args)
+    assert status == ExitStatus.FAILED and doc["summary"]["failed_tests"] == []
+    assert doc["summary"]["wrongly_disabled"] == 1 and not doc["summary"]["passed"]
+    text = run_cli(*args).stdout.splitlines()
+    assert text[-1].startswith("FAIL: ") and "wrongly disabled in the SRDF" in "".join(text[-2:])
+    assert sum("door.srdf:3: door / stop" in line for line in text) == 1  # once, not per test
+
+
 # ------------------------------------------------------------------------------------------
 # Every format lists a wrong entry with its witness
 

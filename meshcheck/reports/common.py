@@ -7,10 +7,12 @@ place they are made safe to show; every format that prints a name as text goes t
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 from dataclasses import dataclass
 
+from ..config import ClashTest
 from ..outcome import CheckResult
 from ..results import (
     FINDING_STATUSES,
@@ -97,7 +99,10 @@ def summary(result: CheckResult) -> dict:
     the findings against it; ``fail_on_new`` says whether only new findings fail. ``pose`` is
     the joint values each robot (and ``[[joint]]`` mechanism) was checked at, by its URDF (or
     configuration file): ``{PATH: {joint: value}}``, every joint a pose sets; None without one.
-    With an SRDF audit, ``wrongly_disabled`` counts its entries that disable a collision.
+    With an SRDF audit, ``wrongly_disabled`` counts its entries that disable a collision. A run
+    of clash tests counts the findings of all its tests, and adds ``tests`` (how many) and
+    ``failed_tests`` (their names); its ``tolerance``, ``required_clearance`` and ``fail_on``
+    are the defaults its tests started from.
     """
     counts = {str(status): result.count(status) for status in FINDING_STATUSES}
     doc = {
@@ -126,6 +131,9 @@ def summary(result: CheckResult) -> dict:
         doc["new"] = states.count("new")
         doc["active"] = states.count("active")
         doc["resolved"] = len(result.baseline.resolved(result.findings))
+    if result.tests:
+        doc["tests"] = len(result.tests)
+        doc["failed_tests"] = result.failed_tests
     return doc
 
 
@@ -147,6 +155,8 @@ def summary_chunks(result: CheckResult) -> list[str]:
     """
     s = summary(result)
     verdict = "PASS" if s["passed"] else "FAIL"
+    if result.tests:
+        return _tests_summary_chunks(result, s)
     parts = [f"{s[Verdict.INTERFERENCE]} interference", f"{s[Verdict.TOUCHING]} touching"]
     if s[Verdict.DUPLICATE]:
         parts.insert(0, f"{s[Verdict.DUPLICATE]} duplicate")
@@ -168,8 +178,31 @@ def summary_chunks(result: CheckResult) -> list[str]:
     ]
 
 
+def _tests_summary_chunks(result: CheckResult, s: dict) -> list[str]:
+    """The summary line of a run of clash tests in pieces: the verdict with the part count, the
+    tests and how many fail, what failed in motion, the SRDF audit's and the baseline's counts,
+    the unit."""
+    verdict = "PASS" if s["passed"] else "FAIL"
+    parts = [plural(s["tests"], "test"), f"{len(s['failed_tests'])} failing"]
+    if s["failed_in_motion"]:
+        parts.append(f"{s['failed_in_motion']} colliding in motion")
+    if result.audit is not None:
+        parts.append(f"{s['wrongly_disabled']} wrongly disabled in the SRDF")
+    if result.baseline is not None:
+        parts.extend([f"{s['new']} new", f"{s['resolved']} resolved"])
+    counts = [f"{part}," for part in parts[:-1]] + parts[-1:]
+    return [
+        f"{verdict}: {plural(len(result.parts), 'part')},",
+        *counts,
+        f"(tolerance {tolerance_text(result)}, {result.units})",
+    ]
+
+
 def tolerance_text(result: CheckResult) -> str:
-    """The given tolerance, or ``per pair`` with the range the findings were decided with."""
+    """The given tolerance, or ``per pair`` with the range the findings were decided with;
+    ``per test`` for a run of clash tests (each test's section says its own)."""
+    if result.tests:
+        return "per test"
     if result.tolerance is not None:
         return f"{result.tolerance:.3g}"
     used = [f.tolerance for f in result.findings if f.tolerance is not None]
@@ -427,3 +460,37 @@ def audit_message(audit: SrdfAudit, pair: AuditedPair) -> str:
     if pair.status == SweepStatus.ALWAYS:
         text += "; disabling is right" + (", as Always" if pair.reason.lower() == "never" else "")
     return text
+
+
+def clash_test_line(test: ClashTest) -> str:
+    """A clash test in one line: ``test NAME: A against B; clearance C; tolerance T; fails on
+    STATUSES`` (patterns and the name printable)."""
+    return printable(f"test {test.name}: ") + clash_test_settings(test)
+
+
+def clash_test_settings(test: ClashTest) -> str:
+    """A clash test's sides and settings: ``A against B; clearance C; tolerance T; fails on
+    STATUSES`` (patterns printable)."""
+    clearance = "no clearance" if test.clearance is None else f"clearance {test.clearance:g}"
+    tolerance = "per pair" if test.tolerance is None else f"{test.tolerance:.3g}"
+    fails = ", ".join(str(s) for s in test.fail_on) or "nothing"
+    return printable(f"{test.describe()}; {clearance}; tolerance {tolerance}; fails on {fails}")
+
+
+def sections(result: CheckResult) -> list[CheckResult]:
+    """Each clash test's own result (``CheckResult.for_test``), in the run's order; the
+    sections of a report of a run of clash tests."""
+    return [result.for_test(t.name) for t in result.tests]
+
+
+def run_remainder(result: CheckResult) -> CheckResult:
+    """What a run of clash tests has beside its tests' findings, as a result of no finding and
+    no test: its sweeps, warnings, configuration file, and the baseline's findings of tests the
+    run no longer has (all resolved); the part of a report after the sections."""
+    settings = dataclasses.replace(result.settings, tests=())
+    baseline = result.baseline
+    if baseline is not None:
+        baseline = baseline.other_than([t.name for t in result.tests])
+    return dataclasses.replace(
+        result, findings=[], settings=settings, baseline=baseline, test_pairs={}, checked_pairs=[]
+    )

@@ -12,6 +12,9 @@ annotation of that type says how many more there are, and those are printed as p
 An audited SRDF entry that disables a collision is an ``::error`` on its line of the SRDF (a
 ``::warning`` when nothing fails the run); the pose each robot was checked at is a log line
 before the summary.
+
+In a run of clash tests each annotation's title and message start with its test's name, and a
+log line per test (its name and summary line) comes before the run's summary line.
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ from .common import (
     pose_lines,
     printable,
     resolution,
+    sections,
     summary_line,
     sweep_message,
 )
@@ -76,9 +80,10 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
     for f in ordered(result):
         extra = f" (approved: {f.approval_reason})" if f.is_approved else ""
         state = result.baseline_state(f)
-        title = f"meshcheck {f.status} [{f.id}]" + (f" {state}" if state else "")
+        test = f"{f.test}: " if f.test else ""
+        title = f"meshcheck {test}{f.status} [{f.id}]" + (f" {state}" if state else "")
+        message = f"{test}{f.a} and {f.b}: {f.status}, {describe(f, tol)}{extra}"
         props = f"file={_property(part_file(paths, f.a))},title={_property(title)}"
-        message = f"{f.a} and {f.b}: {f.status}, {describe(f, tol)}{extra}"
         annotations[level(result, f)].append(_Annotation(props, title, message))
     for robot, pair in result.failing_sweeps:
         title = f"meshcheck {pair.verdict} in motion"
@@ -115,5 +120,7 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
             )
     lines += overflow
     lines += [f"meshcheck: {line}" for line in pose_lines(result)]
+    for section in sections(result):  # a run of clash tests: each test's summary
+        lines.append(f"meshcheck: test {printable(section.test.name)}: {summary_line(section)}")
     lines.append(summary_line(result))
     return "\n".join(lines) + "\n"

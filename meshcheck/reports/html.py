@@ -16,6 +16,10 @@ viewer puts it into the page with ``textContent`` only, showing control characte
 Part names are shown below the folder every part shares (``common.shared_prefix``, named once in
 the header), as in the text report, and wrap only after a ``/``; figures are the text every
 format prints (``common.figures``: lengths to the report's one resolution).
+
+A run of clash tests also carries its ``tests`` (name, sides and settings, verdict, findings) and
+each finding's ``test``; ``tests.js`` and ``tests.css`` (inlined in such a report only) list the
+tests in the header and add a filter by test beside the status filters.
 """
 
 from __future__ import annotations
@@ -37,11 +41,13 @@ from ..results import Finding, Verdict, clash_groups
 from .common import (
     View,
     audit_rows,
+    clash_test_settings,
     elements_text,
     figures,
     ordered,
     pose_text,
     resolution,
+    sections,
     shared_prefix,
     summary,
     sweep_rows,
@@ -222,7 +228,7 @@ def render_html(
         "shown": sum(len(f) for _, f in shown),
     }
     data = _data(result, units, inputs, version, mesh_rows, parts, findings, triangles)
-    return _document(_json_for_script(data), blob)
+    return _document(_json_for_script(data), blob, has_tests=bool(result.tests))
 
 
 def _parts(
@@ -293,6 +299,7 @@ def _finding_row(
         "box": box,
         "solid": solid,
         "line": line,
+        **({"test": f.test} if f.test else {}),
     }
 
 
@@ -305,7 +312,10 @@ def _data(result, units, inputs, version, mesh_rows, parts, findings, triangles)
         "tolerance": tolerance_text(result),
         "clearance": None if result.clearance is None else f"{result.clearance:g}",
     }
-    return {
+    if result.tests:  # each test has its own (the header lists them): "per test, in mm"
+        settings = {"tolerance": "per test, in", "clearance": "per test, in"}
+        s["fail_on"] = ["per test"]
+    data = {
         "version": str(version),
         "units": str(units),
         "inputs": [str(x) for x in inputs],
@@ -321,6 +331,17 @@ def _data(result, units, inputs, version, mesh_rows, parts, findings, triangles)
         "poses": [{"robot": str(p.path), "text": p.text()} for p in result.poses],
         "audit": _audit(result),
     }
+    if result.tests:
+        data["tests"] = [
+            {
+                "name": section.test.name,
+                "settings": clash_test_settings(section.test),
+                "passed": section.passed,
+                "findings": len(section.findings),
+            }
+            for section in sections(result)
+        ]
+    return data
 
 
 def _audit(result: CheckResult) -> dict | None:
@@ -537,19 +558,25 @@ def _csp_hash(text: str) -> str:
     return "'sha256-" + base64.b64encode(hashlib.sha256(text.encode()).digest()).decode() + "'"
 
 
-def _document(data_json: str, blob: str) -> str:
+def _document(data_json: str, blob: str, *, has_tests: bool = False) -> str:
     license_text = _asset("three.LICENSE").replace("*/", "* /")
     three = _script(f"/*\n{license_text}*/\n" + _asset("three.min.js"))
     viewer = _script(_asset("viewer.js"))
     style = _asset("viewer.css")
+    scripts, styles = [three, viewer], [style]
+    if has_tests:  # a run of clash tests: its tests in the header, the filter by test
+        scripts.append(_script(_asset("tests.js")))
+        styles.append(_asset("tests.css"))
     csp = "; ".join(
         [
             "default-src 'none'",
-            f"script-src {_csp_hash(three)} {_csp_hash(viewer)}",
-            f"style-src {_csp_hash(style)}",
+            "script-src " + " ".join(_csp_hash(text) for text in scripts),
+            "style-src " + " ".join(_csp_hash(text) for text in styles),
             "img-src data:",
         ]
     )
+    style_tags = "".join(f"<style>{text}</style>" for text in styles)
+    script_tags = "".join(f"<script>{text}</script>\n" for text in scripts)
     headings = "".join(
         f"<th>{h}</th>"
         for h in ("ID", "Status", "Parts", "Depth", "Volume", "Distance", "Approved")
@@ -561,7 +588,7 @@ def _document(data_json: str, blob: str) -> str:
 <meta http-equiv="Content-Security-Policy" content="{csp}">
 <meta name="viewport" content="width=device-width, initial-scale=1">
 <title>meshcheck report</title>
-<style>{style}</style>
+{style_tags}
 </head>
 <body>
 <header id="header"></header>
@@ -574,9 +601,7 @@ frame it</span></div>
 </div>
 <script type="application/json" id="meshcheck-data">{data_json}</script>
 <script type="application/octet-stream" id="meshcheck-geometry">{blob}</script>
-<script>{three}</script>
-<script>{viewer}</script>
-</body>
+{script_tags}</body>
 </html>
 """
 

@@ -5,6 +5,10 @@ Every line fits the width. Part names are shown after the directory prefix every
 (named once above the table), cut in the middle when they still do not fit, the same cut
 wherever a name appears (table, groups, baseline, sweep); the JSON report keeps them whole. The
 summary and group lines wrap between their comma-separated pieces, never inside one.
+
+A run of clash tests has a section per test: a line naming the test, its sides and settings,
+then the report of that test alone (its table, groups and summary line); then the run's sweep and
+configuration lines, and its summary line (how many tests fail) last.
 """
 
 from __future__ import annotations
@@ -18,11 +22,14 @@ from ..results import clash_groups
 from .common import (
     View,
     audit_rows,
+    clash_test_line,
     describe,
     ordered,
     pose_text,
     printable,
     resolution,
+    run_remainder,
+    sections,
     shared_prefix,
     summary_chunks,
     sweep_rows,
@@ -147,6 +154,8 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
     """The table of findings (most severe first), resolved baseline findings, the
     configuration file, the summary; ``view`` picks the rows and the width."""
     view = view or View()
+    if result.tests:
+        return _render_tests(result, view)
     width = view.width
     prefix = shared_prefix([p.name for p in result.parts])
     has_baseline = result.baseline is not None
@@ -224,6 +233,22 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
     if result.settings.config_path:
         lines.extend(wrap(f"configuration: {printable(result.settings.config_path)}", "  "))
     lines.extend(summary_lines(result, width))
+    return "\n".join(lines) + "\n"
+
+
+def _render_tests(result: CheckResult, view: View) -> str:
+    """A section per clash test (a line on the test, then the report of that test alone), then
+    the run's sweep and configuration lines and its summary."""
+    lines = []
+    for section in sections(result):
+        heading = _pieces_after(clash_test_line(section.test), "; ")
+        lines.extend(_pack(heading, view.width, "  "))
+        lines.extend(render(section, view=view).splitlines())
+        lines.append("")
+    rest = run_remainder(result)
+    tail = render(rest, view=view).splitlines()
+    lines.extend(tail[: len(tail) - len(summary_lines(rest, view.width))])
+    lines.extend(summary_lines(result, view.width))
     return "\n".join(lines) + "\n"
 
 
