@@ -227,18 +227,14 @@ def _test(table: dict, where: str, *, number) -> ClashTest:
     for key in table:
         if key not in TEST_KEYS:
             fail(f"unknown key {key!r} (known: {', '.join(TEST_KEYS)})")
-    sides = []
-    for key in ("a", "b"):
-        value = table.get(key, list(ALL_PARTS))
-        if isinstance(value, str):
-            value = [value]
-        if (
-            not isinstance(value, list)
-            or not value
-            or not all(isinstance(p, str) and p for p in value)
-        ):
-            fail(f"{key} must be a glob pattern or a non-empty list of them ('*': every part)")
-        sides.append(tuple(value))
+    sides = [
+        _patterns(
+            table.get(key, list(ALL_PARTS)),
+            fail,
+            f"{key} must be a glob pattern or a non-empty list of them ('*': every part)",
+        )
+        for key in ("a", "b")
+    ]
     fail_on = table.get("fail_on")
     if fail_on is not None:
         if isinstance(fail_on, str):
@@ -611,19 +607,24 @@ def _groups(groups, fail) -> Groups | None:
     for key in groups:
         if key not in ("a", "b"):
             fail(f"unknown key {key!r} in groups (known: a, b)")
-    patterns = []
-    for key in ("a", "b"):
-        value = groups.get(key)
-        if isinstance(value, str):
-            value = [value]
-        if (
-            not isinstance(value, list)
-            or not value
-            or not all(isinstance(p, str) and p for p in value)
-        ):
-            fail(f"groups.{key} must be a non-empty list of glob patterns")
-        patterns.append(tuple(value))
-    return Groups(*patterns)
+    return Groups(
+        *(
+            _patterns(
+                groups.get(key), fail, f"groups.{key} must be a non-empty list of glob patterns"
+            )
+            for key in ("a", "b")
+        )
+    )
+
+
+def _patterns(value, fail, message: str) -> tuple[str, ...]:
+    """``value`` (a glob pattern or a list of them) as a tuple of patterns; ``fail(message)``
+    unless it is one non-empty string or a non-empty list of them."""
+    if isinstance(value, str):
+        value = [value]
+    if not isinstance(value, list) or not value or not all(isinstance(p, str) and p for p in value):
+        fail(message)
+    return tuple(value)
 
 
 def _tests(tables, path: str, fail) -> tuple[ClashTest, ...]:

@@ -155,35 +155,16 @@ def summary_chunks(result: CheckResult) -> list[str]:
     """
     s = summary(result)
     verdict = "PASS" if s["passed"] else "FAIL"
-    if result.tests:
-        return _tests_summary_chunks(result, s)
-    parts = [f"{s[Verdict.INTERFERENCE]} interference", f"{s[Verdict.TOUCHING]} touching"]
-    if s[Verdict.DUPLICATE]:
-        parts.insert(0, f"{s[Verdict.DUPLICATE]} duplicate")
-    if result.clearance is not None:
-        parts.append(f"{s[Verdict.CLEARANCE]} clearance (< {result.clearance:g})")
-    if s["approved"]:
-        parts.append(f"{s['approved']} approved")
-    if s["failed_in_motion"]:
-        parts.append(f"{s['failed_in_motion']} colliding in motion")
-    if result.audit is not None:
-        parts.append(f"{s['wrongly_disabled']} wrongly disabled in the SRDF")
-    if result.baseline is not None:
-        parts.extend([f"{s['new']} new", f"{s['resolved']} resolved"])
-    counts = [f"{part}," for part in parts[:-1]] + parts[-1:]
-    return [
-        f"{verdict}: {plural(len(result.parts), 'part')},",
-        *counts,
-        f"(tolerance {tolerance_text(result)}, {result.units})",
-    ]
-
-
-def _tests_summary_chunks(result: CheckResult, s: dict) -> list[str]:
-    """The summary line of a run of clash tests in pieces: the verdict with the part count, the
-    tests and how many fail, what failed in motion, the SRDF audit's and the baseline's counts,
-    the unit."""
-    verdict = "PASS" if s["passed"] else "FAIL"
-    parts = [plural(s["tests"], "test"), f"{len(s['failed_tests'])} failing"]
+    if result.tests:  # the tests and how many fail; each test's section has its counts
+        parts = [plural(s["tests"], "test"), f"{len(s['failed_tests'])} failing"]
+    else:
+        parts = [f"{s[Verdict.INTERFERENCE]} interference", f"{s[Verdict.TOUCHING]} touching"]
+        if s[Verdict.DUPLICATE]:
+            parts.insert(0, f"{s[Verdict.DUPLICATE]} duplicate")
+        if result.clearance is not None:
+            parts.append(f"{s[Verdict.CLEARANCE]} clearance (< {result.clearance:g})")
+        if s["approved"]:
+            parts.append(f"{s['approved']} approved")
     if s["failed_in_motion"]:
         parts.append(f"{s['failed_in_motion']} colliding in motion")
     if result.audit is not None:
