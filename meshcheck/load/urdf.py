@@ -45,7 +45,7 @@ import numpy as np
 
 from ..errors import ConfigError, InputError
 from ..geometry import topology
-from ..mesh import clean_arrays, warn
+from ..mesh import clean_arrays, manifold_solid, warn
 from ..results import CollisionElement
 from .limits import Budget, read_file
 from .robot import (
@@ -252,17 +252,9 @@ def _union(solids: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.
         raise MemoryError(
             f"{left} bytes of address space left for a union of {triangles} triangles"
         )
-    made = []
-    for v, f in solids:
-        solid = manifold3d.Manifold(
-            manifold3d.Mesh64(
-                vert_properties=np.ascontiguousarray(v, dtype=np.float64),
-                tri_verts=np.ascontiguousarray(f, dtype=np.uint64),
-            )
-        )
-        if solid.status() != manifold3d.Error.NoError:
-            return None
-        made.append(solid)
+    made = [manifold_solid(v, f) for v, f in solids]
+    if any(solid is None for solid in made):
+        return None
     out = manifold3d.Manifold.batch_boolean(made, manifold3d.OpType.Add).to_mesh64()
     v = np.asarray(out.vert_properties, dtype=np.float64)[:, :3].reshape(-1, 3)
     f = np.asarray(out.tri_verts, dtype=np.int64).reshape(-1, 3)
