@@ -35,11 +35,12 @@ def free_port() -> int:
 
 def assembly(directory, boxes: int = 12) -> list[str]:
     """The concave bracket on the plate (decomposed on the cluster), and a row of boxes, each
-    overlapping or touching the next, so there are pairs to verify."""
+    overlapping the next, so there are pairs to verify: each box a little taller than the one
+    before, so each pair is a pair class of its own (``verify.classes``), decided on its own."""
     os.makedirs(directory, exist_ok=True)
     paths = [os.path.join(SAMPLES, "plate.stl"), os.path.join(SAMPLES, "bracket.stl")]
     for k in range(boxes):
-        box = trimesh.creation.box(extents=[10, 10, 10])
+        box = trimesh.creation.box(extents=[10, 10, 10 + 0.01 * k])
         box.apply_translation([200.0 + 9.5 * k, 0.0, 0.0])
         path = os.path.join(directory, f"box{k:02d}.stl")
         box.export(path)
