@@ -10,7 +10,9 @@ Each stage narrows the part pairs the next one looks at:
    The pieces cover every triangle of their part, so pairs whose pieces stay beyond the reach have
    surfaces beyond the reach: they are clear unless one part is buried inside the other, which the
    verify stage decides with one point per shell;
-4. ``verify_pairs`` decides the rest on the real meshes;
+4. ``decide_on_brep`` decides the pairs of STEP solids on their exact B-rep, once per pair of
+   products and relative placement (the meshes only filter out pairs clear by a margin), and
+   ``verify_pairs`` decides the rest on the real meshes;
 5. ``approve`` marks approved findings, in one place.
 
 Every pair is decided with its own tolerance (``tolerances.pair_tolerances``) unless the user
@@ -45,7 +47,7 @@ from .sweep import mechanism_pieces, sweep_bodies, with_adjacent_approvals
 from .tolerances import largest_pair_tolerance, pair_tolerances, part_sizes
 from .units import DEFAULT_UNIT
 from .verify import verify_pairs
-from .verify.brep import confirm_on_brep
+from .verify.brep import decide_on_brep, largest_reach_margin, reach_margin, warn_unconfirmed
 from .verify.duplicates import duplicate_findings, duplicate_sets, without_duplicate_pairs
 from .verify.patterns import with_patterns
 from .verify.shells import warn_nothing_to_compare, warn_overlapping_shells
@@ -167,7 +169,9 @@ def check_bodies(
         hulls = pack_convex(_world_hulls(bodies, geometry), is_hull=True)
         diagonal, magnitude = part_sizes(hulls.lower, hulls.upper, [b.is_float32 for b in bodies])
         deflection = np.array([b.deflection for b in bodies], dtype=np.float64)
-        pairs = select_pairs(hulls, settings, names, diagonal, magnitude, deflection)
+        pairs = select_pairs(
+            hulls, settings, names, diagonal, magnitude, deflection, largest_reach_margin(bodies)
+        )
         copies = duplicate_sets(bodies, geometry, tolerance=settings.tolerance)
         pairs = without_duplicate_pairs(pairs, copies, len(bodies))
         check_candidate_pairs(len(pairs), len(bodies))  # budgeted, like triangles
@@ -176,7 +180,7 @@ def check_bodies(
         tolerance = pair_tolerances(
             diagonal, magnitude, pairs, tolerance=settings.tolerance, deflection=deflection
         )
-        reach = tolerance + (settings.clearance or 0.0)
+        reach = tolerance + (settings.clearance or 0.0) + reach_margin(bodies, pairs)
         hull_query = query_pairs(hulls, pairs, tolerance=tolerance, depth=False, max_distance=reach)
         near = may_come_within(hull_query, reach)
     pairs_near, tol_near, reach_near = pairs[near], tolerance[near], reach[near]
@@ -198,17 +202,21 @@ def check_bodies(
             known=swept,
         )
         near_surfaces = surfaces_near(pieces, owner, pairs_near, tol_near, reach_near)
+        solid_findings, on_meshes, unconfirmed = decide_on_brep(
+            bodies, pairs_near, near_surfaces, settings, executor=executor, cache=caches.verdicts
+        )
         findings = verify_pairs(
             bodies,
-            pairs_near,
-            tol_near,
-            near_surfaces,
+            pairs_near[on_meshes],
+            tol_near[on_meshes],
+            near_surfaces[on_meshes],
             settings,
             executor=executor,
             cache=caches.verdicts,
-            hulls_penetrate=hull_query.status[near] == Status.PENETRATING,
+            hulls_penetrate=(hull_query.status[near] == Status.PENETRATING)[on_meshes],
         )
-        findings = confirm_on_brep(bodies, findings, settings, cache=caches.verdicts)
+        warn_unconfirmed(findings, unconfirmed)
+        findings = [*findings, *solid_findings]
         sweeps = sweep_bodies(bodies, mechanisms, settings, pieces=swept)
     findings = sorted(
         [*duplicate_findings(bodies, copies, geometry), *findings], key=lambda f: (f.a, f.b)
@@ -248,16 +256,19 @@ def select_pairs(
     diagonal: np.ndarray,
     magnitude: np.ndarray,
     deflection: np.ndarray | None = None,
+    margin: float = 0.0,
 ) -> np.ndarray:
     """Part pairs whose boxes come within reach, restricted by the groups rule; ``(k, 2)``.
 
-    The boxes grow by the largest tolerance any pair can get (``tolerances``), so no pair within
-    its own reach is pruned.
+    The boxes grow by the largest tolerance any pair can get (``tolerances``) and ``margin``
+    (for STEP solids: ``verify.brep.largest_reach_margin``), so no pair within its own reach is
+    pruned.
     """
     largest = largest_pair_tolerance(
         diagonal, magnitude, tolerance=settings.tolerance, deflection=deflection
     )
-    pairs = candidate_pairs(hulls.lower, hulls.upper, margin=largest + (settings.clearance or 0.0))
+    reach = largest + (settings.clearance or 0.0) + margin
+    pairs = candidate_pairs(hulls.lower, hulls.upper, margin=reach)
     if settings.groups is not None:
         pairs = pairs[settings.groups.pair_mask(names, pairs)]
     return pairs

@@ -215,17 +215,20 @@ def _count(shape, kind) -> int:
     return n
 
 
+def named_instances(instances: list[Instance]) -> list[tuple[str, Instance]]:
+    """(unique part node name, instance) per instance, in ``read_step``'s order."""
+    used: set[str] = set()
+    return [(unique_name(i.name, used), i) for i in sorted(instances, key=order_key)]
+
+
 def placed_solids(instances: list[Instance]) -> list[tuple[str, object]]:
     """(unique part node name, placed shape) per instance, in ``read_step``'s order."""
     from OCP.TopLoc import TopLoc_Location
 
-    order = sorted(range(len(instances)), key=lambda k: order_key(instances[k]))
-    used: set[str] = set()
-    out = []
-    for k in order:
-        inst = instances[k]
-        out.append((unique_name(inst.name, used), inst.product.Moved(TopLoc_Location(inst.trsf))))
-    return out
+    return [
+        (name, inst.product.Moved(TopLoc_Location(inst.trsf)))
+        for name, inst in named_instances(instances)
+    ]
 
 
 def order_key(instance: Instance) -> tuple[str, bytes]:

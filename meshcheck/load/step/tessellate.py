@@ -162,7 +162,7 @@ def _triangle_count(shape) -> int:
     return n
 
 
-def _face_arrays(shape) -> tuple[np.ndarray, np.ndarray]:
+def face_arrays(shape) -> tuple[np.ndarray, np.ndarray]:
     """(vertices (n, 3) float64 mm, faces (m, 3) int64) of a meshed shape, one copy per face,
     wound by each face's orientation (outward for a solid)."""
     from OCP.BRep import BRep_Tool
@@ -207,7 +207,7 @@ def placed_meshes(
     used: set[str] = set()
     for inst in sorted(instances, key=order_key):
         if inst.product_key not in meshes:
-            vertices, faces = _face_arrays(inst.product)
+            vertices, faces = face_arrays(inst.product)
             if not np.all(np.isfinite(vertices)):
                 raise InputError(f"{path}#{inst.name}", "vertices have NaN or infinite coordinates")
             meshes[inst.product_key] = close_mesh(vertices * to_unit, faces, deflection)
