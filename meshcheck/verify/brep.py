@@ -665,12 +665,12 @@ def decide(
     >>> str(v.status), round(v.distance, 9)
     ('clearance', 0.2)
     """
-    shared, volume, points = None, 0.0, None
+    shared, section, volume, points = None, None, 0.0, None
     if may_overlap:
-        shared = _common(shape_a, shape_b)
+        shared, section = _intersection(shape_a, shape_b)
         volume = max(_volume(shared), 0.0)
-    if volume > 0.0:
-        distance = 0.0  # the solids share volume
+    if section is not None and _meets_within(section, tolerance):
+        distance = 0.0  # the boundaries meet (within their own tolerances, at most ``tolerance``)
     else:
         distance, points = _distance(shape_a, shape_b)
     if distance > tolerance:
@@ -681,7 +681,7 @@ def decide(
             )
         return BrepVerdict(Verdict.CLEAR, distance, None, 0.0)
     if shared is None:
-        shared = _common(shape_a, shape_b)
+        shared, section = _intersection(shape_a, shape_b)
         volume = max(_volume(shared), 0.0)
     if volume > math.pi / 6.0 * tolerance**3:
         depth, ball_bound = _largest_ball(shared), _thickness_bound(shared)
@@ -698,7 +698,7 @@ def decide(
                 solid=_tessellation(shared),
             )
     if points is None:
-        _, lower, upper = _placement_of(shared)
+        _, lower, upper = _placement_of(section)
         centre = 0.5 * (lower + upper)
     else:
         centre, lower, upper = _box_of(points)
@@ -746,24 +746,48 @@ def is_closed_solid(shape) -> bool:
     return bool(solids)
 
 
-def _common(shape_a, shape_b):
-    """The shared solid of two solids (OpenCASCADE's boolean common, one thread, the arguments
-    left untouched)."""
-    from OCP.BRepAlgoAPI import BRepAlgoAPI_Common
+def _intersection(shape_a, shape_b):
+    """The shared solid of two solids and the section of their boundaries (OpenCASCADE's boolean
+    common and section from one intersection, one thread, the arguments left untouched)."""
+    from OCP.BOPAlgo import BOPAlgo_PaveFiller
+    from OCP.BRepAlgoAPI import BRepAlgoAPI_Common, BRepAlgoAPI_Section
     from OCP.OCP.collections import List_TopoDS_Shape
 
-    arguments, tools = List_TopoDS_Shape(), List_TopoDS_Shape()
+    arguments = List_TopoDS_Shape()
     arguments.Append(shape_a)
-    tools.Append(shape_b)
-    common = BRepAlgoAPI_Common()
-    common.SetArguments(arguments)
-    common.SetTools(tools)
-    common.SetRunParallel(False)
-    common.SetNonDestructive(True)
-    common.Build()
-    if not common.IsDone():
+    arguments.Append(shape_b)
+    filler = BOPAlgo_PaveFiller()
+    filler.SetArguments(arguments)
+    filler.SetRunParallel(False)
+    filler.SetNonDestructive(True)
+    filler.Perform()
+    if filler.HasErrors():
+        raise _Unconfirmed("OpenCASCADE's boolean intersection failed")
+    common = BRepAlgoAPI_Common(shape_a, shape_b, filler)
+    section = BRepAlgoAPI_Section(shape_a, shape_b, filler)
+    if not (common.IsDone() and section.IsDone()):
         raise _Unconfirmed("OpenCASCADE's boolean common failed")
-    return common.Shape()
+    return common.Shape(), section.Shape()
+
+
+def _meets_within(section, tolerance: float) -> bool:
+    """Whether a section of two boundaries is not empty and each of its vertices and edges lies
+    on both within ``tolerance`` (OpenCASCADE's tolerance of each): then the solids are at most
+    ``tolerance`` apart."""
+    from OCP.BRep import BRep_Tool
+    from OCP.TopAbs import TopAbs_EDGE, TopAbs_VERTEX
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS
+
+    found = False
+    for kind, cast in ((TopAbs_VERTEX, TopoDS.Vertex), (TopAbs_EDGE, TopoDS.Edge)):
+        explorer = TopExp_Explorer(section, kind)
+        while explorer.More():
+            if BRep_Tool.Tolerance_s(cast(explorer.Current())) > tolerance:
+                return False
+            found = True
+            explorer.Next()
+    return found
 
 
 def _volume(shape) -> float:

@@ -34,7 +34,7 @@ from .document import captured_output
 # Linear deflection used when none is given: the largest distance between a curved face and its
 # triangles. 0.005 mm keeps a measured 0.1 mm clearance within 0.01 mm (a pin and its hole are
 # both faceted: the gap can widen by the hole's sag) and a 0.2 mm depth within 0.03 mm; see
-# bench/step.py for what it costs.
+# bench/step_tessellation.py for what it costs.
 DEFAULT_DEFLECTION_MM = 0.005
 # ... or this fraction of the largest solid's diagonal when that is more (parts of metres or
 # kilometres: 0.005 mm across a 20 km part would be more triangles than any budget).
