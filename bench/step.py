@@ -21,7 +21,9 @@ For each, in this run, each a fresh process (imports included), alternated, best
   ``CollisionManager.in_collision_internal`` (FCL): a clock only, its answers are wrong on every
   coincident fit;
 - ``OCP``: ``STEPControl_Reader``, then every pair of solids whose boxes come within 1e-5 of the
-  smaller diagonal: ``BRepAlgoAPI_Common`` (its volume) and ``BRepExtrema_DistShapeShape``.
+  smaller diagonal: ``BRepAlgoAPI_Common`` (its volume) and ``BRepExtrema_DistShapeShape``;
+  past 500 pairs the rest is estimated at the rate of the first 500 (the 2,000 coincident
+  instances make 1,999,000 pairs).
 
 Prints seconds and the ratios cold/CM, warm/CM, cold/OCP, with the load averages before and
 after. ``--peer cm FILE`` and ``--peer ocp FILE`` run one peer (what the table times).
@@ -59,8 +61,9 @@ def peer_cm(path: str) -> str:
     return f"{len(scene.graph.nodes_geometry)} solids, {len(names)} colliding pairs"
 
 
-def peer_ocp(path: str) -> str:
-    """The scripted exact check: every box-overlapping pair of solids, boolean and distance."""
+def peer_ocp(path: str, max_pairs: int = 500) -> str:
+    """The scripted exact check: every box-overlapping pair of solids, boolean and distance
+    (past ``max_pairs`` pairs, the rest is estimated at the rate of the first ones)."""
     import math
 
     from OCP.Bnd import Bnd_Box
@@ -86,20 +89,26 @@ def peer_ocp(path: str) -> str:
         BRepBndLib.Add_s(solid, box, False)
         boxes.append(box)
     counts = {"interference": 0, "touching": 0, "clear": 0}
+    pairs = []
     for i in range(len(solids)):
         for j in range(i + 1, len(solids)):
             size = min(math.sqrt(boxes[k].SquareExtent()) for k in (i, j))
-            tolerance = 1e-5 * size
-            if boxes[i].Distance(boxes[j]) > tolerance:
-                continue
-            props = GProp_GProps()
-            BRepGProp.VolumeProperties_s(BRepAlgoAPI_Common(solids[i], solids[j]).Shape(), props)
-            distance = BRepExtrema_DistShapeShape(solids[i], solids[j]).Value()
-            if props.Mass() > math.pi / 6 * tolerance**3:
-                counts["interference"] += 1
-            else:
-                counts["touching" if distance <= tolerance else "clear"] += 1
-    return f"{len(solids)} solids, {sum(counts.values())} pairs: {counts}"
+            if boxes[i].Distance(boxes[j]) <= 1e-5 * size:
+                pairs.append((i, j, 1e-5 * size))
+    start = time.perf_counter()
+    for i, j, tolerance in pairs[:max_pairs]:
+        props = GProp_GProps()
+        BRepGProp.VolumeProperties_s(BRepAlgoAPI_Common(solids[i], solids[j]).Shape(), props)
+        distance = BRepExtrema_DistShapeShape(solids[i], solids[j]).Value()
+        if props.Mass() > math.pi / 6 * tolerance**3:
+            counts["interference"] += 1
+        else:
+            counts["touching" if distance <= tolerance else "clear"] += 1
+    text = f"{len(solids)} solids, {len(pairs)} pairs: {counts}"
+    if len(pairs) > max_pairs:  # the rest at the rate of the first ones
+        rest = (time.perf_counter() - start) * (len(pairs) - max_pairs) / max_pairs
+        text += f" in the first {max_pairs}; the rest estimated at {rest:.1f} s\nestimated {rest!r}"
+    return text
 
 
 def written_assemblies(folder: str) -> list[str]:
@@ -190,7 +199,11 @@ def bench_one(path: str, jobs: int, repeat: int, has_cascadio: bool) -> dict:
                         )
                     )
                 else:
-                    found[name] = done.stdout.strip()
+                    text, _, estimated = done.stdout.strip().partition("\nestimated ")
+                    found[name] = text
+                    if estimated:  # the peer's pairs past the ones it made, at its rate
+                        seconds += float(estimated)
+                        best[name] = seconds if attempt == 0 else min(best[name], seconds)
             if reports[0] != reports[1]:
                 raise SystemExit(f"{path}: the warm report differs from the cold one")
     return {"seconds": best, "found": found}

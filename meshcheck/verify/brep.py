@@ -847,7 +847,8 @@ def _tessellation(shape) -> tuple[np.ndarray, np.ndarray]:
     BRepMesh_IncrementalMesh(
         shape, max(SOLID_DEFLECTION * shape_diagonal(shape), 1e-9), False, 0.5, False
     )
-    return face_arrays(shape)
+    vertices, faces, _ = face_arrays(shape)
+    return vertices, faces
 
 
 def _solids(shape) -> list:
