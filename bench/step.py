@@ -25,8 +25,10 @@ For each, in this run, each a fresh process (imports included), alternated, best
   past 500 pairs the rest is estimated at the rate of the first 500 (the 2,000 coincident
   instances make 1,999,000 pairs).
 
-Prints seconds and the ratios cold/CM, warm/CM, cold/OCP, with the load averages before and
-after. ``--peer cm FILE`` and ``--peer ocp FILE`` run one peer (what the table times).
+Prints wall seconds and the ratios cold/CM, warm/CM, cold/OCP, then the same ratios of CPU
+seconds (each process and the workers it waited for: less moved by other jobs on a shared
+machine), with the load averages before and after. ``--peer cm FILE`` and ``--peer ocp FILE``
+run one peer (what the table times).
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ import argparse
 import glob
 import json
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -162,15 +165,21 @@ class quiet:
         os.close(self.saved)
 
 
-def timed(command: list[str], env: dict) -> tuple[float, subprocess.CompletedProcess]:
+def timed(command: list[str], env: dict) -> tuple[float, float, subprocess.CompletedProcess]:
+    """(wall seconds, CPU seconds of the process and the workers it waited for, its outcome)."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
     done = subprocess.run(command, capture_output=True, text=True, env=env)
-    return time.perf_counter() - start, done
+    wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return wall, cpu, done
 
 
 def bench_one(path: str, jobs: int, repeat: int, has_cascadio: bool) -> dict:
     """Seconds of each column for one file, best of ``repeat``, and what each found."""
     best: dict[str, float] = {}
+    cpu: dict[str, float] = {}
     found: dict[str, str] = {}
     for attempt in range(repeat):
         with tempfile.TemporaryDirectory() as cache:
@@ -183,10 +192,11 @@ def bench_one(path: str, jobs: int, repeat: int, has_cascadio: bool) -> dict:
             runs["OCP"] = [sys.executable, __file__, "--peer", "ocp", path]
             reports = []
             for name, cmd in runs.items():
-                seconds, done = timed(cmd, env)
+                seconds, cpu_seconds, done = timed(cmd, env)
                 if done.returncode not in (0, 1):
                     raise SystemExit(f"{name} failed on {path}:\n{done.stderr[-2000:]}")
                 best[name] = min(best.get(name, seconds), seconds)
+                cpu[name] = min(cpu.get(name, cpu_seconds), cpu_seconds)
                 if name in ("cold", "warm"):
                     reports.append(done.stdout)
                     summary = json.loads(done.stdout)["summary"]
@@ -204,9 +214,10 @@ def bench_one(path: str, jobs: int, repeat: int, has_cascadio: bool) -> dict:
                     if estimated:  # the peer's pairs past the ones it made, at its rate
                         seconds += float(estimated)
                         best[name] = seconds if attempt == 0 else min(best[name], seconds)
+                        cpu[name] += float(estimated)
             if reports[0] != reports[1]:
                 raise SystemExit(f"{path}: the warm report differs from the cold one")
-    return {"seconds": best, "found": found}
+    return {"seconds": best, "cpu": cpu, "found": found}
 
 
 def main() -> None:
@@ -236,17 +247,22 @@ def main() -> None:
                 if p.lower().endswith((".step", ".stp"))
             )
         paths += written_assemblies(folder)
-        head = f"{'assembly':34} {'cold':>7} {'warm':>7} {'CM':>7} {'OCP':>7}"
-        print(head + f" {'cold/CM':>8} {'warm/CM':>8} {'cold/OCP':>9}")
+        head = f"{'assembly':30} {'cold':>7} {'warm':>7} {'CM':>7} {'OCP':>7}"
+        print(
+            head
+            + f" {'cold/CM':>8} {'warm/CM':>8} {'cold/OCP':>9}  CPU: {'cold/CM':>7} {'cold/OCP':>8}"
+        )
         rows = []
         for path in paths:
             result = bench_one(path, args.jobs, args.repeat, has_cascadio)
-            s = result["seconds"]
-            cm = s.get("CM", float("nan"))
+            s, c = result["seconds"], result["cpu"]
+            cm, cm_cpu = s.get("CM", float("nan")), c.get("CM", float("nan"))
             print(
-                f"{os.path.basename(path)[:34]:34} {s['cold']:>6.2f}s {s['warm']:>6.2f}s "
+                f"{os.path.basename(path)[:30]:30} {s['cold']:>6.2f}s {s['warm']:>6.2f}s "
                 f"{cm:>6.2f}s {s['OCP']:>6.2f}s {s['cold'] / cm:>7.2f}x {s['warm'] / cm:>7.2f}x "
-                f"{s['cold'] / s['OCP']:>8.2f}x"
+                f"{s['cold'] / s['OCP']:>8.2f}x  CPU: {c['cold'] / cm_cpu:>6.2f}x "
+                f"{c['cold'] / c['OCP']:>7.2f}x",
+                flush=True,
             )
             rows.append((path, result["found"]))
     print("found:")
