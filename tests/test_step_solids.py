@@ -25,7 +25,7 @@ from meshcheck.cli import main
 from meshcheck.execute import LocalPool
 from meshcheck.load import load_bodies
 from meshcheck.pipeline import check_bodies
-from meshcheck.verify import brep
+from meshcheck.verify import brep, solids
 
 BOX_SIDES = str(Path(__file__).parent / "data" / "step" / "box_sides.STEP")
 EYE = np.eye(4)
@@ -62,13 +62,13 @@ def test_box_sides_every_pair_as_opencascade_decides_it():
     result = check_bodies(bodies, clearance=clearance, jobs=1)
     assert len(result.checked_pairs) == 20
     found = {(f.a, f.b): f for f in result.findings}
-    solids = bodies[0].brep.by_node()
+    shapes = bodies[0].brep.by_node()
     statuses = []
     for a, b in result.checked_pairs:
         finding = found.get((a, b))
         tolerance = finding.tolerance if finding else 1e-5 * INCH  # below any gap found here
         status, volume, distance = oracle(
-            solids[a.split("#", 1)[1]], solids[b.split("#", 1)[1]], tolerance * INCH
+            shapes[a.split("#", 1)[1]], shapes[b.split("#", 1)[1]], tolerance * INCH
         )
         if status == "apart":
             status = "clearance" if distance <= clearance * INCH else "clear"
@@ -221,6 +221,6 @@ def test_the_solids_travel_to_workers_as_brep_text(tmp_path):
     assert text == body.brep.product_text("bolt")  # one product, one text
     assert b"Triangulations 0" in text
     store = {("brep", "p"): text}
-    shape = brep._shape(store, ("brep", "p"))
-    assert brep.is_closed_solid(shape)
-    assert brep._shape(store, ("brep", "p")) is shape  # read once per process
+    shape = solids._shape(store, ("brep", "p"))
+    assert solids.is_closed_solid(shape)
+    assert solids._shape(store, ("brep", "p")) is shape  # read once per process

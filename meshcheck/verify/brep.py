@@ -9,45 +9,47 @@ clearance, a depth or a volume measured on the triangles is off by up to a defle
 the triangles came from answer all of these exactly, so a pair of STEP solids is decided on them,
 and only on them:
 
-- **The meshes filter.** A pair reaches this stage when its convex hulls come within reach. Its
-  triangles are then within the two deflections of the solids, so when the exact triangle
-  distance exceeds the solids' reach (``tolerance + clearance``) plus both deflections, and
-  neither mesh holds a shell of the other, the solids are farther apart than the reach: the
-  pair is clear (``pair.may_come_within``; milliseconds). Every other pair goes to the B-rep,
-  without being decided on the meshes first.
-- **The B-rep decides** (``decide``), with the pair's own tolerance ``t``: the user's
+- **The meshes filter.** A pair reaches this stage when its convex hulls come within reach (grown
+  for STEP solids by ``reach_margin``). Its triangles are within the two deflections of the
+  solids, so when the exact triangle distance exceeds the solids' reach (``tolerance +
+  clearance``) plus both deflections, and neither mesh holds a shell of the other, the solids are
+  farther apart than the reach: the pair is clear (``pair.surface_distance``; milliseconds).
+  Every other pair goes to the B-rep, without being decided on the meshes first.
+- **The B-rep decides** (``solids.decide``), with the pair's own tolerance ``t``: the user's
   ``--tolerance``, or ``TOLERANCE_FRACTION`` of the smaller solid's own box diagonal (in its own
   frame, so every instance of a pair gets the same; the deflections do not enter, the solids are
-  exact). ``BRepExtrema_DistShapeShape`` gives the distance ``d`` (0 when the solids overlap or
-  one holds the other):
+  exact):
 
-  * ``d > t``: **clearance** (``d``, the two closest points) up to the clearance, else clear;
-  * otherwise ``BRepAlgoAPI_Common`` gives the shared solid and ``GProp`` its volume ``V``. A ball
-    of diameter above ``t`` has volume above ``pi/6 t**3``: ``V`` at most that proves the shared
-    volume thinner than ``t``, **touching** (located at the closest points' box). Otherwise a
-    ball is exhibited inside the shared solid (``_largest_ball``: a ray from a point of its
+  * when the meshes come within the two deflections, one OpenCASCADE intersection gives the
+    shared solid (``BRepAlgoAPI_Common``) and the section of the two boundaries; a section
+    whose vertices and edges lie within ``t`` proves the solids meet. Otherwise (or when the
+    meshes keep farther apart) ``BRepExtrema_DistShapeShape`` gives the distance ``d``;
+  * ``d > t``: **clearance** (``d`` and the two closest points) up to the clearance, else clear;
+  * a shared volume ``V`` at most ``pi/6 t**3`` (the volume of a ball of diameter ``t``) proves
+    the overlap thinner than ``t``: **touching**, located at the section's box (or the closest
+    points'). Otherwise a ball is exhibited inside the shared solid (a ray from a point of its
     surface into it, the midpoint classified inside, its radius the exact distance to the
-    surface); a diameter above ``t`` is **interference** with that depth, volume ``V``, and the
-    shared solid's centroid and box as its location. Otherwise, when every connected piece of
-    the shared solid is provably thinner than ``t`` (its volume's ball, its box), **touching**;
-    short of a proof, **interference** (the rule for meshes, kept).
+    surface); a diameter above ``t`` is **interference** with that depth, volume ``V``, and
+    the shared solid's centroid and box as its location. Otherwise, when every connected piece
+    of the shared solid is provably thinner than ``t`` (its volume's ball, its box),
+    **touching**; short of a proof, **interference** (the rule for meshes, kept).
 
 Once each
 ---------
 A pair is decided in its first solid's frame: the first product as written, the second moved by
-their relative placement. Its key (``pair_key``) is the two products' content (the file's digest
-and the product), that relative placement bit for bit, the tolerance, the clearance, this file
-and OpenCASCADE's version; pairs of one run with one key are decided once (a bolt in each of
-forty identical nuts), and the verdict is kept in the run's pair cache, so a warm run reads no
-STEP document. Each verdict is moved to its pair's placement (``to_world``). ``decide_pair`` is
-the whole decision for one key: a caller grouping pairs by class decides a representative with
-it.
+their relative placement (``solids.decide_pair``). Its key (``pair_key``) is the two products'
+content (the file's digest and the product), that relative placement bit for bit, the
+tolerance, the clearance, whether the meshes come within the deflections, ``solids`` and
+OpenCASCADE's version. Pairs of one run with one key are decided once (a bolt in each of forty
+identical nuts), the verdict is kept in the run's pair cache (a warm run reads no STEP
+document), and each pair gets it moved to its own placement (``to_world``).
 
 The solids are decided in the run's worker processes when that pays (``batch.pays_in_workers``),
 one pair per task. OpenCASCADE shapes are not pickled: each product travels once per worker as
 BRep text (``StepSolids.product_text``, a few milliseconds to read, where reading the STEP file
 again costs a fraction of a second), and the solids are never modified (non-destructive
-booleans), so a verdict does not depend on the pairs decided before it in the same process.
+booleans on copies), so a verdict does not depend on the pairs decided before it in the same
+process.
 
 A pair that cannot be decided on the B-rep (OpenCASCADE's boolean or distance fails, a part was
 ``--split`` into shells or rescaled by ``--units FILE=UNIT``) is verified on its meshes; when
@@ -59,9 +61,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import io
 import json
-import math
 import os
 import warnings
 from collections.abc import Sequence
@@ -79,17 +79,13 @@ from ..results import Finding, Location, PairVerdict, Solid, Verdict, finding_id
 from ..settings import Settings
 from ..tolerances import default_tolerance
 from ..units import METRES
+from .solids import NOT_ONE_SOLID
 
-#: Points of the shared solid's surface a ball is grown from, the largest facets first.
-BALL_SEEDS = 24
 #: Bump when a cached B-rep verdict's meaning changes.
 FORMAT_VERSION = 2
 #: Expected seconds of one pair on the B-rep (a distance and, for pairs that meet, a boolean):
 #: ``python bench/step.py`` (the scripted OpenCASCADE peer's seconds per pair, same run).
 PAIR_SECONDS = 0.15
-#: The shared solid of an interference is drawn (reports, export) from a tessellation this
-#: fraction of its box diagonal from its faces.
-SOLID_DEFLECTION = 2e-3
 
 
 def is_on_brep(body: Body) -> bool:
@@ -190,7 +186,7 @@ def decide_on_brep(
     reasons = {}
     for i, j in pairs:  # two STEP parts, one of them split into shells
         if _is_step(bodies[i]) and _is_step(bodies[j]) and not (on[i] and on[j]):
-            reasons[bodies[i].name, bodies[j].name] = _NOT_ONE_SOLID
+            reasons[bodies[i].name, bodies[j].name] = NOT_ONE_SOLID
     for k, job in zip(chosen, jobs, strict=True):
         verdict = None if job is None else verdicts[job.key]  # None: the meshes proved it clear
         if isinstance(verdict, str):
@@ -201,9 +197,6 @@ def decide_on_brep(
             findings.append(_finding(bodies, job, verdict))
     findings.sort(key=lambda f: (f.a, f.b))
     return findings, on_meshes, reasons
-
-
-_NOT_ONE_SOLID = "the part is not one closed solid of its file"
 
 
 def warn_unconfirmed(findings: Sequence[Finding], reasons: dict[tuple[str, str], str]) -> None:
@@ -222,10 +215,6 @@ def warn_unconfirmed(findings: Sequence[Finding], reasons: dict[tuple[str, str],
                 ),
                 stacklevel=2,
             )
-
-
-class _Unconfirmed(Exception):
-    """The pair cannot be decided on the B-rep; the message says why."""
 
 
 # ---------------------------------------------------------------------------------------------
@@ -327,10 +316,16 @@ def pair_key(
 
 @functools.cache
 def _code_version() -> str:
-    """Digest of what computes a B-rep verdict: this file and OpenCASCADE's version."""
-    with open(__file__, "rb") as f:
-        source = f.read()
-    return checksum(source, package_version("cadquery-ocp-novtk", missing="?").encode()).hex()
+    """Digest of what computes a B-rep verdict: this file, ``solids`` and OpenCASCADE's
+    version."""
+    from . import solids
+
+    sources = []
+    for module in (__file__, solids.__file__):
+        with open(module, "rb") as f:
+            sources.append(f.read())
+    version = package_version("cadquery-ocp-novtk", missing="?").encode()
+    return checksum(*sources, version).hex()
 
 
 def _own_size_tolerance(body: Body) -> float:
@@ -469,7 +464,7 @@ def _decide_all(bodies, jobs: list[_PairJob], executor) -> dict[str, PairVerdict
     runner = executor if pays_in_workers(executor, cost) else Executor()
     with Progress("checking on the B-rep", len(tasks)) as bar:
         results = runner.map(
-            "meshcheck.verify.brep:brep_task",
+            "meshcheck.verify.solids:brep_task",
             tasks,
             shared=shared,
             progress=bar.update,
@@ -478,509 +473,6 @@ def _decide_all(bodies, jobs: list[_PairJob], executor) -> dict[str, PairVerdict
     out = {}
     for job, task, result in zip(jobs, tasks, results, strict=True):
         if result is None:  # its worker died: decide here (a bug then shows its traceback)
-            result = Executor().map("meshcheck.verify.brep:brep_task", [task], shared=shared)[0]
+            result = Executor().map("meshcheck.verify.solids:brep_task", [task], shared=shared)[0]
         out[job.key] = result
     return out
-
-
-def brep_task(store: dict, item: tuple) -> PairVerdict | str:
-    """Decide one pair in a worker: ``item`` is ``(product_a, product_b, relative, tolerance,
-    clearance, may_overlap)``, the products naming BRep texts in ``store`` (read once per
-    process); the verdict is in the first product's frame, mm, or a string saying why there is
-    none."""
-    product_a, product_b, relative, tolerance, clearance, may_overlap = item
-    try:
-        return decide_pair(
-            _shape(store, product_a),
-            _shape(store, product_b),
-            relative,
-            tolerance=tolerance,
-            clearance=clearance,
-            may_overlap=may_overlap,
-        )
-    except _Unconfirmed as exc:
-        return str(exc)
-
-
-def _shape(store: dict, product) -> object:
-    """The product's solid from its BRep text in ``store``, read once per process."""
-    from OCP.BRep import BRep_Builder
-    from OCP.BRepTools import BRepTools
-    from OCP.TopoDS import TopoDS_Shape
-
-    memo = store.setdefault(("brep", "shapes"), {})
-    if product not in memo:
-        shape = TopoDS_Shape()
-        BRepTools.Read_s(shape, io.BytesIO(store[product]), BRep_Builder())
-        memo[product] = shape
-    return memo[product]
-
-
-def decide_pair(
-    product_a,
-    product_b,
-    relative: np.ndarray,
-    *,
-    tolerance: float,
-    clearance: float | None,
-    may_overlap: bool = True,
-) -> PairVerdict:
-    """The verdict of one pair of solids, decided in the first one's frame.
-
-    Parameters
-    ----------
-    product_a, product_b : OCP.TopoDS.TopoDS_Shape
-        The two products, each in its own frame, mm.
-    relative : (4, 4) float64
-        ``product_b``'s placement in ``product_a``'s frame (``relative_placement``), mm.
-    tolerance : float
-        mm.
-    clearance : float, optional
-        mm.
-    may_overlap : bool
-        False when the solids are known to be apart (the meshes stay farther apart than their
-        deflections): the distance alone decides, no boolean is made.
-
-    Returns
-    -------
-    PairVerdict
-        In ``product_a``'s frame, mm (``to_world`` places it).
-
-    Raises
-    ------
-    _Unconfirmed
-        The solids are not closed, the placement is not rigid, or OpenCASCADE failed.
-    """
-    from OCP.BRepBuilderAPI import BRepBuilderAPI_Copy
-    from OCP.Standard import Standard_Failure
-
-    for product in (product_a, product_b):
-        if not is_closed_solid(product):
-            raise _Unconfirmed(_NOT_ONE_SOLID)
-    try:
-        moved = BRepBuilderAPI_Copy(product_b, True, False).Shape().Moved(_location(relative))
-        verdict = decide(
-            product_a, moved, tolerance=tolerance, clearance=clearance, may_overlap=may_overlap
-        )
-    except Standard_Failure as exc:
-        raise _Unconfirmed(f"OpenCASCADE failed ({type(exc).__name__})") from None
-    return _to_fields(verdict)
-
-
-def _location(matrix: np.ndarray):
-    """A TopLoc_Location of a rigid (4, 4) transform."""
-    from OCP.gp import gp_Trsf
-    from OCP.TopLoc import TopLoc_Location
-
-    m = np.asarray(matrix, dtype=np.float64)
-    if not np.allclose(m[:3, :3] @ m[:3, :3].T, np.eye(3), atol=1e-9):
-        raise _Unconfirmed("its placement is not a rigid motion")
-    trsf = gp_Trsf()
-    trsf.SetValues(*(float(x) for x in m[:3].ravel()))
-    return TopLoc_Location(trsf)
-
-
-# ---------------------------------------------------------------------------------------------
-# The solids (millimetres): OpenCASCADE only, no I/O
-
-
-@dataclasses.dataclass(frozen=True)
-class BrepVerdict:
-    """What the exact solids say about a pair; lengths in their unit.
-
-    Attributes
-    ----------
-    status : Verdict
-    distance : float
-        Distance between the solids (0 when they share volume).
-    depth : float or None
-        Diameter of a ball exhibited inside the shared solid (interference only).
-    volume : float
-        Volume of the shared solid.
-    centroid, lower, upper : (3,) float64 or None
-        Interference: the shared solid's centre of mass and box. Touching and clearance: the box
-        of the closest points and its centre.
-    closest : ((3,) float64, (3,) float64) or None
-        Clearance: the two closest points, on the first solid and on the second.
-    solid : (vertices (n, 3) float64, faces (m, 3) int64) or None
-        Interference: a tessellation of the shared solid (``SOLID_DEFLECTION``), to draw.
-    """
-
-    status: Verdict
-    distance: float
-    depth: float | None
-    volume: float
-    centroid: np.ndarray | None = None
-    lower: np.ndarray | None = None
-    upper: np.ndarray | None = None
-    closest: tuple[np.ndarray, np.ndarray] | None = None
-    solid: tuple[np.ndarray, np.ndarray] | None = None
-
-
-def decide(
-    shape_a,
-    shape_b,
-    *,
-    tolerance: float,
-    clearance: float | None = None,
-    may_overlap: bool = True,
-) -> BrepVerdict:
-    """The verdict of two exact solids (see the module docstring), lengths in their unit.
-
-    Parameters
-    ----------
-    shape_a, shape_b : OCP.TopoDS.TopoDS_Shape
-        Closed solids, placed, in one frame; neither is modified.
-    tolerance : float
-        Overlaps thinner and gaps narrower than this are touching.
-    clearance : float, optional
-        Gaps up to this are ``clearance``; farther is ``clear``.
-    may_overlap : bool
-        True: the boolean comes first, and when the shared solid has volume the distance is 0
-        without ``BRepExtrema``. False (the caller knows the solids apart): the distance comes
-        first, and the boolean only when it is within ``tolerance``. The verdict is the same
-        either way; a touching pair is located at the shared sliver's box in the first case.
-
-    Returns
-    -------
-    BrepVerdict
-
-    Raises
-    ------
-    _Unconfirmed
-        OpenCASCADE's boolean or distance failed.
-
-    Examples
-    --------
-    >>> from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox
-    >>> from OCP.gp import gp_Pnt
-    >>> a = BRepPrimAPI_MakeBox(gp_Pnt(0, 0, 0), gp_Pnt(1, 1, 1)).Shape()
-    >>> b = BRepPrimAPI_MakeBox(gp_Pnt(0.7, 0, 0), gp_Pnt(2, 1, 1)).Shape()
-    >>> v = decide(a, b, tolerance=1e-3)
-    >>> str(v.status), round(v.volume, 9), round(v.depth, 6)
-    ('interference', 0.3, 0.3)
-    >>> str(decide(a, b.Moved(_shift(0.3)), tolerance=1e-3).status)
-    'touching'
-    >>> v = decide(a, b.Moved(_shift(0.5)), tolerance=1e-3, clearance=0.5, may_overlap=False)
-    >>> str(v.status), round(v.distance, 9)
-    ('clearance', 0.2)
-    """
-    shared, section, volume, points = None, None, 0.0, None
-    if may_overlap:
-        shared, section = _intersection(shape_a, shape_b)
-        volume = max(_volume(shared), 0.0)
-    if section is not None and _meets_within(section, tolerance):
-        distance = 0.0  # the boundaries meet (within their own tolerances, at most ``tolerance``)
-    else:
-        distance, points = _distance(shape_a, shape_b)
-    if distance > tolerance:
-        if clearance is not None and distance <= clearance:
-            centre, lower, upper = _box_of(points)
-            return BrepVerdict(
-                Verdict.CLEARANCE, distance, None, 0.0, centre, lower, upper, closest=points[0]
-            )
-        return BrepVerdict(Verdict.CLEAR, distance, None, 0.0)
-    if shared is None:
-        shared, section = _intersection(shape_a, shape_b)
-        volume = max(_volume(shared), 0.0)
-    if volume > math.pi / 6.0 * tolerance**3:
-        depth, ball_bound = _largest_ball(shared), _thickness_bound(shared)
-        if depth > tolerance or ball_bound > tolerance:
-            centroid, lower, upper = _placement_of(shared)
-            return BrepVerdict(
-                Verdict.INTERFERENCE,
-                0.0,
-                depth,
-                volume,
-                centroid,
-                lower,
-                upper,
-                solid=_tessellation(shared),
-            )
-    if points is None:
-        _, lower, upper = _placement_of(section)
-        centre = 0.5 * (lower + upper)
-    else:
-        centre, lower, upper = _box_of(points)
-    return BrepVerdict(Verdict.TOUCHING, distance, None, volume, centre, lower, upper)
-
-
-def _shift(dx: float):
-    """A TopLoc_Location moving by ``dx`` along x (for the examples)."""
-    return _location(np.array([[1, 0, 0, dx], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]]))
-
-
-def _to_fields(v: BrepVerdict) -> PairVerdict:
-    """A verdict as every stage after verify reads one (``results.PairVerdict``)."""
-    interferes = v.status == Verdict.INTERFERENCE
-    location = None if v.centroid is None else Location(v.centroid, v.lower, v.upper)
-    solid = None if v.solid is None or not len(v.solid[1]) else Solid(*v.solid)
-    return PairVerdict(
-        v.status,
-        0.0 if interferes else v.distance,
-        depth=v.depth if interferes else None,
-        volume=v.volume if interferes else None,
-        location=location,
-        solid=solid,
-        closest=v.closest if v.status == Verdict.CLEARANCE else None,
-    )
-
-
-def is_closed_solid(shape) -> bool:
-    """Whether ``shape`` holds solids, each bounded by closed shells (OpenCASCADE's check of
-    the topology: every edge of a shell shared by two of its faces)."""
-    from OCP.BRep import BRep_Tool
-    from OCP.TopAbs import TopAbs_SHELL
-    from OCP.TopExp import TopExp_Explorer
-
-    solids = _solids(shape)
-    for solid in solids:
-        explorer, shells = TopExp_Explorer(solid, TopAbs_SHELL), 0
-        while explorer.More():
-            if not BRep_Tool.IsClosed_s(explorer.Current()):
-                return False
-            shells += 1
-            explorer.Next()
-        if not shells:
-            return False
-    return bool(solids)
-
-
-def _intersection(shape_a, shape_b):
-    """The shared solid of two solids and the section of their boundaries (OpenCASCADE's boolean
-    common and section from one intersection, one thread, the arguments left untouched)."""
-    from OCP.BOPAlgo import BOPAlgo_PaveFiller
-    from OCP.BRepAlgoAPI import BRepAlgoAPI_Common, BRepAlgoAPI_Section
-    from OCP.OCP.collections import List_TopoDS_Shape
-
-    arguments = List_TopoDS_Shape()
-    arguments.Append(shape_a)
-    arguments.Append(shape_b)
-    filler = BOPAlgo_PaveFiller()
-    filler.SetArguments(arguments)
-    filler.SetRunParallel(False)
-    filler.SetNonDestructive(True)
-    filler.Perform()
-    if filler.HasErrors():
-        raise _Unconfirmed("OpenCASCADE's boolean intersection failed")
-    common = BRepAlgoAPI_Common(shape_a, shape_b, filler)
-    section = BRepAlgoAPI_Section(shape_a, shape_b, filler)
-    if not (common.IsDone() and section.IsDone()):
-        raise _Unconfirmed("OpenCASCADE's boolean common failed")
-    return common.Shape(), section.Shape()
-
-
-def _meets_within(section, tolerance: float) -> bool:
-    """Whether a section of two boundaries is not empty and each of its vertices and edges lies
-    on both within ``tolerance`` (OpenCASCADE's tolerance of each): then the solids are at most
-    ``tolerance`` apart."""
-    from OCP.BRep import BRep_Tool
-    from OCP.TopAbs import TopAbs_EDGE, TopAbs_VERTEX
-    from OCP.TopExp import TopExp_Explorer
-    from OCP.TopoDS import TopoDS
-
-    found = False
-    for kind, cast in ((TopAbs_VERTEX, TopoDS.Vertex), (TopAbs_EDGE, TopoDS.Edge)):
-        explorer = TopExp_Explorer(section, kind)
-        while explorer.More():
-            if BRep_Tool.Tolerance_s(cast(explorer.Current())) > tolerance:
-                return False
-            found = True
-            explorer.Next()
-    return found
-
-
-def _volume(shape) -> float:
-    from OCP.BRepGProp import BRepGProp
-    from OCP.GProp import GProp_GProps
-
-    props = GProp_GProps()
-    BRepGProp.VolumeProperties_s(shape, props)
-    return float(props.Mass())
-
-
-def _placement_of(shape) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Centre of mass and bounding box of a solid."""
-    from OCP.Bnd import Bnd_Box
-    from OCP.BRepBndLib import BRepBndLib
-    from OCP.BRepGProp import BRepGProp
-    from OCP.GProp import GProp_GProps
-
-    props = GProp_GProps()
-    BRepGProp.VolumeProperties_s(shape, props)
-    box = Bnd_Box()
-    BRepBndLib.Add_s(shape, box, False)  # exact, not enlarged by the tessellation
-    return (
-        np.array(props.CentreOfMass().Coord()),
-        np.array(box.CornerMin().Coord()),
-        np.array(box.CornerMax().Coord()),
-    )
-
-
-def _box_of(points: list[tuple[np.ndarray, np.ndarray]]):
-    """Centre and box of the closest points."""
-    every = np.array([p for pair in points for p in pair], dtype=np.float64)
-    lower, upper = every.min(axis=0), every.max(axis=0)
-    return 0.5 * (lower + upper), lower, upper
-
-
-def _distance(shape_a, shape_b) -> tuple[float, list[tuple[np.ndarray, np.ndarray]]]:
-    """Distance between two solids (0 when one holds the other) and its solutions' points."""
-    from OCP.BRepExtrema import BRepExtrema_DistShapeShape
-
-    extrema = BRepExtrema_DistShapeShape(shape_a, shape_b)
-    if not extrema.IsDone() or extrema.NbSolution() == 0:
-        raise _Unconfirmed("OpenCASCADE's distance failed")
-    points = [
-        (np.array(extrema.PointOnShape1(k).Coord()), np.array(extrema.PointOnShape2(k).Coord()))
-        for k in range(1, extrema.NbSolution() + 1)
-    ]
-    return float(extrema.Value()), points
-
-
-def _tessellation(shape) -> tuple[np.ndarray, np.ndarray]:
-    """A tessellation of a solid, ``SOLID_DEFLECTION`` of its size from its faces, to draw."""
-    from OCP.BRepMesh import BRepMesh_IncrementalMesh
-
-    from ..load.step.tessellate import face_arrays, shape_diagonal
-
-    BRepMesh_IncrementalMesh(
-        shape, max(SOLID_DEFLECTION * shape_diagonal(shape), 1e-9), False, 0.5, False
-    )
-    vertices, faces, _ = face_arrays(shape)
-    return vertices, faces
-
-
-def _solids(shape) -> list:
-    from OCP.TopAbs import TopAbs_SOLID
-    from OCP.TopExp import TopExp_Explorer
-    from OCP.TopoDS import TopoDS
-
-    out, explorer = [], TopExp_Explorer(shape, TopAbs_SOLID)
-    while explorer.More():
-        out.append(TopoDS.Solid(explorer.Current()))
-        explorer.Next()
-    return out
-
-
-def _thickness_bound(shape) -> float:
-    """An upper bound on the diameter of any ball inside ``shape``: per connected solid, the
-    ball of its volume and its box's smallest side; the largest of them."""
-    from OCP.Bnd import Bnd_Box
-    from OCP.BRepBndLib import BRepBndLib
-
-    bound = 0.0
-    for solid in _solids(shape):
-        box = Bnd_Box()
-        BRepBndLib.Add_s(solid, box, False)
-        side = min(np.array(box.CornerMax().Coord()) - np.array(box.CornerMin().Coord()))
-        ball = 2.0 * (3.0 * max(_volume(solid), 0.0) / (4.0 * math.pi)) ** (1.0 / 3.0)
-        bound = max(bound, min(side, ball))
-    return bound
-
-
-def _largest_ball(shape) -> float:
-    """Diameter of the largest of a few balls exhibited inside ``shape`` (0 when none).
-
-    For each seed (the centroids of a coarse tessellation's largest facets), a ray goes from the
-    seed into the solid along the facet's inward normal; the midpoint between the seed and where
-    the ray leaves is kept when OpenCASCADE classifies it inside, with the exact distance from it
-    to the solid's surface as the radius. Each ball is inside the solid, so the largest is a
-    lower bound on its depth.
-    """
-    from OCP.BRepClass3d import BRepClass3d_SolidClassifier
-    from OCP.TopAbs import TopAbs_IN
-
-    best = 0.0
-    for solid in _solids(shape):
-        classifier = BRepClass3d_SolidClassifier(solid)
-        for point, inward in _seeds(solid):
-            exit_at = _ray_exit(solid, point, inward)
-            if exit_at is None:
-                continue
-            centre = point + 0.5 * exit_at * inward
-            classifier.Perform(_pnt(centre), 1e-12)
-            if classifier.State() != TopAbs_IN:
-                continue
-            best = max(best, 2.0 * _distance_to_surface(solid, centre))
-    return best
-
-
-def _seeds(solid) -> list[tuple[np.ndarray, np.ndarray]]:
-    """(point, inward unit normal) on the solid's faces, at the parameters of the centroids of a
-    coarse mesh's largest facets: points of the exact surface, normals of the exact surface."""
-    from OCP.BRep import BRep_Tool
-    from OCP.BRepAdaptor import BRepAdaptor_Surface
-    from OCP.BRepMesh import BRepMesh_IncrementalMesh
-    from OCP.gp import gp_Pnt, gp_Vec
-    from OCP.TopAbs import TopAbs_FACE, TopAbs_REVERSED
-    from OCP.TopExp import TopExp_Explorer
-    from OCP.TopLoc import TopLoc_Location
-    from OCP.TopoDS import TopoDS
-
-    from ..load.step import shape_diagonal
-
-    BRepMesh_IncrementalMesh(solid, max(shape_diagonal(solid) * 1e-2, 1e-9), False, 0.5, False)
-    facets = []
-    explorer = TopExp_Explorer(solid, TopAbs_FACE)
-    while explorer.More():
-        face = TopoDS.Face(explorer.Current())
-        explorer.Next()
-        tri = BRep_Tool.Triangulation_s(face, TopLoc_Location())
-        if tri is None or not tri.HasUVNodes():
-            continue
-        surface = BRepAdaptor_Surface(face)
-        sign = -1.0 if face.Orientation() == TopAbs_REVERSED else 1.0
-        for i in range(1, tri.NbTriangles() + 1):
-            idx = tri.Triangle(i).Get()
-            uv = np.mean([tri.UVNode(k).Coord() for k in idx], axis=0)
-            xyz = np.array([tri.Node(k).Coord() for k in idx])
-            area = float(np.linalg.norm(np.cross(xyz[1] - xyz[0], xyz[2] - xyz[0])))
-            point, du, dv = gp_Pnt(), gp_Vec(), gp_Vec()
-            surface.D1(float(uv[0]), float(uv[1]), point, du, dv)
-            normal = np.cross(du.Coord(), dv.Coord())
-            length = float(np.linalg.norm(normal))
-            if area > 0 and length > 0:
-                facets.append((area, np.array(point.Coord()), -sign * normal / length))
-    facets.sort(key=lambda f: (-f[0], tuple(f[1])))
-    return [(p, n) for _, p, n in facets[:BALL_SEEDS]]
-
-
-def _ray_exit(solid, point: np.ndarray, direction: np.ndarray) -> float | None:
-    """Distance along ``direction`` from ``point`` (on the surface) to where the ray meets the
-    surface again, or None."""
-    from OCP.gp import gp_Dir, gp_Lin
-    from OCP.IntCurvesFace import IntCurvesFace_ShapeIntersector
-
-    intersector = IntCurvesFace_ShapeIntersector()
-    intersector.Load(solid, 1e-9)
-    intersector.Perform(gp_Lin(_pnt(point), gp_Dir(*direction)), 0.0, math.inf)
-    if not intersector.IsDone():
-        return None
-    hits = [intersector.WParameter(i) for i in range(1, intersector.NbPnt() + 1)]
-    scale = max(1.0, float(np.abs(point).max()))
-    hits = [w for w in hits if w > 1e-9 * scale]
-    return min(hits) if hits else None
-
-
-def _distance_to_surface(solid, centre: np.ndarray) -> float:
-    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeVertex
-    from OCP.BRepExtrema import BRepExtrema_DistShapeShape
-    from OCP.TopAbs import TopAbs_SHELL
-    from OCP.TopExp import TopExp_Explorer
-
-    vertex = BRepBuilderAPI_MakeVertex(_pnt(centre)).Vertex()
-    nearest = math.inf
-    explorer = TopExp_Explorer(solid, TopAbs_SHELL)  # the surface, not the solid's inside
-    while explorer.More():
-        extrema = BRepExtrema_DistShapeShape(vertex, explorer.Current())
-        if extrema.IsDone():
-            nearest = min(nearest, float(extrema.Value()))
-        explorer.Next()
-    return 0.0 if not math.isfinite(nearest) else nearest
-
-
-def _pnt(xyz):
-    from OCP.gp import gp_Pnt
-
-    return gp_Pnt(*(float(c) for c in xyz))
