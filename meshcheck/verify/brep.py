@@ -44,8 +44,8 @@ OpenCASCADE's version. Pairs of one run with one key are decided once (a bolt in
 identical nuts), the verdict is kept in the run's pair cache (a warm run reads no STEP
 document), and each pair gets it moved to its own placement (``to_world``).
 
-The solids are decided in the run's worker processes when that pays (``batch.pays_in_workers``),
-one pair per task. OpenCASCADE shapes are not pickled: each product travels once per worker as
+The solids are decided in the run's worker processes when that pays (``_pays_in_workers``), one
+pair per task. OpenCASCADE shapes are not pickled: each product travels once per worker as
 BRep text (``StepSolids.product_text``, a few milliseconds to read, where reading the STEP file
 again costs a fraction of a second), and the solids are never modified (non-destructive
 booleans on copies), so a verdict does not depend on the pairs decided before it in the same
@@ -83,9 +83,13 @@ from .solids import NOT_ONE_SOLID
 
 #: Bump when a cached B-rep verdict's meaning changes.
 FORMAT_VERSION = 2
-#: Expected seconds of one pair on the B-rep (a distance and, for pairs that meet, a boolean):
-#: ``python bench/step.py`` (the scripted OpenCASCADE peer's seconds per pair, same run).
+#: Expected seconds of one pair on the B-rep (an intersection, or a distance): 0.1 to 0.2 s of
+#: CPU a pair on the B-spline cylinders of as1-oc-214.stp (``python bench/step.py``).
 PAIR_SECONDS = 0.15
+#: Seconds a worker spends before its first pair, loading OpenCASCADE and reading the products'
+#: BRep text: 1.2 s of CPU on the shared 2-core machine (``-j 2`` against ``-j 1`` on
+#: box_sides.STEP, the same run).
+WORKER_SECONDS = 1.5
 
 
 def is_on_brep(body: Body) -> bool:
@@ -426,11 +430,24 @@ def _screened(bodies, pairs, near_surfaces, settings) -> list[_PairJob | None]:
     return out
 
 
+def _pays_in_workers(executor: Executor | None, pairs: int) -> bool:
+    """Whether deciding ``pairs`` pairs (``PAIR_SECONDS`` each) in ``executor``'s workers saves
+    more than their start and their loading OpenCASCADE (``WORKER_SECONDS``) cost."""
+    from .batch import POOL_SECONDS
+
+    if executor is None or not pairs:
+        return False
+    if executor.is_distributed:
+        return True
+    if executor.jobs <= 1:
+        return False
+    start = WORKER_SECONDS + (0.0 if executor.is_started else POOL_SECONDS)
+    return pairs * PAIR_SECONDS * (1.0 - 1.0 / executor.jobs) > start
+
+
 def _decide_all(bodies, jobs: list[_PairJob], executor) -> dict[str, PairVerdict | str]:
     """Verdicts (or why not) of ``jobs`` by key: here, or in ``executor``'s workers when their
     expected seconds repay them."""
-    from .batch import pays_in_workers
-
     if not jobs:
         return {}
     shared: dict = {}
@@ -460,8 +477,7 @@ def _decide_all(bodies, jobs: list[_PairJob], executor) -> dict[str, PairVerdict
         )
         for n, job in enumerate(jobs)
     ]
-    cost = np.full(len(jobs), PAIR_SECONDS)
-    runner = executor if pays_in_workers(executor, cost) else Executor()
+    runner = executor if _pays_in_workers(executor, len(jobs)) else Executor()
     with Progress("checking on the B-rep", len(tasks)) as bar:
         results = runner.map(
             "meshcheck.verify.solids:brep_task",
