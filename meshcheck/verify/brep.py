@@ -335,9 +335,9 @@ def _code_version() -> str:
 def _own_size_tolerance(body: Body) -> float:
     """The default tolerance of a solid alone, report units: ``TOLERANCE_FRACTION`` of its own
     box diagonal, in its own frame (every instance of it gets the same)."""
-    bounds = np.asarray(body.mesh.bounds, dtype=np.float64)
-    scale = float(np.abs(np.linalg.det(np.asarray(body.transform)[:3, :3]))) ** (1.0 / 3.0)
-    return float(default_tolerance(np.linalg.norm(bounds[1] - bounds[0]) * scale, 0.0))
+    bounds = np.asarray(body.mesh.bounds, dtype=np.float64)  # the file's unit
+    diagonal = float(np.linalg.norm(bounds[1] - bounds[0])) * METRES[body.brep.unit]
+    return float(default_tolerance(diagonal / METRES[body.units], 0.0))
 
 
 def _node(body: Body) -> str | None:

@@ -28,7 +28,7 @@ import trimesh
 
 from ...errors import InputError
 from ...units import METRES
-from .assembly import Instance, order_key, unique_name
+from .assembly import Instance, UniqueNames, order_key
 from .document import captured_output
 
 # Linear deflection used when none is given: the largest distance between a curved face and its
@@ -237,7 +237,7 @@ def placed_meshes(
     """(unique product name, closed local mesh, transform) per solid instance, file units."""
     meshes: dict[str, trimesh.Trimesh] = {}  # one closed mesh per product
     items = []
-    used: set[str] = set()
+    unique = UniqueNames()
     for inst in sorted(instances, key=order_key):
         if inst.product_key not in meshes:
             vertices, faces, same = face_arrays(inst.product)
@@ -251,9 +251,9 @@ def placed_meshes(
                 f"{path}#{inst.name}", "placement transform holds NaN or infinite values"
             )
         if len(meshes[inst.product_key].faces):
-            items.append((unique_name(inst.name, used), meshes[inst.product_key], transform))
+            items.append((unique(inst.name), meshes[inst.product_key], transform))
         else:
-            used.add(unique_name(inst.name, used))  # names in step with placed_solids
+            unique(inst.name)  # names in step with placed_solids
     if not items:
         raise InputError(path, "holds no solids (nothing OpenCASCADE could tessellate)")
     items.sort(key=lambda item: item[0])
