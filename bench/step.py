@@ -57,11 +57,14 @@ def peer_cm(path: str) -> str:
         cascadio.step_to_glb(path, glb)
         scene = trimesh.load(glb, force="scene")
     manager = trimesh.collision.CollisionManager()
+    solids = 0
     for node in scene.graph.nodes_geometry:
         transform, geometry = scene.graph[node]
-        manager.add_object(node, scene.geometry[geometry], transform=transform)
+        if isinstance(scene.geometry[geometry], trimesh.Trimesh):  # not the curves it may hold
+            manager.add_object(node, scene.geometry[geometry], transform=transform)
+            solids += 1
     _, names = manager.in_collision_internal(return_names=True)
-    return f"{len(scene.graph.nodes_geometry)} solids, {len(names)} colliding pairs"
+    return f"{solids} solids, {len(names)} colliding pairs"
 
 
 def peer_ocp(path: str, max_pairs: int = 500) -> str:
@@ -193,7 +196,7 @@ def bench_one(path: str, jobs: int, repeat: int, has_cascadio: bool) -> dict:
             reports = []
             for name, cmd in runs.items():
                 seconds, cpu_seconds, done = timed(cmd, env)
-                if done.returncode not in (0, 1):
+                if done.returncode not in ((0, 1) if name in ("cold", "warm") else (0,)):
                     raise SystemExit(f"{name} failed on {path}:\n{done.stderr[-2000:]}")
                 best[name] = min(best.get(name, seconds), seconds)
                 cpu[name] = min(cpu.get(name, cpu_seconds), cpu_seconds)
