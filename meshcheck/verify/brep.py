@@ -83,8 +83,9 @@ from .solids import NOT_ONE_SOLID
 
 #: Bump when a cached B-rep verdict's meaning changes.
 FORMAT_VERSION = 2
-#: Expected seconds of one pair on the B-rep (an intersection, or a distance): 0.1 to 0.2 s of
-#: CPU a pair on the B-spline cylinders of as1-oc-214.stp (``python bench/step.py``).
+#: Expected seconds of one pair on the B-rep (an intersection, or a distance): 0.14 to 0.18 s of
+#: CPU an intersection of as1-oc-214.stp's coincident B-spline shanks and holes, a few
+#: milliseconds on analytic cylinders and planes (measured on the shared 2-core machine).
 PAIR_SECONDS = 0.15
 #: Seconds a worker spends before its first pair, loading OpenCASCADE and reading the products'
 #: BRep text: 1.2 s of CPU on the shared 2-core machine (``-j 2`` against ``-j 1`` on

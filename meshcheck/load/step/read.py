@@ -72,6 +72,7 @@ class StepSolids:
         self._instances = instances
         self._solids: dict[str, object] | None = None
         self._texts: dict[int, bytes] = {}
+        self._named: dict[str, Instance] | None = None
         to_mm = METRES[unit] / 1e-3
         products: dict[int, int] = {}  # id(mesh) -> product number
         self._nodes: dict[str, tuple[int, np.ndarray]] = {}
@@ -121,7 +122,9 @@ class StepSolids:
             from OCP.BRepTools import BRepTools
             from OCP.TopTools import TopTools_FormatVersion
 
-            shape = dict(named_instances(self._document()))[node].product
+            if self._named is None:
+                self._named = dict(named_instances(self._document()))
+            shape = self._named[node].product
             stream = io.BytesIO()
             version = TopTools_FormatVersion.TopTools_FormatVersion_VERSION_1
             BRepTools.Write_s(shape, stream, False, False, version)
@@ -144,6 +147,7 @@ class StepSolids:
         self.path, self.digest, self.unit = state["path"], state["digest"], state["unit"]
         self._nodes = state["nodes"]
         self._data, self._instances, self._solids, self._texts = None, None, None, {}
+        self._named = None
 
 
 @dataclass(frozen=True)
