@@ -81,6 +81,25 @@ def test_box_sides_every_pair_as_opencascade_decides_it():
         if status == "clearance":
             assert finding.distance * INCH == pytest.approx(distance, rel=1e-6)
     assert statuses.count("interference") == 8 and statuses.count("touching") == 8
+    assert statuses.count("clearance") == 4  # each distance checked against BRepExtrema
+
+
+def test_no_valid_solid_of_a_real_export_is_reported_open():
+    # every solid OpenCASCADE's checker calls valid is meshed closed, and its findings carry the
+    # solid's figures: no surface-only verdict, every interference with its depth and volume
+    from OCP.BRepCheck import BRepCheck_Analyzer
+
+    bodies = load_bodies([BOX_SIDES])
+    shapes = bodies[0].brep.by_node()
+    valid = [b for b in bodies if BRepCheck_Analyzer(shapes[node(b)]).IsValid()]
+    assert len(valid) == 10
+    assert all(b.is_closed for b in valid)
+    findings = check_bodies(bodies, jobs=1).findings
+    assert len(findings) == 16
+    assert not any(f.verdict.is_surface_only for f in findings)
+    interferences = [f for f in findings if f.status == "interference"]
+    assert len(interferences) == 8
+    assert all(f.depth > 0 and f.volume > 0 for f in interferences)
 
 
 # --------------------------------------------------------------------------------------------
