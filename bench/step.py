@@ -29,6 +29,15 @@ Prints wall seconds and the ratios cold/CM, warm/CM, cold/OCP, then the same rat
 seconds (each process and the workers it waited for: less moved by other jobs on a shared
 machine), with the load averages before and after. ``--peer cm FILE`` and ``--peer ocp FILE``
 run one peer (what the table times).
+
+``--phases`` prints instead where a cold run's CPU seconds go, for each assembly: one process
+at ``-j 1`` without a cache, its imports (meshcheck with click and numpy; trimesh with scipy;
+OpenCASCADE's bindings), OpenCASCADE reading the file (``read_document``), the tessellation,
+the pairs decided on the B-rep (``decide_on_brep``), and the rest (broad phase, filters,
+report), best of ``--repeat``.
+
+meshcheck's modules are compiled to bytecode first, as an installed wheel has them (an editable
+checkout run with ``PYTHONDONTWRITEBYTECODE`` would compile them again in every process).
 """
 
 from __future__ import annotations
@@ -115,6 +124,85 @@ def peer_ocp(path: str, max_pairs: int = 500) -> str:
         rest = (time.perf_counter() - start) * (len(pairs) - max_pairs) / max_pairs
         text += f" in the first {max_pairs}; the rest estimated at {rest:.1f} s\nestimated {rest!r}"
     return text
+
+
+def phases(path: str) -> str:
+    """CPU seconds of one cold run of ``meshcheck PATH -j 1`` in this process, by phase."""
+    clock = time.process_time
+    start = clock()
+    import meshcheck.cli
+
+    marks = {"imports: meshcheck, click, numpy": clock() - start}
+    mark = clock()
+    import trimesh  # noqa: F401
+
+    marks["imports: trimesh, scipy"] = clock() - mark
+    mark = clock()
+    import OCP.OCP  # noqa: F401
+
+    marks["imports: OpenCASCADE (OCP)"] = clock() - mark
+    mark = clock()
+    import meshcheck.pipeline
+    import meshcheck.verify.brep
+
+    marks["imports: meshcheck, click, numpy"] += clock() - mark
+    spent = dict.fromkeys(("read_document", "tessellation", "decide_on_brep"), 0.0)
+
+    def timed_call(name, function):
+        def call(*args, **kwargs):
+            begin = clock()
+            try:
+                return function(*args, **kwargs)
+            finally:
+                spent[name] += clock() - begin
+
+        return call
+
+    from meshcheck.load.step import read
+
+    read.read_document = timed_call("read_document", read.read_document)
+    read._tessellation = timed_call("tessellation", read._tessellation)
+    pipeline = meshcheck.pipeline
+    pipeline.decide_on_brep = timed_call("decide_on_brep", pipeline.decide_on_brep)
+    begin = clock()
+    with quiet():
+        try:
+            meshcheck.cli.main(
+                [path, "-j", "1", "--format", "json", "--no-cache", "-o", os.devnull],
+                standalone_mode=False,
+            )
+        except SystemExit:
+            pass
+    run = clock() - begin
+    marks["STEP read (OpenCASCADE transfer)"] = spent["read_document"]
+    marks["tessellation"] = spent["tessellation"]
+    marks["pairs on the B-rep (OpenCASCADE)"] = spent["decide_on_brep"]
+    marks["the rest (broad phase, filters, report)"] = run - sum(spent.values())
+    return json.dumps({"total": clock() - start, **marks})
+
+
+def print_phases(paths: list[str], repeat: int) -> None:
+    """Each assembly's cold CPU seconds by phase (``phases``), best of ``repeat`` processes."""
+    for path in paths:
+        best: dict | None = None
+        for _ in range(repeat):
+            command = [sys.executable, __file__, "--peer", "phases", path]
+            done = subprocess.run(command, capture_output=True, text=True)
+            if done.returncode != 0:
+                raise SystemExit(f"phases failed on {path}:\n{done.stderr[-2000:]}")
+            marks = json.loads(done.stdout.strip().splitlines()[-1])
+            if best is None or marks["total"] < best["total"]:
+                best = marks
+        print(f"{os.path.basename(path)}: {best.pop('total'):.2f} s CPU")
+        for name, seconds in best.items():
+            print(f"  {name:42} {seconds:5.2f} s")
+
+
+def compile_meshcheck() -> None:
+    """meshcheck's modules compiled to bytecode, as an installed wheel has them."""
+    import compileall
+
+    compileall.compile_dir(os.path.join(ROOT, "meshcheck"), quiet=1)
 
 
 def written_assemblies(folder: str) -> list[str]:
@@ -228,11 +316,13 @@ def main() -> None:
     parser.add_argument("folders", nargs="*", help="folders of real STEP exports")
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--repeat", type=int, default=1)
-    parser.add_argument("--peer", choices=("cm", "ocp"))
+    parser.add_argument("--peer", choices=("cm", "ocp", "phases"))
+    parser.add_argument("--phases", action="store_true", help="cold CPU seconds by phase")
     args = parser.parse_args()
     if args.peer:
-        print((peer_cm if args.peer == "cm" else peer_ocp)(args.folders[0]))
+        print({"cm": peer_cm, "ocp": peer_ocp, "phases": phases}[args.peer](args.folders[0]))
         return
+    compile_meshcheck()
     try:
         import cascadio  # noqa: F401
 
@@ -250,6 +340,9 @@ def main() -> None:
                 if p.lower().endswith((".step", ".stp"))
             )
         paths += written_assemblies(folder)
+        if args.phases:
+            print_phases(paths, args.repeat)
+            return
         head = f"{'assembly':30} {'cold':>7} {'warm':>7} {'CM':>7} {'OCP':>7}"
         print(
             head
