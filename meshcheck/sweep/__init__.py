@@ -6,17 +6,20 @@ joint ranges (``--sweep``), asking the verify stage's kernels for distances alon
 - ``kinematics``: joint ranges and the bound on how fast a joint moves a link's points;
 - ``distances``: posed links' distances, from their convex pieces and their real meshes;
 - ``search``: one link pair's boxes of joint values, witnesses and descent;
-- ``run``: every robot's link pairs, the stage the pipeline calls.
+- ``run``: every robot's link pairs, the stage the pipeline calls;
+- ``audit``: the link pairs an SRDF disables, swept and judged (``--audit-srdf``).
 """
 
 from __future__ import annotations
 
+from .audit import audit_srdf
 from .mechanisms import ADJACENT, adjacent_approvals, with_adjacent_approvals
 from .run import mechanism_pieces, sweep_bodies, sweep_mechanism
 
 __all__ = [
     "ADJACENT",
     "adjacent_approvals",
+    "audit_srdf",
     "mechanism_pieces",
     "sweep_bodies",
     "sweep_mechanism",

@@ -1,6 +1,6 @@
 """What the run's mechanisms (``load.Assembly.mechanisms``) change in the check and the sweep:
-adjacent links' findings approved, the joints a sweep moves, and the approval reasons of a
-``[[joint]]`` mechanism's swept pairs."""
+adjacent links' findings approved, the joints a sweep moves, the link pairs an SRDF audit
+sweeps, and the approval reasons of a ``[[joint]]`` mechanism's swept pairs."""
 
 from __future__ import annotations
 
@@ -74,6 +74,18 @@ def swept_joints(robot: Robot, named) -> set[str]:
             raise ConfigError(robot.path, f"--sweep {name}: not a movable joint that leads")
         out.add(name)
     return out
+
+
+def is_audited(reason: str, reasons: Sequence[str]) -> bool:
+    """Whether an SRDF entry with ``reason`` is audited (``Motion.audit_reasons``: empty for
+    every entry; reasons compare without regard to case, as MoveIt writes them capitalised)."""
+    return not reasons or reason.casefold() in {r.casefold() for r in reasons}
+
+
+def audited_pairs(srdf, motion) -> set[frozenset[str]]:
+    """The link pairs of an SRDF (``load.srdf.Srdf``) an audit sweeps: its entries whose
+    reason ``motion.audit_reasons`` names."""
+    return {frozenset((p.a, p.b)) for p in srdf.pairs if is_audited(p.reason, motion.audit_reasons)}
 
 
 def with_approval_reasons(

@@ -16,7 +16,7 @@ from ..tolerances import pair_tolerances, part_sizes
 from ..units import scale as unit_scale
 from .distances import link_geometries
 from .kinematics import frame_reach, joint_ranges, link_sides, motion_weights
-from .mechanisms import check_swept, swept_joints, with_approval_reasons
+from .mechanisms import audited_pairs, check_swept, swept_joints, with_approval_reasons
 from .search import LinkPair, sweep_pair
 
 
@@ -27,8 +27,10 @@ def sweep_mechanism(
     motion,
     *,
     tolerance: float | None = None,
+    pairs: set[frozenset[str]] | None = None,
 ) -> tuple[PairSweep, ...]:
-    """Classify every pair of a robot's links over the swept joints' ranges (``sweep_pair``).
+    """Classify every pair of a robot's links over the swept joints' ranges (``sweep_pair``),
+    or only ``pairs``.
 
     Parameters
     ----------
@@ -43,12 +45,20 @@ def sweep_mechanism(
         resolution.
     tolerance : float, optional
         Touching tolerance, report units; default each pair's own (``tolerances.pair_tolerances``).
+    pairs : set of frozenset of str, optional
+        Sweep only these link pairs (an SRDF's, ``sweep.audit``): only their links need
+        ``pieces``, and each pair's tolerance is the rule's over those links.
 
     Returns
     -------
     tuple of PairSweep
-        One per pair of links with collision geometry, sorted by link names.
+        One per pair of links with collision geometry (of ``pairs``), sorted by link names.
     """
+    if pairs is not None:
+        named = {link for pair in pairs for link in pair}
+        mech = dataclasses.replace(mech, parts={k: v for k, v in mech.parts.items() if k in named})
+        if not mech.parts:
+            return ()
     robot = mech.robot
     base = joint_values(robot, motion.pose)
     swept = swept_joints(robot, motion.sweep)
@@ -65,6 +75,8 @@ def sweep_mechanism(
     for x, a in enumerate(names):
         for y in range(x + 1, len(names)):
             b = names[y]
+            if pairs is not None and frozenset((a, b)) not in pairs:
+                continue
             tol = tolerance
             if tol is None:
                 tol = float(pair_tolerances(diagonal, magnitude, np.array([[x, y]]))[0])
@@ -89,20 +101,28 @@ def mechanism_pieces(
     executor=None,
     cache=None,
 ) -> dict[int, list[np.ndarray]]:
-    """Convex pieces of every part of the mechanisms a ``--sweep`` poses, by body index; ``{}``
-    without ``--sweep``. A ``--sweep-joints`` name no mechanism has is refused first. CoACD
-    runs on ``executor``; pieces are kept in ``cache``, the run's decompositions.
+    """Convex pieces of every part of the mechanisms a ``--sweep`` poses, by body index; without
+    ``--sweep``, of the links an audited SRDF's pairs name (``sweep.audit``), else ``{}``. A
+    ``--sweep-joints`` name no mechanism has is refused first. CoACD runs on ``executor``;
+    pieces are kept in ``cache``, the run's decompositions.
 
     Each part is CoACD's decomposition, never a stand-in hull: no time limit (a time-out would
     swap a link's pieces for its hull, and the sweep's classes, the SRDF, would then depend on
     how the run went), whatever the check's cost model says. The check uses these pieces for
     the parts it needs (``pipeline.decompose_parts``), so no part is decomposed twice.
     """
-    if settings.motion.sweep is None:
+    if settings.motion.sweep is None and not any(m.srdf is not None for m in mechanisms):
         return {}
     check_swept(mechanisms, settings.motion.sweep)
     out: dict[int, list[np.ndarray]] = {}
     for mech in mechanisms:
+        if settings.motion.sweep is None:
+            if mech.srdf is None:
+                continue
+            named = {link for pair in audited_pairs(mech.srdf, settings.motion) for link in pair}
+            mech = dataclasses.replace(
+                mech, parts={k: v for k, v in mech.parts.items() if k in named}
+            )
         ks = sorted(k for ks in mech.parts.values() for k in ks)
         piece_lists = decompose_bodies(
             [bodies[k] for k in ks],
