@@ -22,6 +22,7 @@ from step_writer import box, cut, cylinder, fuse, placement, write_step
 
 from meshcheck.cache import open_caches
 from meshcheck.cli import main
+from meshcheck.config import parse_test
 from meshcheck.execute import LocalPool
 from meshcheck.load import load_bodies
 from meshcheck.pipeline import check_bodies
@@ -120,6 +121,25 @@ def test_clearance_is_the_solids_distance_not_the_chords(tmp_path):
     p, q = finding.closest
     assert np.linalg.norm(p - q) == pytest.approx(0.2, rel=1e-9)
     assert np.hypot(*p[:2]) == pytest.approx(3.2, rel=1e-9)  # on the hole, exactly
+
+
+def test_clash_tests_decide_step_pairs_on_the_solids_at_their_own_tolerance(tmp_path):
+    # two tests on one screw in its housing, at two tolerances (two verifications): each judges
+    # the B-rep's verdict, the 0.2 mm gap exact
+    housing = cut(box((-8, -8, 0), (8, 8, 6)), cylinder(3.2, -1, 7))
+    path = write_step(
+        tmp_path / "screw.step",
+        {"housing": housing, "screw": cylinder(3.0, -2, 8)},
+        [("housing", EYE), ("screw", placement(angle_deg=7.0))],
+    )
+    tests = [
+        parse_test("fit:*screw:*housing:clearance=0.25:tolerance=0.001"),
+        parse_test("tight:*screw:*housing:clearance=0.1"),
+    ]
+    (finding,) = check_bodies(load_bodies([path]), jobs=1, tests=tests).findings
+    assert (finding.test, finding.status) == ("fit", "clearance")
+    assert finding.distance == pytest.approx(0.2, rel=1e-9)
+    assert finding.tolerance == 0.001
 
 
 def test_interference_volume_and_location_are_the_common_solids(tmp_path):
