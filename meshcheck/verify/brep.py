@@ -115,7 +115,7 @@ def reach_margin(bodies: Sequence[Body], pairs: np.ndarray) -> np.ndarray:
     pairs not decided on the B-rep."""
     pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
     on = np.array([is_on_brep(b) for b in bodies], dtype=bool)
-    own = np.array([_own_size_tolerance(b) if on[k] else 0.0 for k, b in enumerate(bodies)])
+    own = _own_size_tolerances(bodies, on)
     deflection = np.array([b.deflection for b in bodies], dtype=np.float64)
     if not len(pairs):
         return np.zeros(0)
@@ -126,10 +126,11 @@ def reach_margin(bodies: Sequence[Body], pairs: np.ndarray) -> np.ndarray:
 
 def largest_reach_margin(bodies: Sequence[Body]) -> float:
     """An upper bound of ``reach_margin`` over every pair of ``bodies``, model units."""
-    on = [b for b in bodies if is_on_brep(b)]
-    if len(on) < 2:
+    on = np.array([is_on_brep(b) for b in bodies], dtype=bool)
+    if on.sum() < 2:
         return 0.0
-    return 2.0 * max(b.deflection for b in on) + max(_own_size_tolerance(b) for b in on)
+    deflection = max(b.deflection for b, is_on in zip(bodies, on, strict=True) if is_on)
+    return 2.0 * deflection + float(_own_size_tolerances(bodies, on).max())
 
 
 def decide_on_brep(
@@ -331,6 +332,20 @@ def _code_version() -> str:
             sources.append(f.read())
     version = package_version("cadquery-ocp-novtk", missing="?").encode()
     return checksum(*sources, version).hex()
+
+
+def _own_size_tolerances(bodies: Sequence[Body], on: np.ndarray) -> np.ndarray:
+    """``_own_size_tolerance`` of each body on the B-rep (``on``), 0 for the others; ``(n,)``
+    float64, computed once per product (its instances share its tessellation)."""
+    memo: dict = {}
+    out = np.zeros(len(bodies))
+    for k, body in enumerate(bodies):
+        if on[k]:
+            key = _product_id(body)
+            if key not in memo:
+                memo[key] = _own_size_tolerance(body)
+            out[k] = memo[key]
+    return out
 
 
 def _own_size_tolerance(body: Body) -> float:
