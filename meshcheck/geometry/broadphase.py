@@ -71,9 +71,11 @@ def candidate_pairs(
         distinct = owner[i] != owner[j]
         i, j = i[distinct], j[distinct]
     # Lexicographic order of (i, j), i < j < m, is the order of i * m + j: one sort of integers.
-    key = np.minimum(i, j).astype(np.int64) * m + np.maximum(i, j)
+    key = np.minimum(i, j).astype(np.int64, copy=False) * m + np.maximum(i, j)
     key.sort()
-    return np.stack([key // m, key % m], axis=1).astype(np.int64)
+    pairs = np.empty((len(key), 2), dtype=np.int64)
+    np.divmod(key, m, out=(pairs[:, 0], pairs[:, 1]))
+    return pairs
 
 
 def group_pairs(
