@@ -14,8 +14,10 @@ Each stage narrows the part pairs the next one looks at:
    classes whose pieces stay beyond the reach have surfaces beyond the reach: they are clear
    unless one part is buried inside the other, which the verify stage decides with one point
    per shell;
-5. ``verify_classes`` decides each class on the real meshes, once, and moves its verdict to
-   each of its pairs;
+5. ``decide_on_brep`` decides the pairs of STEP solids on their exact B-rep, once per pair of
+   products and relative placement (the meshes only filter out pairs clear by a margin), and
+   ``verify_classes`` decides each class of the rest on the real meshes, once, and moves its
+   verdict to each of its pairs;
 6. ``approve`` marks approved findings, in one place.
 
 Every pair is decided with its own tolerance (``tolerances.pair_tolerances``) unless the user
@@ -51,7 +53,7 @@ from .sweep import audit_srdf, mechanism_pieces, sweep_bodies, with_adjacent_app
 from .tolerances import part_sizes
 from .units import DEFAULT_UNIT
 from .verify import verify_classes
-from .verify.brep import confirm_on_brep
+from .verify.brep import decide_on_brep, largest_reach_margin, reach_margin, warn_unconfirmed
 from .verify.clash_tests import (
     held_by_any,
     judged,
@@ -185,15 +187,25 @@ def check_bodies(
         diagonal, magnitude = part_sizes(hulls.lower, hulls.upper, [b.is_float32 for b in bodies])
         deflection = np.array([b.deflection for b in bodies], dtype=np.float64)
         copies = duplicate_sets(bodies, geometry, tolerance=settings.tolerance)
-        pairs = select_pairs(hulls, settings, names, diagonal, magnitude, deflection, copies=copies)
+        pairs = select_pairs(
+            hulls,
+            settings,
+            names,
+            diagonal,
+            magnitude,
+            deflection,
+            largest_reach_margin(bodies),
+            copies=copies,
+        )
         check_candidate_pairs(len(pairs), len(bodies))  # budgeted, like triangles
         # Triangles of a part read from CAD lie up to its deflection from the true surface:
         # overlaps and gaps within the two deflections cannot be told apart, so they touch.
         tolerance = widest_tolerances(diagonal, magnitude, pairs, settings, deflection=deflection)
-        reach = tolerance + pair_clearances(settings, names, pairs)
+        margin = reach_margin(bodies, pairs)  # pairs of STEP solids: the B-rep's reach
+        reach = tolerance + pair_clearances(settings, names, pairs) + margin
         hull_query = query_pairs(hulls, pairs, tolerance=tolerance, depth=False, max_distance=reach)
         near = may_come_within(hull_query, reach)
-    pairs_near, tol_near = pairs[near], tolerance[near]
+    pairs_near, tol_near, margin_near = pairs[near], tolerance[near], margin[near]
     penetrate = hull_query.status[near] == Status.PENETRATING
     plans = verify_plans(settings, names, pairs_near, diagonal, magnitude, deflection=deflection)
     # The pairs that remain, grouped into classes (one geometry pair at one placement in the
@@ -226,19 +238,33 @@ def check_bodies(
         )
         verified = []
         for plan, found in zip(plans, plan_classes, strict=True):
-            found = dataclasses.replace(
-                found, surfaces_apart=~surfaces_near(packs, found, plan.settings.clearance)
+            class_margin = np.zeros(len(found))
+            np.maximum.at(class_margin, found.label, margin_near[plan.mask])
+            apart = ~surfaces_near(packs, found, plan.settings.clearance, class_margin)
+            planned, surfaces = pairs_near[plan.mask], ~apart[found.label]
+            solid_findings, on_meshes, unconfirmed = decide_on_brep(
+                bodies, planned, surfaces, plan.settings, executor=executor, cache=caches.verdicts
             )
+            if on_meshes.all():
+                found = dataclasses.replace(found, surfaces_apart=apart)
+            else:  # the pairs of STEP solids decided on the B-rep leave their classes
+                found = pair_classes(
+                    bodies,
+                    planned[on_meshes],
+                    plan.tolerance[on_meshes],
+                    ~surfaces[on_meshes],
+                    geometry=geometry,
+                )
             findings = verify_classes(
                 bodies,
                 found,
                 plan.settings,
                 executor=executor,
                 cache=caches.verdicts,
-                hulls_penetrate=penetrate[plan.mask],
+                hulls_penetrate=penetrate[plan.mask][on_meshes],
             )
-            if any(b.deflection > 0 for b in bodies):  # parts read from CAD (STEP)
-                findings = confirm_on_brep(bodies, findings, plan.settings, cache=caches.verdicts)
+            warn_unconfirmed(findings, unconfirmed)
+            findings = [*findings, *solid_findings]
             findings = with_elements(bodies, findings, clearance=plan.settings.clearance)
             verified.append(findings)
         sweeps = sweep_bodies(bodies, mechanisms, settings, pieces=swept)
@@ -293,20 +319,22 @@ def select_pairs(
     diagonal: np.ndarray,
     magnitude: np.ndarray,
     deflection: np.ndarray | None = None,
+    margin: float = 0.0,
     *,
     copies: Sequence[Sequence[int]] = (),
 ) -> np.ndarray:
     """Part pairs whose boxes come within reach, restricted by the groups rule or the clash
     tests' sides; ``(k, 2)``.
 
-    The boxes grow by the largest tolerance any pair can get (``tolerances``; of any test) and
-    the largest clearance, so no pair within its own reach is pruned. ``copies`` are the
-    duplicate sets (``verify.duplicates``): their pairs are left out (a set is one finding), and
-    the boxes of a set's copies, one box, take part in the broad phase once (2,000 coincident
-    copies are one box, not two million pairs).
+    The boxes grow by the largest tolerance any pair can get (``tolerances``; of any test), the
+    largest clearance and ``margin`` (for STEP solids: ``verify.brep.largest_reach_margin``), so
+    no pair within its own reach is pruned. ``copies`` are the duplicate sets
+    (``verify.duplicates``): their pairs are left out (a set is one finding), and the boxes of a
+    set's copies, one box, take part in the broad phase once (2,000 coincident copies are one
+    box, not two million pairs).
     """
     largest = largest_tolerance(diagonal, magnitude, settings, deflection=deflection)
-    margin = largest + (largest_clearance(settings) or 0.0)
+    reach = largest + (largest_clearance(settings) or 0.0) + margin
     lower, upper = hulls.lower, hulls.upper
     n = len(lower)
     first = np.arange(n, dtype=np.int64)  # each part's set's first copy (itself when alone)
@@ -314,14 +342,14 @@ def select_pairs(
         first[members] = members[0]
     stands = np.flatnonzero(first == np.arange(n))
     if not copies:
-        pairs = candidate_pairs(lower, upper, margin=margin)
+        pairs = candidate_pairs(lower, upper, margin=reach)
     else:  # a set stands in with the box around its copies' boxes, then each copy's own decides
         low, high = lower.copy(), upper.copy()
         np.minimum.at(low, first, lower)
         np.maximum.at(high, first, upper)
-        pairs = stands[candidate_pairs(low[stands], high[stands], margin=margin)]
+        pairs = stands[candidate_pairs(low[stands], high[stands], margin=reach)]
         pairs = _every_copy(pairs, first)
-        lo, hi = lower - 0.5 * margin, upper + 0.5 * margin  # candidate_pairs' own comparison
+        lo, hi = lower - 0.5 * reach, upper + 0.5 * reach  # candidate_pairs' own comparison
         i, j = pairs[:, 0], pairs[:, 1]
         pairs = pairs[np.all((lo[j] <= hi[i]) & (lo[i] <= hi[j]), axis=1)]
     if settings.groups is not None:
@@ -442,11 +470,18 @@ def _local_pieces(pieces: list[np.ndarray], transform: np.ndarray, corner: np.nd
     return [(p - transform[:3, 3]) @ inverse.T - corner for p in pieces]
 
 
-def surfaces_near(packs: Sequence[ConvexPack], classes: PairClasses, clearance) -> np.ndarray:
-    """Which ``classes`` have a piece pair within their reach (tolerance + clearance, or
-    undecided), ``(c,)`` bool, each in its own frame: the pieces of its two geometries placed as
-    the verify stage places their meshes (``PairClasses.placed``), so what the pieces prove
+def surfaces_near(
+    packs: Sequence[ConvexPack],
+    classes: PairClasses,
+    clearance,
+    margin: np.ndarray | None = None,
+) -> np.ndarray:
+    """Which ``classes`` have a piece pair within their reach (tolerance + clearance + margin,
+    or undecided), ``(c,)`` bool, each in its own frame: the pieces of its two geometries placed
+    as the verify stage places their meshes (``PairClasses.placed``), so what the pieces prove
     holds for the very triangles verified. A class without one has surfaces beyond its reach.
+    ``margin`` ``(c,)`` is what the B-rep adds to a class of STEP solids' reach
+    (``verify.brep.reach_margin``); default none.
     """
     c = len(classes)
     if c == 0:
@@ -462,6 +497,8 @@ def surfaces_near(packs: Sequence[ConvexPack], classes: PairClasses, clearance) 
     count = np.array([len(packs[s].starts) - 1 for s in which], dtype=np.int64)
     first = np.concatenate([[0], np.cumsum(count)[:-1]]).astype(np.int64)
     reach = classes.tolerance + (clearance or 0.0)
+    if margin is not None:
+        reach = reach + margin
     groups = np.arange(2 * c, dtype=np.int64).reshape(c, 2)
     piece_pairs, row = group_pairs(pieces.lower, pieces.upper, first, count, groups, reach)
     query = query_pairs(
