@@ -648,3 +648,28 @@ def test_jobs_are_capped_by_available_memory():
     with executor_for(jobs=10_000) as executor:
         assert executor.jobs <= max(1, int(available.split()[1]) * 1024 // WORKER_BYTES)
         assert not executor.is_started
+
+
+# ------------------------------------------------------------------------------------------
+# Sweeps are budgeted in work, like every other input
+
+
+@pytest.mark.posix_only
+def test_sweep_of_a_3000_link_chain_stops_at_its_budget_with_progress(tmp_path):
+    # 0.3 before the budget: nothing on stderr for 200 s, then stopped by hand. 4,498,500 link
+    # pairs: those the budget cannot pay for are undecided, counted, not listed, never "never".
+    from meshes import chain_urdf
+
+    path = tmp_path / "chain.urdf"
+    path.write_text(chain_urdf(3000))
+    args = [path, "--sweep", "--sweep-budget", "1000000", "-j", "1", "--format", "json"]
+    status, out, lines = run(args, seconds=60)
+    assert status == ExitStatus.OK, lines  # a URDF robot's sweep never fails the run
+    (sweep,) = json.loads(out)["sweeps"]
+    assert json.loads(out)["summary"]["sweep_budget"] == 1_000_000
+    assert sweep["budget"] == 1_000_000 and 1_000_000 <= sweep["work"] < 1_100_000
+    assert sweep["unswept"] > 4_000_000 and len(sweep["pairs"]) < 1000
+    assert sweep["counts"]["undecided"] >= sweep["unswept"]
+    assert sum(sweep["counts"].values()) == 3000 * 2999 // 2
+    assert any("sweeping link pairs" in line for line in lines), lines
+    assert any("the sweep budget (1,000,000) ran out" in line for line in lines), lines

@@ -105,6 +105,8 @@ def summary(result: CheckResult) -> dict:
         "warnings": list(result.warnings),
         "passed": result.passed,
     }
+    if result.sweeps:  # --sweep: the work budget its link pairs were swept within
+        doc["sweep_budget"] = result.settings.motion.budget
     if result.baseline is not None:
         states = [result.baseline_state(f) for f in result.findings]
         doc["baseline"] = result.baseline.path

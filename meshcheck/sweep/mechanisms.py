@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import glob
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 
 from ..config import Approval, approval_reason
 from ..errors import ConfigError
@@ -74,6 +74,33 @@ def swept_joints(robot: Robot, named) -> set[str]:
             raise ConfigError(robot.path, f"--sweep {name}: not a movable joint that leads")
         out.add(name)
     return out
+
+
+def link_order(mech: Mechanism) -> list[str]:
+    """The mechanism's links with parts, root first, each after its parent (joint order): the
+    order the sweep's budget reaches them in."""
+    robot = mech.robot
+    order = [robot.root, *(j.child for j in robot.joints)]
+    seen: set[str] = set()
+    return [n for n in order if n in mech.parts and not (n in seen or seen.add(n))]
+
+
+def pairs_in_order(links: Sequence[str]) -> Iterator[tuple[str, str]]:
+    """Every pair of ``links`` (each pair's names sorted), the later link's pairs after all
+    pairs of the links before it: a budget that runs out leaves the pairs of the last links,
+    and the first ``k (k - 1) / 2`` pairs need only the first ``k`` links."""
+    for j, b in enumerate(links):
+        for a in links[:j]:
+            yield (a, b) if a < b else (b, a)
+
+
+def links_within(mech: Mechanism, pairs: int) -> list[str]:
+    """The links (``link_order``) of the first ``pairs`` link pairs (``pairs_in_order``)."""
+    order = link_order(mech)
+    count = 0
+    while count < len(order) and count * (count - 1) // 2 < pairs:
+        count += 1
+    return order[:count]
 
 
 def with_approval_reasons(

@@ -15,11 +15,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..load import Body
-from ..load.robot import Robot, chain_transforms, joint_poses
+from ..load.robot import MOVABLE, Joint, Robot, chain_transforms
 from ..results import PairSweep, SweepStatus, Verdict
 from ..verify.pair import verify_pair
 from .distances import LinkGeometry, piece_distances, surface_distance
-from .kinematics import LinkSide, box_weights
+from .kinematics import LinkSide, box_weights, joints_below_common
 
 #: Boxes of joint values one link pair may evaluate before it is left undecided (the panda's
 #: link 0 and link 4 need 71,579; bench/sweep.py on the PR2 sets the time against 10,000
@@ -69,6 +69,11 @@ class LinkPair:
     links : dict of str -> LinkGeometry
     bodies : sequence of Body
         The run's parts.
+    work : int
+        The work done so far (``WorkBudget``): a pose costs its free joints (at least 1), the
+        distances their GJK queries and triangle pairs, a real-mesh check its triangles over 64.
+    allowance : float
+        The work it may do (``sweep_pair``); past it, distances are the pieces' bounds alone.
     """
 
     robot: Robot
@@ -81,14 +86,23 @@ class LinkPair:
     tolerance: float
     links: dict[str, LinkGeometry]
     bodies: Sequence[Body]
+    work: int = 0
+    allowance: float = np.inf
+
+    def __post_init__(self):
+        self.chains = joints_below_common(self.robot, (self.a, self.b))
 
     def placements(self, values: np.ndarray, axes: dict | None = None):
-        """(ta, tb, poses): the links' placements at the rows of ``values`` and every joint's
-        values there; each movable joint's axis line goes to ``axes`` when given."""
-        poses = joint_poses(self.robot, self.base, self.names, values)
+        """(ta, tb, poses): the links' placements at the rows of ``values`` in the frame of
+        their common ancestor (distances, and the motion bound, depend only on where one link
+        lies relative to the other, so the joints above it are never composed) and every
+        joint's values there; each movable joint's axis line below it goes to ``axes`` when
+        given."""
+        poses = chain_poses(self.robot, self.base, self.names, values, self.chains)
         count = len(values)
-        ta = chain_transforms(self.robot.chain(self.a), poses, self.scale, count, axes)
-        tb = chain_transforms(self.robot.chain(self.b), poses, self.scale, count, axes)
+        self.work += count * max(len(self.names), 1)
+        ta = chain_transforms(self.chains[0], poses, self.scale, count, axes)
+        tb = chain_transforms(self.chains[1], poses, self.scale, count, axes)
         return ta, tb, poses
 
     def box_weights(self, ta, tb, axes: dict, half: np.ndarray) -> np.ndarray:
@@ -104,11 +118,28 @@ class LinkPair:
         meshes' exact distance (``surface_distance``: its cost grows with the triangle pairs
         within reach, so it waits for boxes small enough that it can close them)."""
         a, b = self.links[self.a], self.links[self.b]
-        lowest = piece_distances(a.pack, b.pack, ta, tb, reach, a.pad, b.pad, settle=True)
+        work = [0]
+        lowest = piece_distances(
+            a.pack, b.pack, ta, tb, reach, a.pad, b.pad, settle=True, work=work
+        )
         fine = FINE_REACH * min(np.ptp(a.points, axis=0).max(), np.ptp(b.points, axis=0).max())
         for e in np.flatnonzero((lowest <= reach) & (reach <= fine)):
-            lowest[e] = surface_distance(a, b, ta[e], tb[e], float(reach[e]))
+            if self.work + work[0] > self.allowance:
+                break  # the pieces' bounds stand: lower, so nothing is certified wrongly
+            lowest[e] = surface_distance(a, b, ta[e], tb[e], float(reach[e]), work=work)
+        self.work += work[0]
         return lowest
+
+    def piece_distances(self, ta: np.ndarray, tb: np.ndarray, reach: float) -> np.ndarray:
+        """The coarse pieces' signed distance bounds at placements ``ta``, ``tb`` (values above
+        ``reach`` are bounds), their work counted."""
+        a, b = self.links[self.a], self.links[self.b]
+        work = [0]
+        out = piece_distances(
+            a.pack, b.pack, ta, tb, np.full(len(ta), reach), a.pad, b.pad, work=work
+        )
+        self.work += work[0]
+        return out
 
     def verdict(self, ta: np.ndarray, tb: np.ndarray, *, surfaces_apart: bool = False) -> Verdict:
         """The real meshes' worst status at one placement of the two links."""
@@ -117,6 +148,7 @@ class LinkPair:
             mesh_a = self.bodies[i].mesh.copy().apply_transform(ta @ offset_i)
             for j, offset_j in self.links[self.b].parts:
                 mesh_b = self.bodies[j].mesh.copy().apply_transform(tb @ offset_j)
+                self.work += (len(mesh_a.faces) + len(mesh_b.faces)) // 64 + 1
                 status = verify_pair(
                     mesh_a,
                     mesh_b,
@@ -150,8 +182,86 @@ class LinkPair:
         return self.outcome(SweepStatus.SOMETIMES, boxes, witness, status)
 
 
+class WorkBudget:
+    """The work a run's sweep may still do.
+
+    Work counts what a link pair's search asks for (``LinkPair.work``): each pose costs the
+    joints that move the pair (at least 1), each convex-piece pair measured by GJK 1 (and every
+    64 piece boxes compared 1), each triangle pair measured 1, a check on the real meshes its
+    triangles over 64; every link pair visited costs at least ``SAMPLES``. Pairs are visited one
+    after another in a fixed order and each may spend what is left, so which pairs are decided
+    is a function of the inputs and the budget, never of time. A pair still searching when the
+    budget is spent (checked after each batch of boxes) is undecided, and the pairs after it
+    are left unswept, undecided too: never proven apart.
+
+    Parameters
+    ----------
+    limit : int
+        The work in all (``motion.Motion.budget``).
+
+    Examples
+    --------
+    >>> budget = WorkBudget(1_000)
+    >>> budget.charge(600)
+    >>> budget.allowance, budget.pairs_left
+    (400, 2)
+    >>> budget.charge(600)
+    >>> budget.allowance is None  # spent: the next pair is not started
+    True
+    """
+
+    def __init__(self, limit: int):
+        self.limit, self.used, self.unswept = int(limit), 0, 0
+
+    @property
+    def allowance(self) -> int | None:
+        """The work the next link pair may do, None when nothing is left."""
+        left = self.limit - self.used
+        return left if left > 0 else None
+
+    @property
+    def pairs_left(self) -> int:
+        """A bound on the link pairs still to be visited (each costs ``SAMPLES`` or more)."""
+        return max(self.limit - self.used, 0) // SAMPLES + 1
+
+    def charge(self, work: int) -> None:
+        """Count a visited link pair's work (at least ``SAMPLES``)."""
+        self.used += max(int(work), SAMPLES)
+
+
+def chain_poses(
+    robot: Robot, base: dict, names: list[str], values: np.ndarray, chains
+) -> dict[str, np.ndarray]:
+    """The values, ``{name: (E,) float64}``, of the free joints ``names`` (the rows of
+    ``values``) and of every movable joint of ``chains``: free ones from ``values``, mimic
+    joints following their leaders, the others at ``base`` (as ``load.robot.joint_poses``,
+    for only the joints that place the pair's links)."""
+    count = len(values)
+    out = {name: values[:, k] for k, name in enumerate(names)}
+
+    def value(joint: Joint) -> np.ndarray:
+        if joint.name not in out:
+            if joint.mimic is not None and robot.leader(joint)[0] in names:
+                leader, multiplier, offset = joint.mimic
+                out[joint.name] = multiplier * value(robot.joint(leader)) + offset
+            else:
+                out[joint.name] = np.full(count, base[joint.name])
+        return out[joint.name]
+
+    for chain in chains:
+        for joint in chain:
+            if joint.type in MOVABLE:
+                value(joint)
+    return out
+
+
 def sweep_pair(
-    pair: LinkPair, lower: np.ndarray, upper: np.ndarray, resolution: float
+    pair: LinkPair,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    resolution: float,
+    *,
+    allowance: int | None = None,
 ) -> PairSweep:
     """Classify one link pair over the box ``lower..upper`` of its free joints.
 
@@ -166,8 +276,12 @@ def sweep_pair(
     of ``sometimes``; after ``DESCENT_AFTER`` boxes, a descent from the nearest centres looks
     for one (``descent_witness``). When every box is certified, the surfaces never come within
     the tolerance, so whether one link is buried in the other cannot change over the sweep: one
-    exact check at the centre decides ``never`` (or ``always``, buried throughout).
+    exact check at the centre decides ``never`` (or ``always``, buried throughout). A pair
+    that would evaluate more than ``MAX_BOXES``, or whose work (``LinkPair.work``) passes
+    ``allowance`` (checked after each batch), is undecided.
     """
+    allowance = np.inf if allowance is None else allowance
+    pair.allowance = allowance
     if len(lower) == 0:  # nothing moves one link relative to the other
         return fixed_pair(pair)
     found = sampled_witness(pair, lower, upper)
@@ -213,7 +327,7 @@ def sweep_pair(
         unresolved |= bool(np.any(~splittable))
         new_lo, new_hi = halve_boxes(blo[splittable], bhi[splittable], w[splittable])
         lo, hi = np.concatenate([lo, new_lo]), np.concatenate([hi, new_hi])
-        if evaluated + len(lo) > MAX_BOXES:
+        if evaluated + len(lo) > MAX_BOXES or pair.work > allowance:
             return pair.outcome(SweepStatus.UNDECIDED, evaluated)
     if unresolved:
         return pair.outcome(SweepStatus.UNDECIDED, evaluated)
@@ -267,11 +381,10 @@ def descent_witness(pair: LinkPair, lower, upper, starts, boxes: int) -> PairSwe
     if starts is None or len(starts) == 0:
         return None
     rng = np.random.default_rng(1)
-    a, b = pair.links[pair.a], pair.links[pair.b]
 
     def measure(values, reach: float):
         ta, tb, _ = pair.placements(values)
-        return piece_distances(a.pack, b.pack, ta, tb, np.full(len(values), reach), a.pad, b.pad)
+        return pair.piece_distances(ta, tb, reach)
 
     current = starts.copy()
     scores = measure(current, np.inf)
