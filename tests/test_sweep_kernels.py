@@ -124,3 +124,35 @@ def test_the_budget_charges_at_least_the_seeded_samples_and_stops_when_spent():
     assert budget.pairs_left == 10
     budget.charge(9 * SAMPLES + 5)
     assert budget.allowance is None and budget.pairs_left == 1
+
+
+@settings(max_examples=25, derandomize=True, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), reach=st.floats(0.0, 1.5), settle=st.booleans())
+def test_placed_surface_distance_agrees_with_every_triangle_pair(seed, reach, settle):
+    """Two small random meshes, one placed in the other's frame: within reach the answer is the
+    least distance over every triangle pair (settled: some pair's within reach), beyond it a
+    value above reach, as measuring every pair with ``pair_distances`` says."""
+    import trimesh
+
+    from meshcheck.geometry.triangles import pair_distances, placed_surface_distance
+
+    rng = np.random.default_rng(seed)
+    a = trimesh.creation.icosphere(1, radius=rng.uniform(0.2, 0.6))
+    b = trimesh.creation.box(rng.uniform(0.1, 0.8, 3))
+    relative = np.eye(4)
+    relative[:3, :3], relative[:3, 3] = _rotation(rng), rng.uniform(-1.0, 1.0, 3)
+    placed = b.vertices @ relative[:3, :3].T + relative[:3, 3]
+    i, j = np.meshgrid(np.arange(len(a.faces)), np.arange(len(b.faces)), indexing="ij")
+    every = np.stack([i.ravel(), j.ravel()], axis=1)
+    exact = float(pair_distances(a.vertices, a.faces, placed, b.faces, every)[0].min())
+    got, measured = placed_surface_distance(
+        a.vertices, a.faces, b.vertices, b.faces, relative, reach, settle=settle
+    )
+    assert 0 <= measured <= len(every)
+    if exact <= reach:
+        if settle:
+            assert exact - 1e-12 <= got <= reach + 1e-12
+        else:
+            assert abs(got - exact) <= 1e-12
+    else:
+        assert got > reach

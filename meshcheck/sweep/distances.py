@@ -246,21 +246,21 @@ def surface_distance(
     tb: np.ndarray,
     reach: float,
     *,
+    settle: bool = False,
     work: list[int] | None = None,
 ) -> float:
     """The distance between two links' real surfaces placed by ``ta``, ``tb``, exact when at
-    most ``reach`` (else a value above it): the triangle pairs whose boxes come within
-    ``reach`` (a bounding-volume hierarchy), measured exactly; 0 where surfaces cross. The
-    work (triangle pairs measured, and the triangles boxed over 64) goes to ``work``."""
-    from ..geometry.triangles import box_pairs, pair_distances, triangle_boxes
+    most ``reach`` (else a value above it; with ``settle``, some triangle pair's distance
+    within it): link b's triangles placed in link a's frame, the triangle pairs whose boxes
+    come within ``reach`` measured exactly, nearest first (``placed_surface_distance``); 0
+    where surfaces cross. The work (triangle pairs measured, and the triangles boxed over 64)
+    goes to ``work``."""
+    from ..geometry.triangles import placed_surface_distance
 
-    va = a.vertices @ ta[:3, :3].T + ta[:3, 3]
-    vb = b.vertices @ tb[:3, :3].T + tb[:3, 3]
-    alo, ahi = triangle_boxes(va, a.faces)
-    blo, bhi = triangle_boxes(vb, b.faces)
-    pairs = box_pairs(alo, ahi, blo, bhi, reach)
+    relative = np.linalg.solve(ta, tb)
+    found, pairs = placed_surface_distance(
+        a.vertices, a.faces, b.vertices, b.faces, relative, reach, settle=settle
+    )
     if work is not None:
-        work[0] += len(pairs) + (len(a.faces) + len(b.faces)) // 64
-    if len(pairs) == 0:
-        return np.inf
-    return float(pair_distances(va, a.faces, vb, b.faces, pairs)[0].min())
+        work[0] += pairs + (len(a.faces) + len(b.faces)) // 64
+    return found

@@ -37,8 +37,10 @@ SAMPLE_CHECKS = 4
 #: Candidate witnesses re-checked on the real meshes per link pair, deepest piece overlap first.
 MAX_WITNESS_CHECKS = 24
 #: A pair not decided after this many boxes looks for a witness by descending the pieces'
-#: distance from the nearest box centres (``descent_witness``): how many, steps, tries.
+#: distance from the nearest box centres (``descent_witness``): how many, steps, tries; and
+#: again, from the centres nearest by then, each time the boxes grow by ``DESCENT_GROWTH``.
 DESCENT_AFTER = 4096
+DESCENT_GROWTH = 4
 DESCENT_STARTS = 8
 DESCENT_STEPS = 10
 DESCENT_TRIES = 32
@@ -126,7 +128,9 @@ class LinkPair:
         for e in np.flatnonzero((lowest <= reach) & (reach <= fine)):
             if self.work + work[0] > self.allowance:
                 break  # the pieces' bounds stand: lower, so nothing is certified wrongly
-            lowest[e] = surface_distance(a, b, ta[e], tb[e], float(reach[e]), work=work)
+            lowest[e] = surface_distance(
+                a, b, ta[e], tb[e], float(reach[e]), settle=True, work=work
+            )
         self.work += work[0]
         return lowest
 
@@ -273,8 +277,9 @@ def sweep_pair(
     ``M + tolerance`` is certified free of contact. Other boxes are halved along the joint that
     contributes most to ``M``, down to ``resolution``. Centres where pieces overlap are
     re-checked on the real meshes, nearest first: one that interferes or touches is the witness
-    of ``sometimes``; after ``DESCENT_AFTER`` boxes, a descent from the nearest centres looks
-    for one (``descent_witness``). When every box is certified, the surfaces never come within
+    of ``sometimes``; after ``DESCENT_AFTER`` boxes, and each time they grow by
+    ``DESCENT_GROWTH`` after that, a descent from the nearest centres so far looks for one
+    (``descent_witness``). When every box is certified, the surfaces never come within
     the tolerance, so whether one link is buried in the other cannot change over the sweep: one
     exact check at the centre decides ``never`` (or ``always``, buried throughout). A pair
     that would evaluate more than ``MAX_BOXES``, or whose work (``LinkPair.work``) passes
@@ -289,13 +294,14 @@ def sweep_pair(
         return found
     lo, hi = lower[None, :].copy(), upper[None, :].copy()
     evaluated, checks, unresolved = SAMPLES, 0, False
-    nearest = NearestCentres(DESCENT_STARTS)
+    nearest, descents = NearestCentres(DESCENT_STARTS), 0
     while len(lo):
-        if nearest is not None and evaluated >= DESCENT_AFTER:
-            found = descent_witness(pair, lower, upper, nearest.values, evaluated)
+        if evaluated >= DESCENT_AFTER * DESCENT_GROWTH**descents:
+            starts = nearest.values
+            found = descent_witness(pair, lower, upper, starts, evaluated, seed=descents + 1)
             if found is not None:
                 return found
-            nearest = None
+            descents += 1
         blo, bhi, lo, hi = lo[:BATCH], hi[:BATCH], lo[BATCH:], hi[BATCH:]
         centre, half = 0.5 * (blo + bhi), 0.5 * (bhi - blo)
         axes: dict = {}
@@ -304,8 +310,7 @@ def sweep_pair(
         bound = np.sum(half * w, axis=1) + pair.tolerance
         lowest = pair.distances(ta, tb, bound)
         evaluated += len(centre)
-        if nearest is not None:
-            nearest.add(lowest, centre)
+        nearest.add(lowest, centre)
         for e in np.argsort(lowest, kind="stable"):
             if lowest[e] > pair.tolerance or checks >= MAX_WITNESS_CHECKS:
                 break
@@ -370,17 +375,20 @@ class NearestCentres:
         self.lowest, self.values = both[keep], rows[keep]
 
 
-def descent_witness(pair: LinkPair, lower, upper, starts, boxes: int) -> PairSweep | None:
+def descent_witness(
+    pair: LinkPair, lower, upper, starts, boxes: int, *, seed: int = 1
+) -> PairSweep | None:
     """A witness near the box centres where the links came nearest (``starts``): each is
     moved, ``DESCENT_STEPS`` times, to the nearest of ``DESCENT_TRIES`` perturbations of it
     (fixed seed; each joint's step in proportion to its range, halved when none comes nearer)
     by the coarse pieces' signed distance; the final poses whose pieces overlap are
     re-checked on the real meshes, nearest first. A pair colliding only in a narrow window
     of many joints is found in a few thousand poses instead of by splitting boxes down to it.
+    ``seed`` draws the perturbations: each later descent of a pair draws its own.
     """
     if starts is None or len(starts) == 0:
         return None
-    rng = np.random.default_rng(1)
+    rng = np.random.default_rng(seed)
 
     def measure(values, reach: float):
         ta, tb, _ = pair.placements(values)

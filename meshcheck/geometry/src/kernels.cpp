@@ -376,6 +376,32 @@ PyObject* hull_levers_py(PyObject*, PyObject* args) {
     return out.release();
 }
 
+// placed_surface_distance(va, fa, vb, fb, relative (4, 4), reach, settle) -> (distance, pairs)
+PyObject* placed_surface_distance_py(PyObject*, PyObject* args) {
+    PyObject *vao, *fao, *vbo, *fbo, *to;
+    double reach;
+    int settle;
+    if (!PyArg_ParseTuple(args, "OOOOOdp", &vao, &fao, &vbo, &fbo, &to, &reach, &settle))
+        return nullptr;
+    Array va, fa, vb, fb, t;
+    if (!as_array(vao, NPY_DOUBLE, 2, 3, "va", va) || !faces_of(fao, va.len(), "fa", fa) ||
+        !as_array(vbo, NPY_DOUBLE, 2, 3, "vb", vb) || !faces_of(fbo, vb.len(), "fb", fb) ||
+        !as_array(to, NPY_DOUBLE, 2, 4, "relative", t))
+        return nullptr;
+    if (t.len() != 4) {
+        PyErr_SetString(PyExc_ValueError, "relative: expected a (4, 4) array");
+        return nullptr;
+    }
+    int64_t work = 0;
+    double d;
+    {
+        const NoGil released;
+        d = placed_surface_distance(va.f8(), fa.i8(), fa.len(), vb.f8(), vb.len(), fb.i8(),
+                                    fb.len(), t.f8(), reach, settle != 0, work);
+    }
+    return Py_BuildValue("dL", d, static_cast<long long>(work));
+}
+
 // ------------------------------------------------------------------------------- triangles
 
 // triangle_boxes(v, f) -> (lower, upper)
@@ -737,6 +763,7 @@ PyMethodDef METHODS[] = {
     {"query_pairs", guarded<query_pairs>, METH_VARARGS, nullptr},
     {"placed_distances", guarded<placed_distances_py>, METH_VARARGS, nullptr},
     {"hull_levers", guarded<hull_levers_py>, METH_VARARGS, nullptr},
+    {"placed_surface_distance", guarded<placed_surface_distance_py>, METH_VARARGS, nullptr},
     {"triangle_boxes", guarded<triangle_boxes_py>, METH_VARARGS, nullptr},
     {"box_pairs", guarded<box_pairs_py>, METH_VARARGS, nullptr},
     {"pair_distances", guarded<pair_distances_py>, METH_VARARGS, nullptr},

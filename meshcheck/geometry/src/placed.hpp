@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "epa.hpp"
+#include "triangles.hpp"
 
 namespace meshcheck {
 
@@ -181,6 +182,100 @@ inline void hull_levers(const double* hull, int64_t k, const double* placed, con
             levers[e * lines + t] = std::sqrt(worst);
         }
     }
+}
+
+}  // namespace meshcheck
+
+namespace meshcheck {
+
+// The distance between two meshes, b placed in a's frame by T (4, 4), exact when at most
+// reach (else a value above it, inf when no triangle pair's boxes come within reach): only a's
+// triangles near b's box, and b's near theirs, are paired (a hierarchy over b's), and the pairs
+// are measured nearest boxes first. With settle, the first pair within reach answers. `work`
+// gets the triangle pairs measured.
+inline double placed_surface_distance(const double* va, const int64_t* fa, int64_t ma,
+                                      const double* vb, int64_t nb, const int64_t* fb,
+                                      int64_t mb, const double* T, double reach, bool settle,
+                                      int64_t& work) {
+    for (int c = 0; c < 12; ++c)
+        if (!std::isfinite(T[c])) return -INF;
+    if (std::isnan(reach)) return -INF;
+    std::vector<double> placed(3 * nb);
+    for (int64_t p = 0; p < nb; ++p) {
+        const double* q = vb + 3 * p;
+        for (int r = 0; r < 3; ++r)
+            placed[3 * p + r] =
+                q[0] * T[4 * r] + q[1] * T[4 * r + 1] + q[2] * T[4 * r + 2] + T[4 * r + 3];
+    }
+    std::vector<double> alo(3 * ma), ahi(3 * ma), blo(3 * mb), bhi(3 * mb);
+    triangle_boxes(va, fa, ma, alo.data(), ahi.data());
+    triangle_boxes(placed.data(), fb, mb, blo.data(), bhi.data());
+    auto span = [](const std::vector<double>& lo, const std::vector<double>& hi,
+                   const std::vector<int64_t>& rows, double* slo, double* shi) {
+        for (int c = 0; c < 3; ++c) slo[c] = INF, shi[c] = -INF;
+        for (int64_t k : rows)
+            for (int c = 0; c < 3; ++c) {
+                slo[c] = std::min(slo[c], lo[3 * k + c]);
+                shi[c] = std::max(shi[c], hi[3 * k + c]);
+            }
+    };
+    std::vector<int64_t> all_b(mb), near_a, near_b;
+    for (int64_t j = 0; j < mb; ++j) all_b[j] = j;
+    double slo[3], shi[3];
+    span(blo, bhi, all_b, slo, shi);
+    for (int64_t i = 0; i < ma; ++i)
+        if (boxes_near(&alo[3 * i], &ahi[3 * i], slo, shi, reach)) near_a.push_back(i);
+    span(alo, ahi, near_a, slo, shi);
+    for (int64_t j = 0; j < mb; ++j)
+        if (boxes_near(&blo[3 * j], &bhi[3 * j], slo, shi, reach)) near_b.push_back(j);
+    if (near_a.empty() || near_b.empty()) return INF;
+    std::vector<double> clo(3 * near_b.size()), chi(3 * near_b.size());
+    for (size_t k = 0; k < near_b.size(); ++k)
+        for (int c = 0; c < 3; ++c) {
+            clo[3 * k + c] = blo[3 * near_b[k] + c];
+            chi[3 * k + c] = bhi[3 * near_b[k] + c];
+        }
+    std::vector<int64_t> pairs;
+    std::vector<double> plo(3 * near_a.size()), phi(3 * near_a.size());
+    for (size_t k = 0; k < near_a.size(); ++k)
+        for (int c = 0; c < 3; ++c) {
+            plo[3 * k + c] = alo[3 * near_a[k] + c];
+            phi[3 * k + c] = ahi[3 * near_a[k] + c];
+        }
+    box_pairs(plo.data(), phi.data(), static_cast<int64_t>(near_a.size()), clo.data(),
+              chi.data(), static_cast<int64_t>(near_b.size()), reach, pairs);
+    size_t count = pairs.size() / 2;
+    if (count == 0) return INF;
+    std::vector<double> gap(count);
+    std::vector<size_t> order(count);
+    for (size_t q = 0; q < count; ++q) {
+        const double* l0 = &plo[3 * pairs[2 * q]];
+        const double* h0 = &phi[3 * pairs[2 * q]];
+        const double* l1 = &clo[3 * pairs[2 * q + 1]];
+        const double* h1 = &chi[3 * pairs[2 * q + 1]];
+        double sq = 0.0;
+        for (int c = 0; c < 3; ++c) {
+            double g = std::max({l0[c] - h1[c], l1[c] - h0[c], 0.0});
+            sq += g * g;
+        }
+        gap[q] = sq;
+        order[q] = q;
+    }
+    if (settle)
+        std::stable_sort(order.begin(), order.end(),
+                         [&](size_t x, size_t y) { return gap[x] < gap[y]; });
+    double best = INF;
+    for (size_t q : order) {
+        Tri ta = triangle(va, fa, near_a[pairs[2 * q]]);
+        Tri tb = triangle(placed.data(), fb, near_b[pairs[2 * q + 1]]);
+        V3 x, y;
+        bool crossing;
+        double d = triangle_distance(ta, tb, x, y, crossing);
+        ++work;
+        best = std::min(best, d);
+        if (settle && best <= reach) break;
+    }
+    return best;
 }
 
 }  // namespace meshcheck
