@@ -77,7 +77,8 @@ def sweep_mechanism(
     upper = np.array([links[n].points.max(axis=0) for n in names])
     diagonal, _ = part_sizes(lower, upper)
     magnitude = np.full(len(names), max(radius.values()) + frame_reach(robot, swept, base) * scale)
-    total = len(link_order(mech)) * (len(link_order(mech)) - 1) // 2
+    count = len(link_order(mech))
+    total = count * (count - 1) // 2
     out, done, current = [], 0, ()
     with Progress("sweeping link pairs", total, detail=lambda: " / ".join(current)) as progress:
         for current in pairs_in_order(order):
