@@ -16,7 +16,7 @@ from meshcheck.geometry import (
     query_pairs,
 )
 from meshcheck.geometry.gjk import Status
-from meshcheck.sweep.search import SAMPLES, WorkBudget
+from meshcheck.sweep.search import PAIR_WORK, WorkBudget
 
 
 def _rotation(rng) -> np.ndarray:
@@ -117,12 +117,12 @@ def test_a_lever_that_is_not_a_number_is_infinite():
     assert got[0, 0] == np.inf
 
 
-def test_the_budget_charges_at_least_the_seeded_samples_and_stops_when_spent():
-    budget = WorkBudget(10 * SAMPLES)
-    budget.charge(1)  # a pair that cost less still counts its samples
-    assert budget.used == SAMPLES and budget.allowance == 9 * SAMPLES
+def test_the_budget_charges_at_least_a_pairs_least_cost_and_stops_when_spent():
+    budget = WorkBudget(10 * PAIR_WORK)
+    budget.charge(1)  # a pair that cost less still counts what visiting it costs
+    assert budget.used == PAIR_WORK and budget.allowance == 9 * PAIR_WORK
     assert budget.pairs_left == 10
-    budget.charge(9 * SAMPLES + 5)
+    budget.charge(9 * PAIR_WORK + 5)
     assert budget.allowance is None and budget.pairs_left == 1
 
 

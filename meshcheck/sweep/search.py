@@ -44,6 +44,13 @@ DESCENT_GROWTH = 4
 DESCENT_STARTS = 8
 DESCENT_STEPS = 10
 DESCENT_TRIES = 32
+#: The least work a link pair visited costs (``WorkBudget``), and what a check on the real
+#: meshes costs besides its triangles over 64: the fixed cost of a pair's set-up and of one
+#: ``verify_pair`` call, in the currency of poses and GJK queries (a 3,000-link chain of fixed
+#: joints visits a pair in about 2 ms, the box search does about a million units of work a
+#: second), so that the budget bounds the time of a robot of many cheap pairs too.
+PAIR_WORK = 4096
+VERIFY_WORK = 1024
 
 #: The real meshes' statuses that make a pose a witness.
 COLLIDING = (Verdict.INTERFERENCE, Verdict.TOUCHING)
@@ -73,7 +80,8 @@ class LinkPair:
         The run's parts.
     work : int
         The work done so far (``WorkBudget``): a pose costs its free joints (at least 1), the
-        distances their GJK queries and triangle pairs, a real-mesh check its triangles over 64.
+        distances their GJK queries and triangle pairs, a real-mesh check ``VERIFY_WORK`` and
+        its triangles over 64.
     allowance : float
         The work it may do (``sweep_pair``); past it, distances are the pieces' bounds alone.
     """
@@ -152,7 +160,7 @@ class LinkPair:
             mesh_a = self.bodies[i].mesh.copy().apply_transform(ta @ offset_i)
             for j, offset_j in self.links[self.b].parts:
                 mesh_b = self.bodies[j].mesh.copy().apply_transform(tb @ offset_j)
-                self.work += (len(mesh_a.faces) + len(mesh_b.faces)) // 64 + 1
+                self.work += VERIFY_WORK + (len(mesh_a.faces) + len(mesh_b.faces)) // 64
                 status = verify_pair(
                     mesh_a,
                     mesh_b,
@@ -191,12 +199,12 @@ class WorkBudget:
 
     Work counts what a link pair's search asks for (``LinkPair.work``): each pose costs the
     joints that move the pair (at least 1), each convex-piece pair measured by GJK 1 (and every
-    64 piece boxes compared 1), each triangle pair measured 1, a check on the real meshes its
-    triangles over 64; every link pair visited costs at least ``SAMPLES``. Pairs are visited one
-    after another in a fixed order and each may spend what is left, so which pairs are decided
-    is a function of the inputs and the budget, never of time. A pair still searching when the
-    budget is spent (checked after each batch of boxes) is undecided, and the pairs after it
-    are left unswept, undecided too: never proven apart.
+    64 piece boxes compared 1), each triangle pair measured 1, a check on the real meshes
+    ``VERIFY_WORK`` and its triangles over 64; every link pair visited costs at least
+    ``PAIR_WORK``. Pairs are visited one after another in a fixed order and each may spend what
+    is left, so which pairs are decided is a function of the inputs and the budget, never of
+    time. A pair still searching when the budget is spent (checked after each batch of boxes)
+    is undecided, and the pairs after it are left unswept, undecided too: never proven apart.
 
     Parameters
     ----------
@@ -205,11 +213,14 @@ class WorkBudget:
 
     Examples
     --------
-    >>> budget = WorkBudget(1_000)
-    >>> budget.charge(600)
+    >>> budget = WorkBudget(10_000)
+    >>> budget.charge(5_000)
     >>> budget.allowance, budget.pairs_left
-    (400, 2)
-    >>> budget.charge(600)
+    (5000, 2)
+    >>> budget.charge(10)  # a pair costs at least PAIR_WORK
+    >>> budget.allowance, budget.pairs_left
+    (904, 1)
+    >>> budget.charge(5_000)
     >>> budget.allowance is None  # spent: the next pair is not started
     True
     """
@@ -225,12 +236,12 @@ class WorkBudget:
 
     @property
     def pairs_left(self) -> int:
-        """A bound on the link pairs still to be visited (each costs ``SAMPLES`` or more)."""
-        return max(self.limit - self.used, 0) // SAMPLES + 1
+        """A bound on the link pairs still to be visited (each costs ``PAIR_WORK`` or more)."""
+        return max(self.limit - self.used, 0) // PAIR_WORK + 1
 
     def charge(self, work: int) -> None:
-        """Count a visited link pair's work (at least ``SAMPLES``)."""
-        self.used += max(int(work), SAMPLES)
+        """Count a visited link pair's work (at least ``PAIR_WORK``)."""
+        self.used += max(int(work), PAIR_WORK)
 
 
 def chain_poses(
