@@ -1,11 +1,11 @@
 """Findings against a previous JSON report: each one ``new`` or ``active``, and the ``resolved``.
 
 A finding is *active* when the baseline report holds a finding with the same stable ID
-(``Finding.id``: the sorted part names and the two meshes' content) and the same status; any
-other finding is *new*, so a pair that was touching and now interferes is new. A baseline finding
-whose ID no current finding has is *resolved*. The baseline file comes from outside (a CI
-artifact): it is read with a size limit and checked field by field, and every problem is one
-``ConfigError`` naming the file.
+(``Finding.id``: the sorted part names and the two meshes' content, and the clash test's name)
+and the same status; any other finding is *new*, so a pair that was touching and now interferes
+is new. A baseline finding whose ID no current finding has is *resolved*. The baseline file comes
+from outside (a CI artifact): it is read with a size limit and checked field by field, and every
+problem is one ``ConfigError`` naming the file.
 
 Examples
 --------
@@ -43,9 +43,11 @@ class Resolved:
     a: str
     b: str
     status: Verdict
+    test: str = ""
 
     def to_dict(self) -> dict:
-        return {"id": self.id, "a": self.a, "b": self.b, "status": str(self.status)}
+        doc = {"id": self.id, "a": self.a, "b": self.b, "status": str(self.status)}
+        return {**doc, "test": self.test} if self.test else doc
 
 
 @dataclass(frozen=True)
@@ -58,10 +60,13 @@ class Baseline:
         The report file, for messages.
     findings : mapping of str to (str, str, Verdict)
         Stable ID -> part names and status.
+    tests : mapping of str to str
+        Stable ID -> the clash test of the finding, for the findings that had one.
     """
 
     path: str
     findings: Mapping[str, tuple[str, str, Verdict]] = field(default_factory=dict)
+    tests: Mapping[str, str] = field(default_factory=dict)
 
     def state(self, finding: Finding) -> str:
         """``"active"`` when the baseline holds this ID with this status, else ``"new"``."""
@@ -72,11 +77,23 @@ class Baseline:
         """Baseline findings whose ID is not among ``findings``, sorted by part names."""
         current = {f.id for f in findings}
         gone = [
-            Resolved(i, a, b, status)
+            Resolved(i, a, b, status, self.tests.get(i, ""))
             for i, (a, b, status) in self.findings.items()
             if i not in current
         ]
         return sorted(gone, key=lambda r: (r.a, r.b, r.id))
+
+    def for_test(self, name: str) -> Baseline:
+        """The baseline's findings of the clash test ``name`` alone."""
+        kept = {i: v for i, v in self.findings.items() if self.tests.get(i, "") == name}
+        return Baseline(self.path, kept, {i: name for i in kept} if name else {})
+
+    def other_than(self, names: Iterable[str]) -> Baseline:
+        """The baseline's findings of none of the clash tests ``names`` (those of a run
+        without clash tests included)."""
+        names = set(names)
+        kept = {i: v for i, v in self.findings.items() if self.tests.get(i, "") not in names}
+        return Baseline(self.path, kept, {i: t for i, t in self.tests.items() if i in kept})
 
 
 def load_baseline(path: str | os.PathLike) -> Baseline:
@@ -108,10 +125,10 @@ def load_baseline(path: str | os.PathLike) -> Baseline:
     except ValueError as exc:  # JSONDecodeError and UnicodeDecodeError
         reason = exc.msg if isinstance(exc, json.JSONDecodeError) else "not UTF-8"
         raise ConfigError(name, f"the baseline is not JSON ({reason})") from None
-    return Baseline(name, _findings(name, doc))
+    return Baseline(name, *_findings(name, doc))
 
 
-def _findings(name: str, doc) -> dict[str, tuple[str, str, Verdict]]:
+def _findings(name: str, doc) -> tuple[dict[str, tuple[str, str, Verdict]], dict[str, str]]:
     def fail(reason: str):
         raise ConfigError(name, f"the baseline is not a meshcheck JSON report: {reason}")
 
@@ -119,6 +136,7 @@ def _findings(name: str, doc) -> dict[str, tuple[str, str, Verdict]]:
         fail("no 'results' list")
     statuses = {str(s) for s in FINDING_STATUSES}
     found: dict[str, tuple[str, str, Verdict]] = {}
+    tests: dict[str, str] = {}
     for k, entry in enumerate(doc["results"]):
         if not isinstance(entry, dict):
             fail(f"results[{k}] is not an object")
@@ -131,7 +149,12 @@ def _findings(name: str, doc) -> dict[str, tuple[str, str, Verdict]]:
         if status not in statuses:
             fail(f"results[{k}] has an unknown status")
         found[finding_id] = (a, b, Verdict(status))
-    return found
+        test = entry.get("test")
+        if test is not None:
+            if not isinstance(test, str) or not test:
+                fail(f"results[{k}] has a test that is not a non-empty string")
+            tests[finding_id] = test
+    return found, tests
 
 
 __all__ = ["MAX_BASELINE_BYTES", "Baseline", "Resolved", "load_baseline"]

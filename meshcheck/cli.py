@@ -185,6 +185,17 @@ def _units(values) -> tuple[str | None, tuple]:
     "Default: interference, plus clearance when a clearance is set.",
 )
 @click.option(
+    "--test",
+    "tests",
+    multiple=True,
+    metavar="NAME:A:B[:KEY=VALUE]...",
+    help="A clash test: the parts A names against those B names (comma lists of globs; * for "
+    "every part), with its own clearance=, tolerance= and fail_on= (a comma list), e.g. "
+    "--test 'fasteners:bolt_*:plate.stl:fail_on=interference'. Repeatable; replaces the config "
+    "file's [[test]] tables; unset values are the run's. Each test is a section of the report, "
+    "and the run fails when one of them does.",
+)
+@click.option(
     "--units",
     "units",
     multiple=True,
@@ -307,7 +318,34 @@ def _units(values) -> tuple[str | None, tuple]:
     type=click.Path(dir_okay=False),
     default=None,
     help="Write MoveIt disable_collisions entries (Adjacent, Never, Always) from the sweep to "
-    "this SRDF file. Implies --sweep.",
+    "this SRDF file. Implies --sweep. With --audit-srdf: write the audited SRDF corrected (its "
+    "entries that disable a collision removed, each with a comment giving its witness pose).",
+)
+@click.option(
+    "--audit-srdf",
+    "audit_path",
+    type=click.Path(dir_okay=False),
+    default=None,
+    metavar="SRDF",
+    help="Audit this SRDF of the URDF robot: sweep each pair its disable_collisions entries "
+    "disable (see --audit-reasons) over the joint ranges; a pair that collides at some pose "
+    "fails the run, with its witness pose.",
+)
+@click.option(
+    "--audit-reasons",
+    "audit_reasons",
+    default=None,
+    metavar="REASONS",
+    help="The disable_collisions reasons --audit-srdf audits: a comma list (Never,Default,User,"
+    "Adjacent,Always...) or all. Default: Never.",
+)
+@click.option(
+    "--allow-outside-paths",
+    "allow_outside",
+    is_flag=True,
+    help="Read the files a URDF names even outside its folder, its package and --package-path "
+    "folders (by default such a path is refused, exit 3: a robot from a pull request reads "
+    "nothing else on the runner).",
 )
 @click.version_option(package_name=DISTRIBUTION)
 def main(**options):
@@ -356,6 +394,9 @@ def _run(
     baseline_path,
     export_path,
     srdf_path=None,
+    audit_path=None,
+    audit_reasons=None,
+    allow_outside=False,
     pose=(),
     package_paths=(),
     adjacent=None,
@@ -365,6 +406,7 @@ def _run(
     quiet=None,
     hide_touching=None,
     units=(),
+    tests=(),
     **options,
 ):
     """Refuse what can be refused, check, write the reports, exit with the run's status."""
@@ -377,7 +419,10 @@ def _run(
             "pose": pose or None,
             "package_paths": package_paths,
             "adjacent": adjacent,
-            "sweep": sweep_joints or ("" if sweep or srdf_path else None),
+            "sweep": sweep_joints or ("" if sweep or (srdf_path and not audit_path) else None),
+            "audit": audit_path,
+            "audit_reasons": audit_reasons,
+            "allow_outside": allow_outside,
             "budget": sweep_budget,
         }
         report_unit, file_units = _units(units)
@@ -387,9 +432,21 @@ def _run(
             file_units=file_units,
             quiet=quiet,
             hide_touching=hide_touching,
+            tests=tests or None,  # none given: the configuration's
             **options,
         )
-        inputs = [*files, baseline_path, settings.config_path]
+        _refuse_robot_options(
+            files,
+            settings.motion,
+            {
+                "--pose": bool(pose),
+                "--sweep": sweep,
+                "--sweep-joints": sweep_joints is not None,
+                "--srdf": srdf_path is not None,
+                "--audit-srdf": audit_path is not None,
+            },
+        )
+        inputs = [*files, baseline_path, settings.config_path, audit_path]
         outputs = [p for _, p in targets] + [export_path, srdf_path]
         _refuse_inputs_as_outputs(inputs, outputs)
         baseline = _baseline(baseline_path)
@@ -409,6 +466,47 @@ def _run(
     # over the ~135k objects numpy, scipy and trimesh created: 0.2 s of a 1.5 s warm run.
     gc.freeze()
     sys.exit(int(exit_status(result)))
+
+
+def _refuse_robot_options(files, motion, given: dict[str, bool]) -> None:
+    """A ConfigError, before any work, for a robot option with no robot to apply it to: a pose
+    or a sweep needs a URDF robot among the inputs or the configuration's ``[[joint]]``
+    mechanism; an SRDF (written or audited) describes one URDF robot."""
+    robots = _robot_files(files)
+    for option in ("--srdf", "--audit-srdf"):
+        if given[option] and len(robots) != 1:
+            held = "none"
+            if robots:
+                held = f"{len(robots)}: {', '.join(robots[:3])}" + (" ..." * (len(robots) > 3))
+            raise ConfigError(option, f"an SRDF describes one URDF robot; the inputs hold {held}")
+    if robots or motion.joints:
+        return
+    for option in ("--pose", "--sweep", "--sweep-joints"):
+        if given[option]:
+            raise ConfigError(
+                option,
+                "no input is a URDF robot and the configuration has no [[joint]] tables: "
+                "nothing to pose or sweep",
+            )
+
+
+def _robot_files(files) -> list[str]:
+    """The URDF files among the inputs, as the loader finds them (hidden entries of a directory
+    skipped), without reading any."""
+    out = []
+    for path in files:
+        if not os.path.isdir(path):
+            if path.lower().endswith(".urdf"):
+                out.append(path)
+            continue
+        for folder, dirs, names in os.walk(path):
+            dirs[:] = sorted(d for d in dirs if not d.startswith("."))
+            out.extend(
+                os.path.join(folder, n)
+                for n in sorted(names)
+                if n.lower().endswith(".urdf") and not n.startswith(".")
+            )
+    return out
 
 
 def _check_outputs(targets, export_path) -> None:
@@ -499,6 +597,8 @@ def _write_reports(result, targets, files, srdf_path=None, view_options=None) ->
 
     for robot in result.sweeps:  # the sweep's counts, with or without --srdf
         click.echo(f"sweep: {printable(robot.summary())}", err=True)
+    if result.audit is not None:
+        click.echo(f"audit: {printable(result.audit.summary())}", err=True)
     if srdf_path is not None and _write_srdf(srdf_path, result):
         failed = True
     if failed is not None:
@@ -509,11 +609,12 @@ def _write_reports(result, targets, files, srdf_path=None, view_options=None) ->
 
 
 def _write_srdf(path: str, result) -> bool:
-    """Write the sweep's SRDF; True when it failed."""
+    """Write the sweep's SRDF, or the audited SRDF corrected; True when it failed."""
+    from .reports.srdf import corrected
     from .reports.srdf import render as render_srdf
 
     try:
-        text = render_srdf(result)
+        text = render_srdf(result) if result.audit is None else corrected(result)
     except MeshcheckError as exc:  # no robot, or several: a usage error
         _fail(exc)
     try:

@@ -1,4 +1,4 @@
-"""The configuration file, and the rules it holds: approvals and groups.
+"""The configuration file, and the rules it holds: approvals, groups and clash tests.
 
 Patterns are shell globs (``fnmatch``, case-sensitive, ``*`` also crosses ``/``). A pattern
 matches a part when it matches either the full name (``assembly/frame.stl#pin``) or the name
@@ -90,6 +90,174 @@ class Groups:
         return (in_a[i] & in_b[j]) | (in_a[j] & in_b[i])
 
 
+#: The side of a clash test that holds every part.
+ALL_PARTS = ("*",)
+#: Keys of a ``[[test]]`` table.
+TEST_KEYS = ("name", "a", "b", "clearance", "fail_on", "tolerance")
+#: Longest clash test name.
+MAX_TEST_NAME = 100
+
+
+@dataclass(frozen=True)
+class ClashTest:
+    """A clash test: the parts of side ``a`` against those of side ``b``, judged with its own
+    clearance, failing statuses and touching tolerance.
+
+    Attributes
+    ----------
+    name : str
+        Unique within a run; it heads the test's section of every report and enters the ID of
+        each of its findings.
+    sides : Groups
+        Part-name patterns of the two sides; ``ALL_PARTS`` (``"*"``) is every part. A pair is
+        the test's when one part is on side a and the other on side b
+        (``Groups.pair_mask``).
+    clearance : float or None
+        Report pairs closer than this, model units; None: no clearance.
+    fail_on : tuple of str or None
+        Statuses whose findings fail the test: the words as written in a ``Config`` (None: not
+        set there); the statuses ``settings.resolve_fail_on`` resolved in ``Settings.tests``.
+    tolerance : float or None
+        Touching tolerance, model units; None: each pair's own (``tolerances``).
+    """
+
+    name: str
+    sides: Groups = Groups(ALL_PARTS, ALL_PARTS)
+    clearance: float | None = None
+    fail_on: tuple[str, ...] | None = None
+    tolerance: float | None = None
+
+    def holds(self, names: Sequence[str | Sequence[str]], pairs: np.ndarray) -> np.ndarray:
+        """Which of ``pairs`` ((k, 2) indices into ``names``) are this test's, (k,) bool."""
+        return self.sides.pair_mask(names, pairs)
+
+    def describe(self) -> str:
+        """``a against b``: the two sides' patterns (``all parts`` for ``*``), one line."""
+
+        def side(patterns: tuple[str, ...]) -> str:
+            return "all parts" if patterns == ALL_PARTS else ", ".join(patterns)
+
+        return f"{side(self.sides.a)} against {side(self.sides.b)}"
+
+
+def checked_test_name(name, *, path: str | None = None) -> str:
+    """A clash test's name, refused unless a non-empty printable string of at most
+    ``MAX_TEST_NAME`` characters, without ``:`` (the command line's separator) or spaces at
+    its ends.
+
+    Raises
+    ------
+    ConfigError
+    """
+    if not isinstance(name, str) or not name.strip():
+        raise ConfigError(path, "a clash test needs a name (a non-empty string)")
+    if len(name) > MAX_TEST_NAME or not name.isprintable() or ":" in name or name != name.strip():
+        raise ConfigError(
+            path,
+            f"clash test name {name[:MAX_TEST_NAME]!r} must be printable, at most "
+            f"{MAX_TEST_NAME} characters, without ':' or spaces at its ends",
+        )
+    return name
+
+
+def parse_test(text: str) -> ClashTest:
+    """A clash test from the command line's ``NAME:A:B[:KEY=VALUE]...`` (``--test``).
+
+    ``A`` and ``B`` are comma lists of part-name patterns (``*``: every part); each ``KEY=VALUE``
+    sets ``clearance``, ``tolerance`` or ``fail_on`` (a comma list of statuses). Patterns holding
+    ``:`` or ``,`` need a ``[[test]]`` table.
+
+    Raises
+    ------
+    ConfigError
+        Naming ``--test`` and the first problem.
+
+    Examples
+    --------
+    >>> t = parse_test("housing:arm_*,link_*:housing.stl:clearance=1:fail_on=clearance,touching")
+    >>> t.name, t.sides.a, t.sides.b, t.clearance, t.fail_on
+    ('housing', ('arm_*', 'link_*'), ('housing.stl',), 1.0, ('clearance', 'touching'))
+    """
+    where = "--test"
+    fields = text.split(":")
+    if len(fields) < 3:
+        raise ConfigError(
+            where, f"{text!r} is not NAME:A:B[:KEY=VALUE]... (e.g. fasteners:bolt_*:plate.stl)"
+        )
+    name, a, b, *extra = fields
+    checked_test_name(name.strip(), path=where)
+    table: dict = {
+        "name": name.strip(),
+        "a": [p.strip() for p in a.split(",")],
+        "b": [p.strip() for p in b.split(",")],
+    }
+    for item in extra:
+        key, sep, value = item.partition("=")
+        key = key.strip()
+        if not sep or key not in ("clearance", "tolerance", "fail_on"):
+            raise ConfigError(
+                where,
+                f"test {name.strip()!r}: {item!r} is not KEY=VALUE with KEY clearance, "
+                "tolerance or fail_on",
+            )
+        if key in table:
+            raise ConfigError(where, f"test {name.strip()!r}: {key} given twice")
+        table[key] = value.split(",") if key == "fail_on" else value.strip()
+    return _test(table, where, number=_text_number)
+
+
+def _text_number(key: str, value, where: str) -> float:
+    return checked_number(key, value, *NUMBER_RANGES[key], path=where)
+
+
+def _toml_number(key: str, value, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ConfigError(where, f"{key} must be a number, not {type(value).__name__}")
+    return checked_number(key, value, *NUMBER_RANGES[key], path=where)
+
+
+def _test(table: dict, where: str, *, number) -> ClashTest:
+    """A ``[[test]]`` table (or the command line's fields) as a ``ClashTest``, checked."""
+    name = checked_test_name(table.get("name"), path=where)
+    label = f"test {name!r}"
+
+    def fail(reason: str):
+        raise ConfigError(where, f"{label}: {reason}")
+
+    for key in table:
+        if key not in TEST_KEYS:
+            fail(f"unknown key {key!r} (known: {', '.join(TEST_KEYS)})")
+    sides = [
+        _patterns(
+            table.get(key, list(ALL_PARTS)),
+            fail,
+            f"{key} must be a glob pattern or a non-empty list of them ('*': every part)",
+        )
+        for key in ("a", "b")
+    ]
+    fail_on = table.get("fail_on")
+    if fail_on is not None:
+        if isinstance(fail_on, str):
+            fail_on = [fail_on]
+        if not isinstance(fail_on, list) or not all(isinstance(w, str) for w in fail_on):
+            fail("fail_on must be a list of strings")
+        try:
+            words = parse_fail_on(fail_on)
+        except ConfigError as exc:
+            fail(exc.reason)
+        if words and "new" in words:
+            fail("fail_on 'new' is for the whole run (--fail-on new), not one test")
+        fail_on = words
+    try:
+        clearance, tolerance = (
+            None if table.get(key) is None else number(key, table[key], where)
+            for key in ("clearance", "tolerance")
+        )
+    except ConfigError as exc:
+        fail(exc.reason)
+    return ClashTest(name, Groups(*sides), clearance, fail_on, tolerance)
+
+
 def approval_reason(
     approvals: Sequence[Approval],
     names_a: str | Sequence[str],
@@ -113,6 +281,7 @@ CONFIG_NAMES = ("meshcheck.toml", "pyproject.toml")  # in one directory, meshche
 _KEYS = ("tolerance", "clearance", "threshold", "units", "fail_on", "ignore", "groups", "scheduler")
 _KEYS += ("pose", "adjacent", "package_paths", "joint", "sweep_budget")  # meshcheck.motion
 _KEYS += ("quiet", "hide_touching")  # what the text and Markdown reports list
+_KEYS += ("test",)  # clash tests
 
 
 @dataclass(frozen=True)
@@ -142,6 +311,9 @@ class Config:
         Defaults for ``--quiet`` and ``--hide-touching``.
     scheduler : str or None
         Address of a Dask scheduler to run on (``--scheduler``).
+    tests : tuple of ClashTest
+        The ``[[test]]`` tables, in file order (names unique); an unset clearance, fail_on or
+        tolerance is None (the run's applies, ``Settings.from_options``).
     """
 
     path: str | None = None
@@ -157,6 +329,7 @@ class Config:
     hide_touching: bool | None = None
     scheduler: str | None = None
     motion: dict | None = None  # pose, adjacent, package_paths, joints (meshcheck.motion)
+    tests: tuple[ClashTest, ...] = ()
 
 
 def find_config(start: str | os.PathLike | None = None) -> str | None:
@@ -286,6 +459,14 @@ def load_config(path: str | os.PathLike) -> Config:
         [groups]
         a = ["frame.stl"]
         b = ["bolts/*"]
+
+    or clash tests instead of ``[groups]`` (``ClashTest``; each test its own rule)::
+
+        [[test]]
+        name = "fasteners"
+        a = "bolts/*"
+        b = "frame.stl"
+        fail_on = ["interference"]
     """
     path = os.fspath(path)
     doc, where = _settings_table(path)
@@ -319,6 +500,7 @@ def load_config(path: str | os.PathLike) -> Config:
         file_units=_file_units(doc.get("units"), path, fail),
         quiet=_flag(doc, "quiet", fail),
         hide_touching=_flag(doc, "hide_touching", fail),
+        tests=_tests(doc.get("test", []), path, fail),
     )
 
 
@@ -426,19 +608,42 @@ def _groups(groups, fail) -> Groups | None:
     for key in groups:
         if key not in ("a", "b"):
             fail(f"unknown key {key!r} in groups (known: a, b)")
-    patterns = []
-    for key in ("a", "b"):
-        value = groups.get(key)
-        if isinstance(value, str):
-            value = [value]
-        if (
-            not isinstance(value, list)
-            or not value
-            or not all(isinstance(p, str) and p for p in value)
-        ):
-            fail(f"groups.{key} must be a non-empty list of glob patterns")
-        patterns.append(tuple(value))
-    return Groups(*patterns)
+    return Groups(
+        *(
+            _patterns(
+                groups.get(key), fail, f"groups.{key} must be a non-empty list of glob patterns"
+            )
+            for key in ("a", "b")
+        )
+    )
+
+
+def _patterns(value, fail, message: str) -> tuple[str, ...]:
+    """``value`` (a glob pattern or a list of them) as a tuple of patterns; ``fail(message)``
+    unless it is one non-empty string or a non-empty list of them."""
+    if isinstance(value, str):
+        value = [value]
+    if not isinstance(value, list) or not value or not all(isinstance(p, str) and p for p in value):
+        fail(message)
+    return tuple(value)
+
+
+def _tests(tables, path: str, fail) -> tuple[ClashTest, ...]:
+    """The ``[[test]]`` tables as clash tests, in file order; a name used twice is refused."""
+    if not isinstance(tables, list):
+        fail("test must be an array of tables ([[test]] entries with a name)")
+    tests: list[ClashTest] = []
+    for k, table in enumerate(tables, start=1):
+        label = f"test entry {k}"
+        if not isinstance(table, dict):
+            fail(f"{label} must be a table with a name, a, b...")
+        if "name" not in table:
+            fail(f"{label} has no 'name'")
+        test = _test(table, path, number=_toml_number)
+        if any(t.name == test.name for t in tests):
+            fail(f"two clash tests are named {test.name!r}: each test needs its own name")
+        tests.append(test)
+    return tuple(tests)
 
 
 def _scheduler(value, fail) -> str | None:

@@ -57,6 +57,20 @@ def as_mesh(vertices: np.ndarray, faces: np.ndarray, *, closed: bool | None = No
     return mesh
 
 
+def manifold_solid(vertices: np.ndarray, faces: np.ndarray):
+    """The closed, outward mesh as a ``manifold3d.Manifold`` (its arrays copied, as nanobind
+    wants them writable and contiguous); None when manifold3d does not take it as a solid."""
+    import manifold3d
+
+    solid = manifold3d.Manifold(
+        manifold3d.Mesh64(
+            vert_properties=np.array(vertices, dtype=np.float64, order="C"),
+            tri_verts=np.array(faces, dtype=np.uint64, order="C"),
+        )
+    )
+    return solid if solid.status() == manifold3d.Error.NoError else None
+
+
 def warn(name: str, reason: str) -> None:
     """Issue a ``MeshcheckWarning`` reading ``NAME: reason``."""
     warnings.warn(MeshcheckWarning(f"{name}: {reason}"), stacklevel=3)

@@ -1,4 +1,5 @@
-"""Mechanism settings: the pose robots are checked at, where their meshes live, what is swept.
+"""Mechanism settings: the pose robots are checked at, where their meshes live, what is swept,
+and which SRDF is audited.
 
 A pose is a setting like any other: the URDF reader (``load.urdf``) places every link at it, and
 ``load.joints`` places the parts of mesh files that ``[[joint]]`` tables of the configuration
@@ -36,6 +37,9 @@ JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed")
 MAX_JOINTS = 1000
 #: Keys of a ``[[joint]]`` table.
 JOINT_KEYS = ("name", "parent", "child", "type", "axis", "origin", "range")
+#: The ``disable_collisions`` reasons an SRDF audit checks unless told otherwise: the entries
+#: MoveIt's Setup Assistant wrote from random samples.
+AUDIT_REASONS = ("Never",)
 
 _VALUE = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(deg)?\s*$")
 
@@ -106,7 +110,9 @@ class Motion:
     package_paths : tuple of str
         Folders searched for ``package://NAME/...`` meshes besides the URDF's folder and its
         ancestors: a folder named NAME, a folder holding NAME, or one whose ``package.xml``
-        names NAME (or holding such a folder).
+        names NAME (or holding such a folder). Files a robot names are read inside these, its
+        folder, the package it lies in and the package roots ``package://`` finds
+        (``load.urdf.resolve_mesh``).
     adjacent : bool
         Approve findings between links joined by a joint (reason "adjacent"), as MoveIt does.
     sweep : tuple of str or None
@@ -118,6 +124,15 @@ class Motion:
     budget : int
         Work the sweep may do (``DEFAULT_SWEEP_BUDGET``); link pairs past it are
         undecided.
+    audit : str or None
+        An SRDF whose ``disable_collisions`` entries are audited over the joint ranges
+        (``--audit-srdf``).
+    audit_reasons : tuple of str
+        The entries' reasons audited (``--audit-reasons``); empty: every entry.
+    allow_outside : bool
+        Read files a robot names outside its folder, its package and the package paths
+        (``--allow-outside-paths``: set on the command line only, never by a configuration
+        file a pull request could change).
     """
 
     pose: tuple[JointValue, ...] = ()
@@ -127,6 +142,9 @@ class Motion:
     resolution: float = DEFAULT_RESOLUTION
     joints: tuple[JointSpec, ...] = ()
     budget: int = DEFAULT_SWEEP_BUDGET
+    audit: str | None = None
+    audit_reasons: tuple[str, ...] = AUDIT_REASONS
+    allow_outside: bool = False
 
     def __post_init__(self):
         names = [v.joint for v in self.pose]
@@ -212,9 +230,10 @@ def parse_pose(
 
 def checked_motion(table: Mapping, *, path: str | None = None) -> dict:
     """A configuration file's mechanism keys, validated: ``pose`` (a table of joint values),
-    ``adjacent`` (bool), ``package_paths`` (folders, relative to the file's folder), ``joint``
-    (an array of ``[[joint]]`` tables, ``checked_joints``), ``sweep_budget`` (a whole number,
-    ``checked_budget``)."""
+    ``adjacent`` (bool), ``package_paths`` (folders inside the file's folder, relative to it:
+    a configuration a pull request can change never points the readers elsewhere; the command
+    line's ``--package-path`` can), ``joint`` (an array of ``[[joint]]`` tables,
+    ``checked_joints``), ``sweep_budget`` (a whole number, ``checked_budget``)."""
     out: dict = {}
     if "sweep_budget" in table:
         out["budget"] = checked_budget(table["sweep_budget"], path=path)
@@ -235,6 +254,19 @@ def checked_motion(table: Mapping, *, path: str | None = None) -> dict:
         if not isinstance(paths, list) or not all(isinstance(p, str) and p for p in paths):
             raise ConfigError(path, "package_paths must be a list of folders")
         base = os.path.dirname(os.path.abspath(path)) if path else ""
+        root = os.path.abspath(base)
+        for p in paths:
+            inside = os.path.abspath(os.path.join(base, p))
+            try:
+                is_inside = os.path.commonpath([inside, root]) == root
+            except ValueError:  # another drive
+                is_inside = False
+            if not is_inside:
+                raise ConfigError(
+                    path,
+                    f"package_paths: {p!r} is outside the configuration's folder (give folders "
+                    "elsewhere with --package-path)",
+                )
         out["package_paths"] = tuple(os.path.join(base, p) for p in paths)
     return out
 
@@ -364,9 +396,13 @@ def motion_from_options(
     sweep=None,
     resolution: float | None = None,
     budget: int | None = None,
+    audit: str | None = None,
+    audit_reasons=None,
+    allow_outside: bool = False,
 ) -> Motion:
     """The run's ``Motion``: options given here win over the configuration file's (``file``,
-    from ``checked_motion``); pose values of both merge, an option's winning for its joint."""
+    from ``checked_motion``); pose values of both merge, an option's winning for its joint.
+    ``audit_reasons`` is a comma list or a sequence of reasons, ``all`` for every entry."""
     file = file or {}
     merged = {v.joint: v for v in file.get("pose", ())}
     if pose is not None:
@@ -382,7 +418,39 @@ def motion_from_options(
         resolution=DEFAULT_RESOLUTION if resolution is None else resolution,
         joints=file.get("joints", ()),
         budget=file.get("budget", DEFAULT_SWEEP_BUDGET) if budget is None else budget,
+        audit=audit,
+        audit_reasons=AUDIT_REASONS if audit_reasons is None else parse_reasons(audit_reasons),
+        allow_outside=bool(allow_outside),
     )
+
+
+def parse_reasons(given: str | Iterable[str]) -> tuple[str, ...]:
+    """``disable_collisions`` reasons to audit from ``Never,Default`` (repeatable), or ``all``
+    alone for every entry (an empty tuple).
+
+    Examples
+    --------
+    >>> parse_reasons("Never, Default"), parse_reasons(["all"])
+    (('Never', 'Default'), ())
+    """
+    if isinstance(given, str):
+        given = [given]
+    words: list[str] = []
+    for text in given:
+        for word in (w.strip() for w in text.split(",")):
+            if not word:
+                continue
+            if not word.isprintable():
+                raise ConfigError("--audit-reasons", f"{word!r} is not a reason")
+            if word not in words:
+                words.append(word)
+    if not words:
+        raise ConfigError("--audit-reasons", "give one reason or more (Never,Default...), or all")
+    if "all" in words:
+        if len(words) > 1:
+            raise ConfigError("--audit-reasons", "'all' stands alone")
+        return ()
+    return tuple(words)
 
 
 def _is_values(pose) -> bool:
@@ -390,6 +458,7 @@ def _is_values(pose) -> bool:
 
 
 __all__ = [
+    "AUDIT_REASONS",
     "DEFAULT_RESOLUTION",
     "DEFAULT_SWEEP_BUDGET",
     "JOINT_TYPES",
@@ -401,5 +470,6 @@ __all__ = [
     "checked_motion",
     "motion_from_options",
     "parse_pose",
+    "parse_reasons",
     "parse_value",
 ]

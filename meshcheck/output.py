@@ -125,7 +125,8 @@ def _write_atomically(path: str, payload: bytes, mode: int | None) -> None:
         with os.fdopen(fd, "wb") as fh:
             fh.write(payload)
             fh.flush()
-            os.fchmod(fh.fileno(), stat.S_IMODE(mode) if mode is not None else _new_file_mode())
+        # by name: os.fchmod is not on Windows before Python 3.13
+        os.chmod(tmp, stat.S_IMODE(mode) if mode is not None else _new_file_mode())
         os.replace(tmp, path)
     except BaseException:
         try:

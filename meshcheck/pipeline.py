@@ -14,7 +14,8 @@ Each stage narrows the part pairs the next one looks at:
 5. ``approve`` marks approved findings, in one place.
 
 Every pair is decided with its own tolerance (``tolerances.pair_tolerances``) unless the user
-gave one.
+gave one. A run of clash tests (``Settings.tests``) runs the stages once for all its tests, each
+test judging the verdicts of its pairs (``verify.clash_tests``).
 """
 
 from __future__ import annotations
@@ -41,13 +42,22 @@ from .outcome import CheckResult
 from .progress import Progress
 from .results import Finding, Part
 from .settings import Settings
-from .sweep import mechanism_pieces, sweep_bodies, with_adjacent_approvals
-from .tolerances import largest_pair_tolerance, pair_tolerances, part_sizes
+from .sweep import audit_srdf, mechanism_pieces, sweep_bodies, with_adjacent_approvals
+from .tolerances import part_sizes
 from .units import DEFAULT_UNIT
 from .verify import verify_pairs
 from .verify.brep import confirm_on_brep
+from .verify.clash_tests import (
+    held_by_any,
+    judged,
+    largest_clearance,
+    largest_tolerance,
+    pair_clearances,
+    verify_plans,
+    widest_tolerances,
+)
 from .verify.duplicates import duplicate_findings, duplicate_sets, without_duplicate_pairs
-from .verify.patterns import with_patterns
+from .verify.elements import with_elements
 from .verify.shells import warn_nothing_to_compare, warn_overlapping_shells
 
 
@@ -77,7 +87,8 @@ def check(
         ``threshold``, ``fail_on``, ``approvals``, ``groups``, ``split``, ``units``,
         ``file_units`` (``{"engine.glb": "mm"}``: a file's unit, whatever it declares),
         ``cache_dir`` (default: the user's cache directory, as on the command line),
-        ``use_cache``, ``jobs``.
+        ``use_cache``, ``jobs``, ``tests`` (clash tests: ``config.ClashTest`` or
+        ``"NAME:A:B[:KEY=VALUE]..."`` as ``--test`` takes them).
 
     Returns
     -------
@@ -173,10 +184,8 @@ def check_bodies(
         check_candidate_pairs(len(pairs), len(bodies))  # budgeted, like triangles
         # Triangles of a part read from CAD lie up to its deflection from the true surface:
         # overlaps and gaps within the two deflections cannot be told apart, so they touch.
-        tolerance = pair_tolerances(
-            diagonal, magnitude, pairs, tolerance=settings.tolerance, deflection=deflection
-        )
-        reach = tolerance + (settings.clearance or 0.0)
+        tolerance = widest_tolerances(diagonal, magnitude, pairs, settings, deflection=deflection)
+        reach = tolerance + pair_clearances(settings, names, pairs)
         hull_query = query_pairs(hulls, pairs, tolerance=tolerance, depth=False, max_distance=reach)
         near = may_come_within(hull_query, reach)
     pairs_near, tol_near, reach_near = pairs[near], tolerance[near], reach[near]
@@ -198,42 +207,60 @@ def check_bodies(
             known=swept,
         )
         near_surfaces = surfaces_near(pieces, owner, pairs_near, tol_near, reach_near)
-        findings = verify_pairs(
-            bodies,
-            pairs_near,
-            tol_near,
-            near_surfaces,
-            settings,
-            executor=executor,
-            cache=caches.verdicts,
-            hulls_penetrate=hull_query.status[near] == Status.PENETRATING,
+        penetrate = hull_query.status[near] == Status.PENETRATING
+        plans = verify_plans(
+            settings, names, pairs_near, diagonal, magnitude, deflection=deflection
         )
-        findings = confirm_on_brep(bodies, findings, settings, cache=caches.verdicts)
+        verified = []
+        for plan in plans:  # one without clash tests; else one per tolerance among the tests
+            findings = verify_pairs(
+                bodies,
+                pairs_near[plan.mask],
+                plan.tolerance,
+                near_surfaces[plan.mask],
+                plan.settings,
+                executor=executor,
+                cache=caches.verdicts,
+                hulls_penetrate=penetrate[plan.mask],
+            )
+            findings = confirm_on_brep(bodies, findings, plan.settings, cache=caches.verdicts)
+            findings = with_elements(bodies, findings, clearance=plan.settings.clearance)
+            verified.append(findings)
         sweeps = sweep_bodies(bodies, mechanisms, settings, pieces=swept)
-    findings = sorted(
-        [*duplicate_findings(bodies, copies, geometry), *findings], key=lambda f: (f.a, f.b)
-    )
-    findings = with_patterns(bodies, findings, geometry, tolerance=settings.tolerance)
+        audit = audit_srdf(bodies, mechanisms, settings, pieces=swept, sweeps=sweeps)
+    duplicates = duplicate_findings(bodies, copies, geometry)
+    findings = judged(bodies, settings, plans, verified, duplicates, geometry=geometry, names=names)
     findings = approve(
         findings, settings.approvals, dict(zip([b.name for b in bodies], names, strict=True))
     )
-    return _result(bodies, findings, settings, pairs, piece_count, sweeps)
+    return _result(bodies, findings, settings, pairs, piece_count, sweeps, names, mechanisms, audit)
 
 
-def _result(bodies, findings, settings, pairs, piece_count, sweeps) -> CheckResult:
-    """The run's ``CheckResult``: findings, parts, the candidate pairs, the bodies, the sweeps."""
+def _result(
+    bodies, findings, settings, pairs, piece_count, sweeps, names, mechanisms=(), audit=None
+) -> CheckResult:
+    """The run's ``CheckResult``: findings, parts, the candidate pairs, the bodies, the sweeps,
+    the pairs each clash test holds, each robot's pose and the SRDF audit."""
     parts = [
         Part(b.name, b.path, len(b.mesh.faces), b.is_closed, int(piece_count[k]))
         for k, b in enumerate(bodies)
     ]
+    named = [tuple(sorted((bodies[i].name, bodies[j].name))) for i, j in pairs]
+    test_pairs = {
+        t.name: [p for p, is_held in zip(named, t.holds(names, pairs), strict=True) if is_held]
+        for t in settings.tests
+    }
     return CheckResult(
         findings=findings,
         parts=parts,
         settings=settings,
-        checked_pairs=[tuple(sorted((bodies[i].name, bodies[j].name))) for i, j in pairs],
+        checked_pairs=named,
         bodies=tuple(bodies),
         units=bodies[0].units if bodies else (settings.units or DEFAULT_UNIT),
         sweeps=sweeps,
+        poses=tuple(m.robot_pose() for m in mechanisms),
+        audit=audit,
+        test_pairs=test_pairs,
     )
 
 
@@ -249,17 +276,19 @@ def select_pairs(
     magnitude: np.ndarray,
     deflection: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Part pairs whose boxes come within reach, restricted by the groups rule; ``(k, 2)``.
+    """Part pairs whose boxes come within reach, restricted by the groups rule or the clash
+    tests' sides; ``(k, 2)``.
 
-    The boxes grow by the largest tolerance any pair can get (``tolerances``), so no pair within
-    its own reach is pruned.
+    The boxes grow by the largest tolerance any pair can get (``tolerances``; of any test) and
+    the largest clearance, so no pair within its own reach is pruned.
     """
-    largest = largest_pair_tolerance(
-        diagonal, magnitude, tolerance=settings.tolerance, deflection=deflection
-    )
-    pairs = candidate_pairs(hulls.lower, hulls.upper, margin=largest + (settings.clearance or 0.0))
+    largest = largest_tolerance(diagonal, magnitude, settings, deflection=deflection)
+    margin = largest + (largest_clearance(settings) or 0.0)
+    pairs = candidate_pairs(hulls.lower, hulls.upper, margin=margin)
     if settings.groups is not None:
         pairs = pairs[settings.groups.pair_mask(names, pairs)]
+    if settings.tests:
+        pairs = pairs[held_by_any(settings.tests, names, pairs)]
     return pairs
 
 
@@ -426,6 +455,15 @@ def _check_patterns(settings: Settings, names: Sequence[tuple[str, ...]]) -> Non
                     where,
                     f"groups.{side} ({', '.join(map(repr, patterns))}) matches no part; "
                     + examples(),
+                )
+    for test in settings.tests:
+        for side in ("a", "b"):
+            patterns = getattr(test.sides, side)
+            if not any(matches(p, n) for p in patterns for n in names):
+                raise ConfigError(
+                    settings.config_path or "--test",
+                    f"test {test.name!r}: {side} ({', '.join(map(repr, patterns))}) matches no "
+                    "part; " + examples(),
                 )
     every = {n for ns in names for n in ns}  # a pattern without wildcards names one part
     for rule in settings.approvals:

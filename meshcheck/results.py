@@ -1,6 +1,8 @@
 """The vocabulary of results: the verdict of a part pair (``PairVerdict``), a ``Finding`` per
-pair that is not clear, how a robot's link pairs relate over its joint ranges (``RobotSweep``),
-and the clash groups findings fall into.
+pair that is not clear (naming the collision elements of a URDF link it involves), the pose a
+robot was checked at (``RobotPose``), how a robot's link pairs relate over its joint ranges
+(``RobotSweep``), an SRDF's disabled pairs audited over them (``SrdfAudit``), and the clash
+groups findings fall into.
 
 What a whole run found, and whether it fails, is ``outcome.CheckResult``.
 """
@@ -138,6 +140,33 @@ class PairVerdict:
 
 
 @dataclass(frozen=True)
+class CollisionElement:
+    """One collision element of a part made of several (a URDF link's ``<collision>``).
+
+    Attributes
+    ----------
+    link : str
+        The link (the part's node name).
+    index : int
+        Its position among the link's ``<collision>`` elements, from 0.
+    name : str or None
+        Its ``name`` attribute, when it has one.
+    """
+
+    link: str
+    index: int
+    name: str | None = None
+
+    def label(self) -> str:
+        """``LINK/INDEX``, then the name in parentheses when there is one: ``base/1 (post)``."""
+        text = f"{self.link}/{self.index}"
+        return text if self.name is None else f"{text} ({self.name})"
+
+    def to_dict(self) -> dict:
+        return {"link": self.link, "index": self.index, "name": self.name}
+
+
+@dataclass(frozen=True)
 class Finding:
     """A part pair that interferes, touches, or comes closer than the required clearance.
 
@@ -162,6 +191,12 @@ class Finding:
         Key of the pattern the finding repeats (``verify.patterns``): findings of one status
         with the same key are between copies of the same two geometries at the same relative
         placement; ``""`` when it repeats no other. Grouping data, not in ``to_dict``.
+    elements : tuple of CollisionElement
+        For a part made of several collision elements (a URDF link's): the elements the finding
+        involves (``verify.elements``), the first part's then the second's; empty otherwise.
+    test : str
+        The clash test that judged the pair (``config.ClashTest``; its name is in ``id``);
+        ``""`` in a run without clash tests.
     """
 
     a: str
@@ -172,6 +207,8 @@ class Finding:
     tolerance: float | None = None
     members: tuple[str, ...] = ()
     pattern: str = ""
+    elements: tuple[CollisionElement, ...] = ()
+    test: str = ""
 
     @property
     def status(self) -> Verdict:
@@ -223,6 +260,8 @@ class Finding:
             "approved": self.approval_reason,
             "tolerance": None if self.tolerance is None else float(self.tolerance),
             **({"members": list(self.members)} if self.members else {}),
+            **({"elements": [e.to_dict() for e in self.elements]} if self.elements else {}),
+            **({"test": self.test} if self.test else {}),
         }
 
 
@@ -377,6 +416,153 @@ class RobotSweep:
         }
 
 
+@dataclass(frozen=True)
+class RobotPose:
+    """The joint values one robot (or ``[[joint]]`` mechanism) was checked at.
+
+    Attributes
+    ----------
+    path : str
+        Its URDF (or the configuration file of its ``[[joint]]`` tables).
+    name : str
+    joints : tuple of (str, float)
+        Every joint a pose sets (movable, not a mimic), in the robot's order, with its value:
+        radians, or metres for a URDF's slide (report units for a ``[[joint]]`` slide). Joints
+        the pose does not name are at 0, or at the limit nearest 0.
+    """
+
+    path: str
+    name: str
+    joints: tuple[tuple[str, float], ...]
+
+    def to_dict(self) -> dict[str, float]:
+        """``{joint: value}``, as ``summary.pose`` lists it for the robot."""
+        return {name: float(value) for name, value in self.joints}
+
+    def text(self) -> str:
+        """The values as ``--pose`` takes them (``elbow=2.7925268,shoulder=1.5``), the joints at
+        0 left out and said: ``(other joints at 0)``, or ``every joint at 0``."""
+        moved = [(n, v) for n, v in self.joints if v != 0.0]
+        if not moved:
+            return "every joint at 0"
+        values = ",".join(f"{n}={v:.9g}" for n, v in moved)
+        return values if len(moved) == len(self.joints) else f"{values} (other joints at 0)"
+
+
+@dataclass(frozen=True)
+class AuditedPair:
+    """One ``disable_collisions`` entry of an SRDF, audited over the joint ranges.
+
+    Attributes
+    ----------
+    a, b : str
+        Its links, ``a < b``.
+    reason : str
+        The entry's ``reason`` (``Never``, ``Adjacent``, ``Default``, ``User``...).
+    sweep : PairSweep
+        The sweep of the two links: ``NEVER`` proves the entry; ``SOMETIMES`` comes with the
+        witness pose where they collide (the entry disables a real collision); ``ALWAYS``: they
+        collide at every pose (disabling is right; a ``Never`` reason is not); ``UNDECIDED``:
+        neither within the sweep's budget.
+    line : int
+        The entry's line in the SRDF, from 1.
+    span : (int, int)
+        Its bytes in the SRDF, ``[start, end)``: what a corrected SRDF replaces.
+    """
+
+    a: str
+    b: str
+    reason: str
+    sweep: PairSweep
+    line: int = 0
+    span: tuple[int, int] = (0, 0)
+
+    @property
+    def status(self) -> SweepStatus:
+        return self.sweep.status
+
+    @property
+    def is_wrong(self) -> bool:
+        """The entry disables a collision that happens: a witness pose where the two links
+        interfere or touch."""
+        return self.sweep.status == SweepStatus.SOMETIMES
+
+    def to_dict(self) -> dict:
+        """The entry as the JSON report lists it (``pose``: the witness's joint values)."""
+        return {
+            "a": self.a,
+            "b": self.b,
+            "reason": self.reason,
+            "line": self.line,
+            "status": str(self.sweep.status),
+            "wrong": self.is_wrong,
+            "joints": list(self.sweep.joints),
+            "pose": None if self.sweep.witness is None else dict(self.sweep.witness),
+            "verdict": None if self.sweep.verdict is None else str(self.sweep.verdict),
+        }
+
+
+@dataclass(frozen=True)
+class SrdfAudit:
+    """An SRDF's ``disable_collisions`` entries, audited over the robot's joint ranges.
+
+    Attributes
+    ----------
+    path : str
+        The SRDF.
+    robot : str
+        The URDF it describes.
+    reasons : tuple of str
+        The reasons audited (entries with others are counted in ``unaudited``).
+    pairs : tuple of AuditedPair
+        The audited entries, in file order.
+    unaudited : int
+        Entries whose reason was not audited.
+    source : bytes
+        The SRDF's bytes, for the corrected SRDF (``reports.srdf``); not compared.
+    """
+
+    path: str
+    robot: str
+    reasons: tuple[str, ...]
+    pairs: tuple[AuditedPair, ...]
+    unaudited: int = 0
+    source: bytes = field(default=b"", repr=False, compare=False)
+
+    @property
+    def counts(self) -> dict[SweepStatus, int]:
+        """Audited entries of each sweep status, every status listed."""
+        return {s: sum(p.status == s for p in self.pairs) for s in SweepStatus}
+
+    def summary(self) -> str:
+        """One line: how many entries were audited, and what they are."""
+        c = self.counts
+
+        def entries(n: int) -> str:
+            return f"{n} entry" if n == 1 else f"{n} entries"
+
+        text = (
+            f"{self.path}: {entries(len(self.pairs))} audited "
+            f"({', '.join(self.reasons) or 'every reason'}): {c[SweepStatus.NEVER]} proven never, "
+            f"{c[SweepStatus.SOMETIMES]} colliding, {c[SweepStatus.ALWAYS]} always, "
+            f"{c[SweepStatus.UNDECIDED]} undecided"
+        )
+        if self.unaudited:
+            text += f"; {entries(self.unaudited)} of other reasons not audited"
+        return text
+
+    def to_dict(self) -> dict:
+        """The audit as the JSON report lists it."""
+        return {
+            "srdf": self.path,
+            "robot": self.robot,
+            "reasons": list(self.reasons),
+            "counts": {str(s): n for s, n in self.counts.items()},
+            "unaudited": self.unaudited,
+            "pairs": [p.to_dict() for p in self.pairs],
+        }
+
+
 def finding_id(
     name_a: str,
     digest_a: str,
@@ -419,6 +605,21 @@ def finding_id(
     return h.hexdigest()[:12]
 
 
+def finding_id_in(test: str, pair_id: str) -> str:
+    """Stable 12-hex-digit ID of a clash test's finding: the test's name and the pair's
+    ``finding_id``, so one pair judged by two tests has two IDs (each approved, and followed
+    against a baseline, on its own).
+
+    Examples
+    --------
+    >>> pair = finding_id("a", "1", "b", "2")
+    >>> finding_id_in("fasteners", pair) != finding_id_in("clearance", pair)
+    True
+    """
+    text = f"test\0{test}\0{pair_id}"
+    return hashlib.sha256(text.encode("utf-8", "surrogateescape")).hexdigest()[:12]
+
+
 def _name(part: tuple) -> tuple[str, str]:
     return part[0], part[1]
 
@@ -440,6 +641,8 @@ class ClashGroup:
     status : Verdict
     members : tuple of Finding
         Most severe first, as the reports list findings.
+    test : str
+        The clash test of its members (``Finding.test``); ``""`` without clash tests.
     """
 
     id: str
@@ -447,6 +650,7 @@ class ClashGroup:
     status: Verdict
     members: tuple[Finding, ...]
     kind: str = "part"
+    test: str = ""
 
     def to_dict(self) -> dict:
         return {
@@ -455,6 +659,7 @@ class ClashGroup:
             "part": self.part,
             "status": str(self.status),
             "findings": [f.id for f in self.members],
+            **({"test": self.test} if self.test else {}),
         }
 
 
@@ -469,6 +674,8 @@ def clash_groups(findings: Sequence[Finding]) -> list[ClashGroup]:
     each, largest first. Of the rest, the part named by most findings of one status makes the
     next group, its findings leave the pool, and so on while a part is named twice. Each finding
     is in at most one group; ties go by names, so the same findings always give the same groups.
+    Findings of different clash tests (``Finding.test``) are never grouped together: each
+    test's groups come in the order its first finding does, their IDs hold the test's name.
 
     Examples
     --------
@@ -478,7 +685,15 @@ def clash_groups(findings: Sequence[Finding]) -> list[ClashGroup]:
     [('plate', 3)]
     """
     pool = [f for f in findings if f.status in GROUPED_STATUSES and not f.is_approved]
-    groups = _pattern_groups(pool)
+    by_test: dict[str, list[Finding]] = {}
+    for f in pool:
+        by_test.setdefault(f.test, []).append(f)
+    return [g for test, found in by_test.items() for g in _groups_of(test, found)]
+
+
+def _groups_of(test: str, pool: list[Finding]) -> list[ClashGroup]:
+    """The clash groups of one test's unapproved findings of the grouped statuses."""
+    groups = _pattern_groups(test, pool)
     taken = {id(f) for g in groups for f in g.members}
     pool = [f for f in pool if id(f) not in taken]
     while True:
@@ -491,12 +706,14 @@ def clash_groups(findings: Sequence[Finding]) -> list[ClashGroup]:
             return groups
         (part, status), _ = best
         members = [f for f in pool if f.status == status and part in (f.a, f.b)]
-        groups.append(ClashGroup(group_id(part, status), part, status, _by_severity(members)))
+        groups.append(
+            ClashGroup(group_id(part, status, test), part, status, _by_severity(members), test=test)
+        )
         taken = {id(f) for f in members}
         pool = [f for f in pool if id(f) not in taken]
 
 
-def _pattern_groups(pool: Sequence[Finding]) -> list[ClashGroup]:
+def _pattern_groups(test: str, pool: Sequence[Finding]) -> list[ClashGroup]:
     """A group per pattern key and status held by two findings or more, largest first."""
     by_key: dict[tuple[str, Verdict], list[Finding]] = {}
     for f in pool:
@@ -504,11 +721,12 @@ def _pattern_groups(pool: Sequence[Finding]) -> list[ClashGroup]:
             by_key.setdefault((f.pattern, f.status), []).append(f)
     groups = [
         ClashGroup(
-            group_id(f"pattern\0{key}", status),
+            group_id(f"pattern\0{key}", status, test),
             None,
             status,
             _by_severity(members),
             kind="pattern",
+            test=test,
         )
         for (key, status), members in by_key.items()
         if len(members) > 1
@@ -520,8 +738,8 @@ def _by_severity(members: list[Finding]) -> tuple[Finding, ...]:
     return tuple(sorted(members, key=lambda f: (-(f.depth or 0.0), f.distance, f.a, f.b)))
 
 
-def group_id(part: str, status: str) -> str:
+def group_id(part: str, status: str, test: str = "") -> str:
     """Stable 12-hex-digit ID of a clash group: its shared part's name (or ``pattern\\0KEY``
-    for a pattern) and its status."""
-    text = "\0".join(("group", str(status), part))
+    for a pattern), its status, and its clash test's name when there is one."""
+    text = "\0".join(("group", str(status), part, *((test,) if test else ())))
     return hashlib.sha256(text.encode("utf-8", "surrogateescape")).hexdigest()[:12]

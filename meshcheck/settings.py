@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from .config import (
     NUMBER_RANGES,
     Approval,
+    ClashTest,
     Config,
     Groups,
     checked_number,
@@ -86,6 +87,12 @@ class Settings:
         The text and Markdown reports list only the findings that fail the run.
     hide_touching : bool
         The text and Markdown reports leave touching findings out of their tables.
+    tests : tuple of ClashTest
+        The clash tests of the run, names unique, each with its clearance, tolerance and
+        resolved ``fail_on`` statuses (``resolve_fail_on``); empty: the run is one test of every
+        part against every part (or the ``groups``) with the fields above. With tests,
+        ``groups`` is refused (each test has its sides) and ``clearance``, ``tolerance`` and
+        ``fail_on`` are only the defaults ``from_options`` gave the tests.
     """
 
     clearance: float | None = None
@@ -107,6 +114,7 @@ class Settings:
     motion: Motion = dataclasses.field(default_factory=Motion)
     quiet: bool = False
     hide_touching: bool = False
+    tests: tuple[ClashTest, ...] = ()
 
     def __post_init__(self):
         for name in NUMBER_RANGES:
@@ -133,6 +141,7 @@ class Settings:
         object.__setattr__(self, "fail_on", tuple(Verdict(s) for s in self.fail_on))
         object.__setattr__(self, "approvals", tuple(self.approvals))
         object.__setattr__(self, "file_units", checked_file_units(self.file_units))
+        object.__setattr__(self, "tests", checked_tests(self.tests, groups=self.groups))
 
     @classmethod
     def from_options(
@@ -157,6 +166,7 @@ class Settings:
         motion: dict | None = None,
         quiet: bool | None = None,
         hide_touching: bool | None = None,
+        tests: Sequence[ClashTest | str] | None = None,
     ) -> Settings:
         """Merge options (None: not given) with a configuration file, and validate.
 
@@ -181,6 +191,10 @@ class Settings:
             ``adjacent``, ``sweep``, ``resolution``), merged with the file's.
         file_units : mapping or sequence, optional
             Input files' units (``checked_file_units``), after the file's ``[units]``.
+        tests : sequence of ClashTest or str, optional
+            Clash tests (``--test NAME:A:B[:KEY=VALUE]...`` strings are parsed by
+            ``config.parse_test``); they replace the file's ``[[test]]`` tables. Each test's
+            unset clearance, tolerance and fail_on words are the run's.
 
         Raises
         ------
@@ -192,9 +206,10 @@ class Settings:
         clearance = pick(clearance, file.clearance)
         words, fail_on_new = _fail_on_words(fail_on, file)
         cache = _cache_dir(cache_dir, use_cache=use_cache)
+        tolerance = pick(tolerance, file.tolerance)
         return cls(
             clearance=clearance,
-            tolerance=pick(tolerance, file.tolerance),
+            tolerance=tolerance,
             threshold=pick(threshold, pick(file.threshold, DEFAULT_THRESHOLD)),
             fail_on=resolve_fail_on(words, clearance=clearance),
             approvals=(*approvals, *file.approvals),
@@ -212,6 +227,12 @@ class Settings:
             motion=motion_from_options(file.motion, **(motion or {})),
             quiet=bool(pick(quiet, file.quiet)),
             hide_touching=bool(pick(hide_touching, file.hide_touching)),
+            tests=_resolved_tests(
+                file.tests if tests is None else tests,
+                clearance=clearance,
+                tolerance=tolerance,
+                words=words,
+            ),
         )
 
     def replace(self, **changes) -> Settings:
@@ -262,6 +283,85 @@ def _fail_on_words(fail_on, file: Config) -> tuple[tuple[str, ...] | None, bool]
     if fail_on_new:  # "new" narrows which findings fail; the statuses resolve as without it
         words = tuple(w for w in words if w != "new") or None
     return words, fail_on_new
+
+
+def _resolved_tests(tests, *, clearance, tolerance, words) -> tuple[ClashTest, ...]:
+    """``tests`` (``ClashTest``s, or ``--test`` strings) with the run's clearance, tolerance
+    and fail_on words where a test sets none, its failing statuses resolved."""
+    from .config import parse_test
+
+    out = []
+    for test in tests:
+        if isinstance(test, str):
+            test = parse_test(test)
+        test_clearance = _pick(test.clearance, clearance)
+        own = _test_words(test)
+        out.append(
+            dataclasses.replace(
+                test,
+                clearance=test_clearance,
+                tolerance=_pick(test.tolerance, tolerance),
+                fail_on=resolve_fail_on(_pick(own, words), clearance=test_clearance),
+            )
+        )
+    return tuple(out)
+
+
+def _test_words(test: ClashTest) -> tuple[str, ...] | None:
+    """A test's fail_on words, checked (``parse_fail_on``; ``()`` is ``none``), or None."""
+    if test.fail_on is None or test.fail_on == ():
+        return test.fail_on
+    words = parse_fail_on([test.fail_on] if isinstance(test.fail_on, str) else test.fail_on)
+    if words and "new" in words:
+        raise ConfigError(
+            None, f"test {test.name!r}: fail_on 'new' is for the whole run (--fail-on new)"
+        )
+    return words
+
+
+def checked_tests(tests, *, groups: Groups | None) -> tuple[ClashTest, ...]:
+    """``tests`` as a tuple of ``ClashTest`` with numbers checked and ``fail_on`` as statuses
+    (resolved with ``resolve_fail_on`` where None).
+
+    Raises
+    ------
+    ConfigError
+        A test that is not a ``ClashTest``, two tests of one name, a number out of range, or
+        tests beside ``groups``.
+    """
+    from .config import checked_test_name
+
+    out: list[ClashTest] = []
+    for test in tests or ():
+        if not isinstance(test, ClashTest):
+            raise ConfigError(None, f"a clash test must be a ClashTest, not {test!r}")
+        checked_test_name(test.name)
+        if any(t.name == test.name for t in out):
+            raise ConfigError(
+                None, f"two clash tests are named {test.name!r}: each test needs its own name"
+            )
+        numbers = {}
+        for key in ("clearance", "tolerance"):
+            value = getattr(test, key)
+            if value is not None:
+                label = f"test {test.name!r}: {key}"
+                numbers[key] = checked_number(label, value, *NUMBER_RANGES[key])
+        fail_on = test.fail_on
+        if fail_on is None:
+            fail_on = resolve_fail_on(None, clearance=numbers.get("clearance"))
+        try:
+            fail_on = tuple(Verdict(s) for s in fail_on)
+        except ValueError:
+            raise ConfigError(
+                None, f"test {test.name!r}: fail_on must be statuses, not {fail_on!r}"
+            ) from None
+        out.append(dataclasses.replace(test, fail_on=fail_on, **numbers))
+    if out and groups is not None:
+        raise ConfigError(
+            None,
+            "groups and clash tests cannot be combined: give each [[test]] its sides a and b",
+        )
+    return tuple(out)
 
 
 def checked_file_units(rules) -> tuple:

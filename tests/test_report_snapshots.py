@@ -1,8 +1,10 @@
 """Every report format and the glTF export pinned by a snapshot, for the sample assembly and
 every end-to-end case (ruff's emitters are the model: one snapshot per format).
 
-Each fixture (``sample``: ``sample_meshes/*.stl``; ``case-NAME``: the STL files of
-``tests/cases/NAME`` with the options of its ``expected.json``) is checked from the repository
+Each fixture (``sample``: ``sample_meshes/*.stl``; ``sample-tests``: the same with the clash
+tests of ``SAMPLE_TESTS``; ``robot-arm``: ``sample_meshes/arm.urdf`` at a pose, its ``arm.srdf``
+audited; ``case-NAME``: the STL files of ``tests/cases/NAME`` with the options of its
+``expected.json``) is checked from the repository
 root with relative paths, one process, no configuration file, and a fresh pair cache; it is then
 checked again against that warm cache, and both runs' outputs must equal the files under
 ``tests/data/snapshots/FIXTURE/`` byte for byte (a report is a function of the inputs and options,
@@ -62,9 +64,22 @@ REPORT_FILES = {
 }
 
 
+#: Clash tests on the sample: those of the configuration guide, and one at its own tolerance.
+SAMPLE_TESTS = [
+    "wrench access:bracket.stl:bolt_*:clearance=15",
+    "fasteners:bolt_*:plate.stl",
+    "everything:*:*",
+    "seated:bolt_*:plate.stl:tolerance=0.001:fail_on=touching",
+]
+
+
 def _fixtures() -> dict[str, tuple[list[str], dict]]:
     """Fixture name -> (relative paths, options of ``check``)."""
-    out = {"sample": (sorted(glob.glob("sample_meshes/*.stl", root_dir=ROOT)), {})}
+    sample = sorted(glob.glob("sample_meshes/*.stl", root_dir=ROOT))
+    out = {"sample": (sample, {}), "sample-tests": (sample, {"tests": SAMPLE_TESTS})}
+    # a robot at a pose, its SRDF audited: the pose and the audit in every format
+    audit = {"pose": "shoulder=1.5,elbow=160deg", "audit": "sample_meshes/arm.srdf"}
+    out["robot-arm"] = (["sample_meshes/arm.urdf"], {"motion": audit})
     for expected in sorted(glob.glob("tests/cases/*/expected.json", root_dir=ROOT)):
         folder = os.path.dirname(expected)
         with open(os.path.join(ROOT, expected)) as fh:

@@ -395,7 +395,7 @@ def test_srdf_without_a_robot_is_a_usage_error(tmp_path):
         [str(tmp_path / "cube.stl"), "--srdf", str(tmp_path / "x.srdf"), "--no-cache", "-j", "1"],
     )
     assert run.exit_code == ExitStatus.USAGE
-    assert "swept no robot" in run.stderr and not (tmp_path / "x.srdf").exists()
+    assert "the inputs hold none" in run.stderr and not (tmp_path / "x.srdf").exists()
 
 
 def test_coarse_pieces_with_their_pads_never_raise_the_distance_bound():

@@ -4,6 +4,8 @@ resolution, bad files refused in one line, and the moveit_resources robots again
 
 from __future__ import annotations
 
+import itertools
+import json
 import math
 import os
 import subprocess
@@ -12,7 +14,10 @@ import time
 
 import numpy as np
 import pytest
+import trimesh
 from click.testing import CliRunner
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from meshes import box, winding_inside
 
 from meshcheck.cli import main
@@ -97,16 +102,161 @@ def test_revolute_chain_places_links_by_origin_then_motion(tmp_path):
     assert np.allclose(links["tip"][:3, 3], [2, 2, 0])
 
 
-def test_parts_are_named_by_link_and_collision_index(tmp_path):
+def test_a_link_of_several_elements_is_one_part_named_by_the_link(tmp_path):
     second = (
-        '<collision><origin xyz="0 0 3"/><geometry><sphere radius="0.5"/></geometry></collision>'
+        '<collision name="ball"><origin xyz="0 0 3"/><geometry><sphere radius="0.5"/></geometry>'
+        "</collision>"
     )
     path = write(tmp_path, slide_robot(arm_extra=second))
     bodies = load_bodies([path])
-    assert [b.name for b in bodies] == [f"{path}#{n}" for n in ("arm", "arm/1", "base", "tip")]
+    assert [b.name for b in bodies] == [f"{path}#{n}" for n in ("arm", "base", "tip")]
     assert all(b.units == "m" for b in bodies)
-    sphere = bodies[1].world
-    assert np.allclose(sphere.bounds.mean(axis=0), [2, 0, 3], atol=1e-9)
+    arm = bodies[0]
+    assert arm.is_closed
+    assert [(e.element.index, e.element.name) for e in arm.elements] == [(0, None), (1, "ball")]
+    sphere = trimesh.creation.icosphere(subdivisions=3, radius=0.5)
+    assert arm.world.volume == pytest.approx(1.0 + sphere.volume, rel=1e-9)  # disjoint: a sum
+    assert np.allclose(arm.world.bounds, [[1.5, -0.5, -0.5], [2.5, 0.5, 3.5]], atol=1e-9)
+    assert bodies[1].elements == () and bodies[2].elements == ()  # one element: nothing to name
+
+
+def plate_and_post(*, sunk: float = 0.01, arm_at: str = "0.6 0 0.1") -> str:
+    """A base link made of a plate (1 x 1 x 0.1, top at z = 0.1) and a post (0.1 x 0.1 x 0.5)
+    sunk ``sunk`` into it, and an arm (a 0.2 cube, 0.1 above its joint) sliding towards the
+    post along -x from ``arm_at``."""
+    return f"""<robot name="post">
+  <link name="base">
+    <collision><origin xyz="0 0 0.05"/><geometry><box size="1 1 0.1"/></geometry></collision>
+    <collision name="post"><origin xyz="0 0 {0.35 - sunk!r}"/>
+      <geometry><box size="0.1 0.1 0.5"/></geometry></collision>
+  </link>
+  <link name="arm">
+    <collision><origin xyz="0 0 0.1"/><geometry><box size="0.2 0.2 0.2"/></geometry></collision>
+  </link>
+  <joint name="slide" type="prismatic"><origin xyz="{arm_at}"/><parent link="base"/>
+    <child link="arm"/><axis xyz="-1 0 0"/><limit lower="0" upper="0.6"/></joint>
+</robot>"""
+
+
+def test_a_post_sunk_into_its_plate_on_one_link_is_not_a_finding(tmp_path):
+    path = write(tmp_path, plate_and_post())
+    run = run_cli(path, "--format", "json")
+    assert run.exit_code == 0, run.output
+    assert "warning" not in run.stderr
+    doc = json.loads(run.stdout)
+    assert [p["name"] for p in doc["parts"]] == [f"{path}#arm", f"{path}#base"]
+    (finding,) = doc["results"]  # the arm resting on the plate, adjacent: no part with itself
+    assert finding["approved"] == "adjacent" and finding["a"] != finding["b"]
+    (base,) = [b for b in load_bodies([path]) if b.name.endswith("#base")]
+    # the union: the plate, and the post's 0.49 above it, counted once
+    assert base.is_closed and base.world.volume == pytest.approx(0.1 + 0.01 * 0.49, rel=1e-9)
+
+
+def test_a_finding_names_the_link_and_the_elements_it_involves(tmp_path):
+    """The arm slid onto the post: one interference between the links, its volume the union's
+    (counted once), its elements the post (interfering) and the plate (the arm rests on it)."""
+    path = write(tmp_path, plate_and_post())
+    run = run_cli(path, "--pose", "slide=0.5", "--no-adjacent", "--format", "json")
+    assert run.exit_code == ExitStatus.FAILED, run.output
+    (finding,) = json.loads(run.stdout)["results"]
+    assert (finding["a"], finding["b"]) == (f"{path}#arm", f"{path}#base")
+    assert finding["volume"] == pytest.approx(0.05 * 0.1 * 0.2, rel=1e-9)
+    assert finding["elements"] == [
+        {"link": "base", "index": 0, "name": None},
+        {"link": "base", "index": 1, "name": "post"},
+    ]
+    text = run_cli(path, "--pose", "slide=0.5", "--no-adjacent").stdout
+    assert "collision elements: base/0, base/1 (post)" in " ".join(text.split())
+    html = run_cli(path, "--pose", "slide=0.5", "--no-adjacent", "--format", "html").stdout
+    data = json.loads(html.split('id="meshcheck-data">')[1].split("</script>")[0])
+    assert data["findings"][0]["elements"] == "base/0, base/1 (post)"
+    # lifted clear of the plate, only the post is involved
+    path = write(tmp_path, plate_and_post(arm_at="0.6 0 0.15"), "lifted.urdf")
+    run = run_cli(path, "--pose", "slide=0.5", "--no-adjacent", "--format", "json")
+    (finding,) = json.loads(run.stdout)["results"]
+    assert finding["elements"] == [{"link": "base", "index": 1, "name": "post"}]
+
+
+def box_xml(lower, upper, name=None) -> str:
+    centre = " ".join(repr(float(lo + hi) / 2) for lo, hi in zip(lower, upper, strict=True))
+    size = " ".join(repr(float(hi - lo)) for lo, hi in zip(lower, upper, strict=True))
+    label = f' name="{name}"' if name else ""
+    return (
+        f'<collision{label}><origin xyz="{centre}"/><geometry><box size="{size}"/></geometry>'
+        "</collision>"
+    )
+
+
+def union_overlap(boxes, other) -> float:
+    """Volume of (union of ``boxes``) meeting ``other``, all axis-aligned (lower, upper):
+    inclusion-exclusion over the boxes, each intersection a box (an exact oracle)."""
+    total = 0.0
+    for r in range(1, len(boxes) + 1):
+        for chosen in itertools.combinations(boxes, r):
+            lo = np.max([other[0], *(c[0] for c in chosen)], axis=0)
+            hi = np.min([other[1], *(c[1] for c in chosen)], axis=0)
+            total += (-1) ** (r + 1) * float(np.prod(np.clip(hi - lo, 0.0, None)))
+    return total
+
+
+corners = st.tuples(*[st.integers(0, 8)] * 3).map(lambda t: np.array(t, dtype=float) / 8.0)
+
+
+@st.composite
+def element_boxes(draw):
+    out = []
+    for _ in range(draw(st.integers(2, 3))):
+        lo = draw(corners)
+        size = np.array(draw(st.tuples(*[st.integers(1, 6)] * 3)), dtype=float) / 8.0
+        out.append((lo, lo + size))
+    return out
+
+
+@settings(max_examples=12, derandomize=True, deadline=None)
+@given(boxes=element_boxes(), at=corners)
+def test_interference_with_a_link_of_several_elements_is_the_unions(boxes, at):
+    """A link of 2-3 overlapping boxes against a box link: interference exactly when the union
+    and the box share volume, of the union's volume (inclusion-exclusion), its elements the
+    boxes that meet the other one."""
+    other = (at + 0.1, at + 0.6)
+    robot = f"""<robot name="r">
+  <link name="a">{"".join(box_xml(lo, hi) for lo, hi in boxes)}</link>
+  <link name="b">{box_xml(*other)}</link>
+  <joint name="fix" type="fixed"><parent link="a"/><child link="b"/></joint>
+</robot>"""
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as folder:
+        path = os.path.join(folder, "r.urdf")
+        with open(path, "w") as fh:
+            fh.write(robot)
+        bodies = load_bodies([path])
+    result = check_bodies(bodies, jobs=1)
+    expected = union_overlap(boxes, other)
+    volumes = [union_overlap([box], other) for box in boxes]
+    if expected < 1e-9:
+        assert all(f.status != Verdict.INTERFERENCE for f in result.findings)
+        return
+    (finding,) = result.findings
+    assert finding.status == Verdict.INTERFERENCE
+    assert finding.volume == pytest.approx(expected, rel=1e-9)
+    involved = {e.index for e in finding.elements}
+    assert {k for k, v in enumerate(volumes) if v > 1e-9} <= involved
+
+
+def test_a_mirroring_scale_keeps_an_element_outward(tmp_path):
+    """A mesh element mirrored by its scale (-1 1 1) beside a box: the union stays a closed
+    outward solid of the two volumes."""
+    wedge = trimesh.creation.box(extents=[1, 1, 1])
+    wedge.vertices[wedge.vertices[:, 0] > 0, 2] *= 0.5  # a shape a mirror changes
+    wedge.export(tmp_path / "wedge.stl")
+    robot = f"""<robot name="m"><link name="a">
+  <collision><geometry><mesh filename="wedge.stl" scale="-1 1 1"/></geometry></collision>
+  {box_xml((2.0, 0.0, 0.0), (3.0, 1.0, 1.0))}
+</link></robot>"""
+    (body,) = load_bodies([write(tmp_path, robot)])
+    assert body.is_closed
+    assert body.world.volume == pytest.approx(abs(wedge.volume) + 1.0, rel=1e-9)
 
 
 def test_a_slide_into_its_neighbour_is_interference_approved_as_adjacent(tmp_path):
@@ -251,6 +401,199 @@ def test_a_mesh_shared_by_links_is_read_once(tmp_path):
     text = text.replace('<box size="1 1 1"/>', '<mesh filename="b.stl"/>')
     bodies = load_bodies([write(tmp_path, text)])
     assert len({id(b.mesh) for b in bodies}) == 1 and len(bodies) == 3
+
+
+# ------------------------------------------------------------------------------------------
+# Robot options without a robot: one line, exit 2, before any work
+
+
+@pytest.mark.parametrize(
+    "option",
+    [
+        ["--pose", "j=1"],
+        ["--sweep"],
+        ["--sweep-joints", "j"],
+        ["--srdf", "OUT"],
+        ["--audit-srdf", "SRDF"],
+    ],
+    ids=lambda o: o[0],
+)
+def test_robot_options_without_a_robot_are_refused_before_any_work(tmp_path, option):
+    """The input is no mesh at all (read, it would be exit 3): exit 2 shows nothing was read;
+    no output is written."""
+    junk = tmp_path / "part.stl"
+    junk.write_bytes(b"not a mesh")
+    srdf = tmp_path / "robot.srdf"
+    srdf.write_text('<robot name="r"/>')
+    args = [str(tmp_path / "out.srdf") if a == "OUT" else str(srdf) if a == "SRDF" else a
+            for a in option]  # fmt: skip
+    run = run_cli(junk, *args)
+    assert run.exit_code == ExitStatus.USAGE, run.output
+    (line,) = run.stderr.strip().splitlines()
+    assert line.startswith(f"error: {option[0]}: ")
+    assert "URDF robot" in line and not (tmp_path / "out.srdf").exists()
+
+
+def test_an_srdf_of_two_robots_is_refused_before_any_work(tmp_path):
+    a, b = write(tmp_path, slide_robot(), "a.urdf"), write(tmp_path, slide_robot(), "b.urdf")
+    run = run_cli(a, b, "--srdf", tmp_path / "out.srdf")
+    assert run.exit_code == ExitStatus.USAGE
+    assert run.stderr.strip().splitlines() == [
+        f"error: --srdf: an SRDF describes one URDF robot; the inputs hold 2: {a}, {b}"
+    ]
+
+
+def test_a_pose_for_a_joint_table_or_from_the_configuration_is_not_refused(tmp_path):
+    """A [[joint]] mechanism takes --pose; a [pose] table of a shared configuration is left
+    alone by runs without a robot."""
+    box().export(tmp_path / "a.stl")
+    box(at=(3, 0, 0)).export(tmp_path / "b.stl")
+    config = tmp_path / "meshcheck.toml"
+    config.write_text('[pose]\nelbow = "30deg"\n')
+    files = [tmp_path / "a.stl", tmp_path / "b.stl"]
+    run = CliRunner().invoke(main, [*map(str, files), "--config", str(config), "--no-cache"])
+    assert run.exit_code == 0, run.output
+    config.write_text(
+        '[[joint]]\nname = "hinge"\nparent = "a.stl"\nchild = "b.stl"\ntype = "revolute"\n'
+        "axis = [0, 0, 1]\nrange = [-1, 1]\n"
+    )
+    args = [*map(str, files), "--config", str(config), "--no-cache", "--pose", "hinge=0.5"]
+    run = CliRunner().invoke(main, args)
+    assert run.exit_code == 0, run.output
+
+
+# ------------------------------------------------------------------------------------------
+# The pose every report records
+
+
+def test_every_format_records_the_pose(tmp_path):
+    """Given values as given (degrees in radians), the others at 0 or at the limit nearest 0
+    (the slide's range here starts at 0.25)."""
+    from meshcheck.pipeline import check
+    from meshcheck.reports import render
+
+    path = write(tmp_path, slide_robot(limits='lower="0.25" upper="2"'))
+    result = check([path], config=None, cache_dir=None, jobs=1, motion={"pose": "j=0.5"})
+    (pose,) = result.poses
+    assert pose.joints == (("j", 0.5),)
+    result = check([path], config=None, cache_dir=None, jobs=1)
+    assert result.poses[0].joints == (("j", 0.25),)
+    doc = json.loads(render(result, "json"))
+    assert doc["summary"]["pose"] == {path: {"j": 0.25}}
+    assert "pose robot.urdf: j=0.25\n" in render(result, "text")
+    from meshcheck.reports.markdown import escape
+
+    assert f"Pose of {escape(path)}: {escape('j=0.25')}\n" in render(result, "markdown")
+    assert f"meshcheck: pose {path}: j=0.25\n" in render(result, "github")
+    assert f'<property name="pose" value="{path}: j=0.25" />' in render(result, "junit")
+    sarif = json.loads(render(result, "sarif"))
+    assert sarif["runs"][0]["properties"]["pose"] == {path: {"j": 0.25}}
+    html = render(result, "html")
+    data = json.loads(html.split('id="meshcheck-data">')[1].split("</script>")[0])
+    assert data["poses"] == [{"robot": path, "text": "j=0.25"}]
+    assert data["summary"]["pose"] == {path: {"j": 0.25}}
+
+
+def test_the_pose_of_a_robot_at_zero_and_of_a_run_without_robots(tmp_path):
+    from meshcheck.pipeline import check
+    from meshcheck.reports import render
+
+    path = write(tmp_path, slide_robot())
+    result = check([path], config=None, cache_dir=None, jobs=1)
+    assert "pose robot.urdf: every joint at 0\n" in render(result, "text")
+    box().export(tmp_path / "a.stl")
+    box(at=(3, 0, 0)).export(tmp_path / "b.stl")
+    stls = [str(tmp_path / "a.stl"), str(tmp_path / "b.stl")]
+    result = check(stls, config=None, cache_dir=None, jobs=1)
+    assert result.poses == () and json.loads(render(result, "json"))["summary"]["pose"] is None
+    assert "pose" not in render(result, "text")
+
+
+def test_a_mechanism_of_joint_tables_records_its_pose(tmp_path):
+    box().export(tmp_path / "a.stl")
+    box(at=(3, 0, 0)).export(tmp_path / "b.stl")
+    config = tmp_path / "meshcheck.toml"
+    config.write_text(
+        '[[joint]]\nname = "hinge"\nparent = "a.stl"\nchild = "b.stl"\ntype = "revolute"\n'
+        "axis = [0, 0, 1]\nrange = [-1, 1]\n"
+    )
+    files = [str(tmp_path / "a.stl"), str(tmp_path / "b.stl")]
+    args = [*files, "--config", str(config), "--no-cache", "--pose", "hinge=30deg"]
+    run = CliRunner().invoke(main, [*args, "--format", "json"])
+    assert json.loads(run.stdout)["summary"]["pose"] == {str(config): {"hinge": math.radians(30)}}
+
+
+# ------------------------------------------------------------------------------------------
+# Files a URDF names are read inside its folders only
+
+
+def outside_layout(tmp_path) -> dict[str, str]:
+    """A workspace ``ws/src/pkg`` (package.xml naming ``pkg``) holding a URDF in ``urdf/`` and
+    a mesh in ``meshes/``, and a secret mesh outside it, in ``secret/``."""
+    pkg = tmp_path / "ws" / "src" / "pkg"
+    (pkg / "urdf").mkdir(parents=True)
+    (pkg / "meshes").mkdir()
+    (pkg / "package.xml").write_text("<package><name>pkg</name></package>")
+    box().export(pkg / "meshes" / "b.stl")
+    (tmp_path / "secret").mkdir()
+    box().export(tmp_path / "secret" / "key.stl")
+    return {"pkg": str(pkg), "secret": str(tmp_path / "secret" / "key.stl")}
+
+
+@pytest.mark.parametrize(
+    ("filename", "allowed"),
+    [
+        ("package://pkg/meshes/b.stl", True),
+        ("../meshes/b.stl", True),  # inside the package the URDF lies in
+        ("PKG/meshes/b.stl", True),  # an absolute path inside it
+        ("file://PKG/meshes/b.stl", True),
+        ("package://pkg/../../../secret/key.stl", False),
+        ("../../../../secret/key.stl", False),
+        ("SECRET", False),
+        ("file://SECRET", False),
+    ],
+)
+def test_mesh_files_outside_the_robots_folders_are_refused(tmp_path, filename, allowed):
+    from meshcheck.load.urdf import resolve_mesh
+
+    where = outside_layout(tmp_path)
+    filename = filename.replace("PKG", where["pkg"]).replace("SECRET", where["secret"])
+    urdf = os.path.join(where["pkg"], "urdf", "r.urdf")
+    if allowed:
+        assert os.path.samefile(resolve_mesh(urdf, filename), os.path.join(where["pkg"],
+                                "meshes", "b.stl"))  # fmt: skip
+    else:
+        with pytest.raises(InputError, match="refused") as info:
+            resolve_mesh(urdf, filename)
+        assert info.value.path == urdf and "\n" not in str(info.value)
+        assert os.path.samefile(resolve_mesh(urdf, filename, allow_outside=True), where["secret"])
+
+
+def test_a_folder_above_named_like_a_package_is_no_package(tmp_path):
+    """``package://home/...`` from a URDF below /home would be /home: a package is a folder
+    whose package.xml names it (or one --package-path gives)."""
+    from meshcheck.load.urdf import package_roots
+
+    (tmp_path / "home" / "robot").mkdir(parents=True)
+    box().export(tmp_path / "home" / "key.stl")
+    urdf = write(tmp_path / "home" / "robot", mesh_robot("package://home/key.stl"))
+    assert package_roots(urdf, "home") == []
+    with pytest.raises(InputError, match="not found in package 'home'"):
+        load_bodies([urdf])
+    assert package_roots(urdf, "home", [str(tmp_path)]) == [str(tmp_path / "home")]
+
+
+def test_configuration_package_paths_stay_inside_its_folder(tmp_path):
+    path = write(tmp_path, slide_robot())
+    config = tmp_path / "meshcheck.toml"
+    for outside in ('"/"', '"../.."', '["sub", "../x"]'):
+        config.write_text(f"package_paths = {outside}\n")
+        run = CliRunner().invoke(main, [path, "--config", str(config), "--no-cache"])
+        assert run.exit_code == ExitStatus.USAGE, run.output
+        assert "outside the configuration's folder" in run.stderr.strip().splitlines()[-1]
+    config.write_text('package_paths = ["sub"]\n')
+    run = CliRunner().invoke(main, [path, "--config", str(config), "--no-cache"])
+    assert run.exit_code == 0, run.output
 
 
 # ------------------------------------------------------------------------------------------

@@ -20,6 +20,8 @@ are the same on every run.
     order (trimesh's names, made unique in file order).
   - STEP: the product name of each solid (``load.step``), repeated instances ``PRODUCT_1``,
     ``PRODUCT_2``...; a STEP part is always ``PATH#PRODUCT``, even alone in its file.
+  - URDF: the link, every collision element of a link in one part (``load.urdf``); a URDF
+    part is always ``PATH#LINK``.
 
   A geometry instanced by two nodes gives two parts that share one local mesh (``Body.mesh``)
   and differ by ``Body.transform``.

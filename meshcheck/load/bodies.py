@@ -24,6 +24,7 @@ from .joints import pose_parts
 from .limits import IDENTITY, Budget, Limits, box_corners, check_placement
 from .paths import named_files
 from .sizes import warn_sizes
+from .srdf import with_srdf
 from .urdf import urdf_mechanism
 
 if TYPE_CHECKING:
@@ -82,7 +83,8 @@ def load_assembly(
         (``files.parallel_pays``).
     motion : motion.Motion, optional
         The pose URDF robots are placed at and where their packages are (``load.urdf``); the
-        configuration's ``[[joint]]`` mechanism, posed too (``load.joints``).
+        configuration's ``[[joint]]`` mechanism, posed too (``load.joints``); the SRDF to audit,
+        read and given to the URDF robot (``load.srdf``).
 
     Returns
     -------
@@ -115,10 +117,12 @@ def load_assembly(
     declared = [given.get(path, r.declared) for (path, _), r in zip(files, reads, strict=True)]
     report = units_.report_unit(declared, units)
     bodies = _placed_bodies(files, reads, report, units, budget.limits, split=split, given=given)
-    found = [urdf_mechanism(r.robot, bodies) for r in reads if r.robot is not None]
+    found = [urdf_mechanism(r.robot, bodies, motion) for r in reads if r.robot is not None]
     if motion is not None and motion.joints:  # the [[joint]] mechanism, posed (load.joints)
         bodies, mech = pose_parts(bodies, motion)
         found.append(mech)
+    if motion is not None and motion.audit is not None:  # the SRDF to audit, checked
+        found = with_srdf(found, motion.audit, budget.limits)
     return Assembly(bodies, tuple(found))
 
 
@@ -239,6 +243,7 @@ def _place(
             is_float32=file_read.is_float32,
             is_rescaled=is_rescaled,
             brep=file_read.solids,
+            elements=file_read.elements.get(node, ()),
         )
         bodies.append(body)
     corners = np.vstack(corners)

@@ -11,10 +11,30 @@ import numpy as np
 import trimesh
 
 from ..mesh import is_closed
+from ..results import CollisionElement
 from .robot import Mechanism
 
 if TYPE_CHECKING:
     from .step import StepSolids
+
+
+class PartElement(NamedTuple):
+    """One collision element of a part made of several (a URDF link's), in the part's frame.
+
+    Attributes
+    ----------
+    element : results.CollisionElement
+        Which element it is (link, index, name).
+    vertices : (n, 3) float64
+        Cleaned, in the part's own frame and the file's unit (as ``Body.mesh``).
+    faces : (m, 3) int64
+    is_closed : bool
+    """
+
+    element: CollisionElement
+    vertices: np.ndarray
+    faces: np.ndarray
+    is_closed: bool
 
 
 @dataclass(frozen=True, eq=False)
@@ -54,6 +74,9 @@ class Body:
         The exact solids of its STEP file, kept in the process that loaded it (the verify stage
         confirms findings on them, ``verify.brep``); None for a mesh file or a part built in
         Python.
+    elements : tuple of PartElement
+        The collision elements a URDF link of several is made of (its mesh is their union):
+        a finding names the ones it involves (``verify.elements``). Empty otherwise.
     """
 
     name: str
@@ -66,6 +89,7 @@ class Body:
     is_float32: bool = True
     is_rescaled: bool = False
     brep: StepSolids | None = field(default=None, repr=False)
+    elements: tuple[PartElement, ...] = field(default=(), repr=False)
 
     def __post_init__(self):
         if not self.relative_name:

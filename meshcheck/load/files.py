@@ -99,6 +99,8 @@ class FileRead:
         other files.
     solids : step.StepSolids or None
         A STEP file's exact solids (``Body.brep``), read in this process only; None otherwise.
+    elements : dict of str -> tuple of body.PartElement
+        The collision elements of each URDF link made of several (``Body.elements``), by node.
     """
 
     items: list[tuple[str, int, np.ndarray]]
@@ -108,6 +110,7 @@ class FileRead:
     is_float32: bool = True
     robot: Robot | None = None
     solids: StepSolids | None = None
+    elements: dict = dataclasses.field(default_factory=dict)
 
     @property
     def triangles(self) -> int:
@@ -218,6 +221,7 @@ def _read(
         is_float32=is_float32,
         robot=robot,
         solids=solids,
+        elements={node: geom.elements for node, geom, _ in items if hasattr(geom, "elements")},
     )
 
 

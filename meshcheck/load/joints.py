@@ -194,7 +194,7 @@ def _mechanism(bodies, ordered, parent_frame, moved_by, matched, is_urdf) -> Mec
 
 def pose_parts(bodies: Sequence, motion) -> tuple[list, Mechanism]:
     """``bodies`` with the parts of the configuration's mechanism moved to ``motion.pose``, and
-    that mechanism (``mesh_mechanism``).
+    that mechanism (``mesh_mechanism``) with its pose.
 
     Pose values of joints no ``[[joint]]`` table names are left to the URDF robots; without
     a URDF in the run, such a value is a ``ConfigError`` (a pose of nothing).
@@ -210,6 +210,7 @@ def pose_parts(bodies: Sequence, motion) -> tuple[list, Mechanism]:
         elif not has_urdf:
             mech.robot.joint(value.joint)  # raises: no such joint
     values = joint_values(mech.robot, pose)
+    mech = dataclasses.replace(mech, pose=values)
     zero = link_transforms(mech.robot, {name: 0.0 for name in values})
     placed = link_transforms(mech.robot, values)
     out = list(bodies)

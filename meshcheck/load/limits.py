@@ -160,10 +160,15 @@ def read_file(
                 path,
                 f"file has {num(size)} bytes, over the limit of {num(limits.max_file_bytes)}",
             )
-        if check is not None:
-            check(os.pread(fd, HEAD_BYTES, 0), size)
         chunks = []
         left, run = size, 0
+        if check is not None:  # the head, read first (os.pread is not on Windows)
+            head = os.read(fd, min(HEAD_BYTES, size))
+            check(head, size)
+            if max_line is not None:
+                run = _longest_line(path, head, run, max_line)
+            chunks.append(head)
+            left -= len(head)
         while left > 0:
             chunk = os.read(fd, min(left, 1 << 24))
             if not chunk:

@@ -12,10 +12,15 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..errors import ConfigError
+from ..results import RobotPose
+
+if TYPE_CHECKING:
+    from .srdf import Srdf
 
 #: Joint types with a motion, and the ones held at their zero placement.
 MOVABLE = ("revolute", "continuous", "prismatic")
@@ -65,7 +70,7 @@ class Joint:
 
 @dataclass(frozen=True)
 class Collision:
-    """One collision element of a link: one part of the run.
+    """One collision element of a link (a link's elements together are one part of the run).
 
     Attributes
     ----------
@@ -78,17 +83,15 @@ class Collision:
         ``("mesh", filename, (3,) scale)``, ``("box", (3,) size)``, ``("cylinder", radius,
         length)`` or ``("sphere", radius)`` for a URDF; ``("part", name)`` for a mesh part of a
         ``[[joint]]`` mechanism.
+    name : str or None
+        The element's ``name`` attribute, when it has one.
     """
 
     link: str
     index: int
     origin: np.ndarray
     shape: tuple
-
-    @property
-    def node(self) -> str:
-        """The part's node name: ``LINK``, then ``LINK/1``, ``LINK/2``..."""
-        return self.link if self.index == 0 else f"{self.link}/{self.index}"
+    name: str | None = None
 
 
 @dataclass(frozen=True)
@@ -177,6 +180,11 @@ class Mechanism:
         A URDF robot: every link pair is swept and goes to the SRDF. A mechanism of mesh parts
         sweeps only the pairs some joint moves relative to each other (the check itself judges
         the others at the pose).
+    pose : dict of str -> float
+        Every movable joint's value at the run's pose, where its parts are placed
+        (``joint_values``; mimic joints included).
+    srdf : load.srdf.Srdf or None
+        The SRDF of this robot whose disabled pairs the run audits (``--audit-srdf``).
     """
 
     robot: Robot
@@ -184,6 +192,14 @@ class Mechanism:
     units: str = "m"
     adjacent: set[frozenset[str]] = field(default_factory=set)
     is_urdf: bool = True
+    pose: dict[str, float] = field(default_factory=dict)
+    srdf: Srdf | None = None
+
+    def robot_pose(self) -> RobotPose:
+        """The joint values the robot was checked at, as the reports record them: every joint
+        a pose sets, in the robot's order (0 for one ``pose`` lacks)."""
+        joints = tuple((j.name, float(self.pose.get(j.name, 0.0))) for j in self.robot.movable)
+        return RobotPose(self.robot.path, self.robot.name, joints)
 
 
 # --------------------------------------------------------------------------------------------

@@ -1,16 +1,22 @@
 """URDF robots -> placed collision geometry: each link's collision elements at a pose.
 
-A robot is a tree of links joined by joints (``load.robot``, which also poses it). The
-collision geometry of every link becomes parts named ``ROBOT.urdf#LINK`` (``#LINK/1``,
-``#LINK/2``... for a link's second, third... collision element), placed at the pose
-(``Motion.pose``, zero by default). URDF lengths are metres: the file declares ``m``. The parsed
-robot goes down with the parts (``urdf_mechanism``): no later stage reads the URDF again.
+A robot is a tree of links joined by joints (``load.robot``, which also poses it). Each link
+with collision geometry becomes one part named ``ROBOT.urdf#LINK``, placed at the pose
+(``Motion.pose``, zero by default), as ROS and MoveIt take a link: one body, its collision
+elements together, never checked against each other. A link with several elements is their
+union (manifold3d, the closed ones; open ones are kept beside it), and the part keeps each
+element (``Body.elements``) so a finding can name the ones it involves (``verify.elements``).
+URDF lengths are metres: the file declares ``m``. The parsed robot goes down with the parts
+(``urdf_mechanism``): no later stage reads the URDF again.
 
 Meshes (STL, OBJ, PLY, OFF; DAE when pycollada is installed) are read by the same readers as
 mesh files, each once however many links use it, scaled by the element's ``scale``; boxes,
 cylinders (``CYLINDER_SECTIONS``-gons) and spheres (icospheres, ``SPHERE_SUBDIVISIONS``) become
 meshes. ``package://NAME/REL`` is looked up in the folders of ``Motion.package_paths``, then the
-URDF's folder and its ancestors (see ``package_roots``).
+URDF's folder and its ancestors (see ``package_roots``). Every file a URDF names is read only
+inside the package root ``package://`` found, the URDF's folder, the package the URDF lies in
+and the package paths (``resolve_mesh``): ``..`` out of them, an absolute path or a ``file://``
+elsewhere, or a symbolic link leading out is refused, unless ``Motion.allow_outside``.
 
 The XML is read by expat with a document type declaration refused outright, so no entity is ever
 declared or expanded (the "billion laughs" and external-entity attacks the standard library's
@@ -18,9 +24,10 @@ ElementTree parser lets through), and with bounded element count and depth.
 
 Every problem is an ``InputError`` naming the URDF (exit 3): malformed XML, a DOCTYPE, a joint
 whose parent or child link is missing, a link with two parents, a cycle, several root links, an
-unknown joint type, a missing or unreadable mesh, non-finite numbers. A pose problem (a joint not
-in the robot, a value beyond the joint's limits, degrees for a slide, a value for a mimic joint)
-is a ``ConfigError`` naming the joint (exit 2).
+unknown joint type, a missing or unreadable mesh, a mesh outside the folders it may be read
+from, non-finite numbers. A pose problem (a joint not in the robot, a value beyond the joint's
+limits, degrees for a slide, a value for a mimic joint) is a ``ConfigError`` naming the joint
+(exit 2).
 """
 
 from __future__ import annotations
@@ -31,12 +38,15 @@ import re
 import warnings
 import xml.parsers.expat
 from collections.abc import Sequence
+from typing import NamedTuple
 from xml.etree import ElementTree
 
 import numpy as np
 
 from ..errors import ConfigError, InputError
-from ..mesh import warn
+from ..geometry import topology
+from ..mesh import clean_arrays, manifold_solid, warn
+from ..results import CollisionElement
 from .limits import Budget, read_file
 from .robot import (
     HELD,
@@ -68,8 +78,8 @@ MESH_EXTENSIONS = (".stl", ".obj", ".ply", ".off", ".dae")
 
 
 def read_urdf(path: str, data: bytes, budget: Budget, motion=None) -> tuple[Robot, list[Item]]:
-    """The robot a URDF describes, and (node, local mesh, placement) of every collision element,
-    posed.
+    """The robot a URDF describes, and (link, local mesh, placement) of every link with
+    collision geometry, posed.
 
     Parameters
     ----------
@@ -80,15 +90,55 @@ def read_urdf(path: str, data: bytes, budget: Budget, motion=None) -> tuple[Robo
     budget : Budget
         The run's; meshes are checked against it as mesh files are.
     motion : motion.Motion, optional
-        The pose and package paths; default zero pose, no extra package paths.
+        The pose, package paths and whether files outside them may be read; default zero pose,
+        no extra package paths, none outside.
 
     Returns
     -------
     robot : Robot
     items : list of (str, mesh, (4, 4) float64)
-        Placements in metres: link placement @ collision origin @ scale.
+        Placements in metres. A link of one element: its mesh (shared with every link that uses
+        the same file) placed at link placement @ collision origin @ scale. A link of several:
+        their union in the link frame (``Joined``, with each element), placed at the link's
+        placement.
     """
     robot = parse_robot(path, data)
+    links = link_transforms(robot, urdf_pose(robot, motion))
+    package_paths = tuple(motion.package_paths) if motion is not None else ()
+    allow_outside = bool(motion is not None and motion.allow_outside)
+    meshes: dict = {}
+
+    def geometry(c: Collision):
+        return _geometry(robot, c, package_paths, budget, meshes, allow_outside=allow_outside)
+
+    by_link: dict[str, list[Collision]] = {}
+    for c in robot.collisions:
+        by_link.setdefault(c.link, []).append(c)
+    items = []
+    for link, elements in by_link.items():
+        if len(elements) == 1:
+            (c,) = elements
+            mesh, scale = geometry(c)
+            placement = links[link] @ c.origin
+            if scale is not None:
+                placement = placement @ np.diag([*scale, 1.0])
+            items.append((link, mesh, placement))
+        else:
+            items.append((link, join_elements(path, link, elements, geometry), links[link]))
+    if not items:
+        raise InputError(path, "no link has collision geometry")
+    return robot, items
+
+
+def urdf_pose(robot: Robot, motion=None) -> dict[str, float]:
+    """Every movable joint's value at ``motion``'s pose (``joint_values``), the values of the
+    configuration's ``[[joint]]`` tables left to ``load.joints``.
+
+    Raises
+    ------
+    ConfigError
+        A joint of the robot is also a ``[[joint]]`` of the configuration; see ``joint_values``.
+    """
     pose = ()
     if motion is not None:  # the values of [[joint]] tables are load.joints' to place
         ours = {spec.name for spec in motion.joints}
@@ -96,42 +146,126 @@ def read_urdf(path: str, data: bytes, budget: Budget, motion=None) -> tuple[Robo
         clash = sorted(ours & {j.name for j in robot.joints})
         if clash:
             raise ConfigError(
-                path, f"joint {clash[0]!r} is also a [[joint]] of the configuration: rename one"
+                robot.path,
+                f"joint {clash[0]!r} is also a [[joint]] of the configuration: rename one",
             )
-    values = joint_values(robot, pose)
-    links = link_transforms(robot, values)
-    package_paths = tuple(motion.package_paths) if motion is not None else ()
-    meshes: dict = {}
-    items = []
-    for c in robot.collisions:
-        mesh, scale = _geometry(robot, c, package_paths, budget, meshes)
-        placement = links[c.link] @ c.origin
-        if scale is not None:
-            placement = placement @ np.diag([*scale, 1.0])
-        items.append((c.node, mesh, placement))
-    if not items:
-        raise InputError(path, "no link has collision geometry")
-    return robot, items
+    return joint_values(robot, pose)
 
 
-def urdf_mechanism(robot: Robot, bodies: Sequence) -> Mechanism:
-    """The ``Mechanism`` of a URDF robot: each link's parts among ``bodies``.
+def urdf_mechanism(robot: Robot, bodies: Sequence, motion=None) -> Mechanism:
+    """The ``Mechanism`` of a URDF robot: each link's parts among ``bodies``, posed as
+    ``motion`` says.
 
     The robot's parts are the bodies of its file (``Body.path`` is ``robot.path``), named
-    ``PATH#NODE`` after their collision element (``Collision.node``), or ``PATH#NODE#k`` for
-    the shells of a split part (``load.split_body``).
+    ``PATH#LINK``, or ``PATH#LINK#k`` for the shells of a split part (``load.split_body``).
     """
-    node_link = {c.node: c.link for c in robot.collisions}
+    known = {c.link for c in robot.collisions}
     prefix = f"{robot.path}#"
     parts: dict[str, list[int]] = {}
     for k, body in enumerate(bodies):
         if body.path != robot.path:
             continue
-        node = body.name.removeprefix(prefix)
-        if node not in node_link:  # a shell of a split part
-            node = node.rpartition("#")[0]
-        parts.setdefault(node_link[node], []).append(k)
-    return Mechanism(robot, parts, adjacent=adjacent_links(robot))
+        link = body.name.removeprefix(prefix)
+        if link not in known:  # a shell of a split part
+            link = link.rpartition("#")[0]
+        parts.setdefault(link, []).append(k)
+    return Mechanism(robot, parts, adjacent=adjacent_links(robot), pose=urdf_pose(robot, motion))
+
+
+class Joined(NamedTuple):
+    """A link's collision elements as one mesh in the link frame, and each element.
+
+    Attributes
+    ----------
+    vertices : (n, 3) float64
+    faces : (m, 3) int64
+        The union of the closed elements (manifold3d), then the open ones.
+    elements : tuple of load.body.PartElement
+        Each element, cleaned, in the link frame, in file order.
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    elements: tuple
+
+
+def join_elements(path: str, link: str, elements: Sequence[Collision], geometry) -> Joined:
+    """One mesh of a link's several collision elements (``Joined``).
+
+    Each element is placed in the link frame (its origin and scale; a mirroring scale
+    flips its triangles) and cleaned; the closed ones are joined by manifold3d's union, so
+    elements that overlap by design (a post sunk into its plate) make one solid whose volume
+    counts once. When manifold3d refuses them (or an element is open), the elements are kept
+    side by side: a finding's volume may then count their overlap twice.
+    """
+    from .body import PartElement
+
+    name = f"{path}#{link}"
+    parts = []
+    for c in elements:
+        mesh, scale = geometry(c)
+        local = c.origin if scale is None else c.origin @ np.diag([*scale, 1.0])
+        v = np.asarray(mesh.vertices, dtype=np.float64) @ local[:3, :3].T + local[:3, 3]
+        f = np.asarray(mesh.faces, dtype=np.int64)
+        if np.linalg.det(local[:3, :3]) < 0.0:
+            f = f[:, ::-1]
+        v, f = clean_arrays(v, f, name)
+        element = CollisionElement(link, c.index, c.name)
+        parts.append(PartElement(element, v, f, bool(topology.is_closed(f))))
+    closed = [p for p in parts if p.is_closed]
+    pieces = [(p.vertices, p.faces) for p in parts if not p.is_closed]
+    union = _union([(p.vertices, _outward(p.vertices, p.faces)) for p in closed])
+    if union is None:
+        pieces = [(p.vertices, p.faces) for p in closed] + pieces
+        if len(closed) > 1:
+            warn(name, "manifold3d could not join its collision elements into one solid; they "
+                 "are checked side by side (a volume may count their overlap twice)")  # fmt: skip
+    else:
+        pieces.insert(0, union)
+    vertices, faces, offset = [], [], 0
+    for v, f in pieces:
+        vertices.append(v)
+        faces.append(f + offset)
+        offset += len(v)
+    return Joined(np.vstack(vertices), np.vstack(faces), tuple(parts))
+
+
+#: Address space a manifold3d union needs beyond its inputs, as the verify stage's booleans
+#: (``verify.pair.BOOLEAN_BASE_BYTES``): manifold3d crashes instead of raising when it cannot
+#: allocate.
+UNION_BASE_BYTES = 32 << 20
+UNION_TRIANGLE_BYTES = 256
+
+
+def _union(solids: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray] | None:
+    """The union of closed, outward meshes (manifold3d); None when there are none or it refuses
+    one."""
+    if not solids:
+        return None
+    import manifold3d
+
+    from ..execute import address_space_left
+
+    triangles = sum(len(f) for _, f in solids)
+    left = address_space_left()
+    if left is not None and left < UNION_BASE_BYTES + 2 * UNION_TRIANGLE_BYTES * triangles:
+        raise MemoryError(
+            f"{left} bytes of address space left for a union of {triangles} triangles"
+        )
+    made = [manifold_solid(v, f) for v, f in solids]
+    if any(solid is None for solid in made):
+        return None
+    out = manifold3d.Manifold.batch_boolean(made, manifold3d.OpType.Add).to_mesh64()
+    v = np.asarray(out.vert_properties, dtype=np.float64)[:, :3].reshape(-1, 3)
+    f = np.asarray(out.tri_verts, dtype=np.int64).reshape(-1, 3)
+    return (v, f) if len(f) else None
+
+
+def _outward(v: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """Faces of a closed mesh wound outward (flipped when its signed volume is negative)."""
+    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+    signed = np.einsum("ij,ij->", a - a.mean(axis=0), np.cross(b - a, c - a))
+    return f[:, ::-1].copy() if signed < 0 else f
 
 
 def parse_robot(path: str, data: bytes) -> Robot:
@@ -154,8 +288,15 @@ def parse_robot(path: str, data: bytes) -> Robot:
             raise InputError(path, f"link {name!r} is defined twice")
         links.append(name)
         for k, col in enumerate(el.findall("collision")):
+            label = col.get("name")
             collisions.append(
-                Collision(name, k, _origin(path, col), _shape(path, col, f"link {name!r}"))
+                Collision(
+                    name,
+                    k,
+                    _origin(path, col),
+                    _shape(path, col, f"link {name!r}"),
+                    label.strip() if label and label.strip() else None,
+                )
             )
     joints = [_joint(path, el) for el in root.findall("joint")]
     root_link, ordered = _tree(path, links, joints)
@@ -174,18 +315,37 @@ class _Refused(Exception):
     pass
 
 
-def parse_xml(path: str, data: bytes) -> ElementTree.Element:
+def parse_xml(
+    path: str,
+    data: bytes,
+    *,
+    max_elements: int = MAX_ELEMENTS,
+    positions: dict | None = None,
+) -> ElementTree.Element:
     """An XML document's element tree, read by expat with no DOCTYPE and no entities.
+
+    Parameters
+    ----------
+    path : str
+        The file, for messages.
+    data : bytes
+        Its content.
+    max_elements : int
+        Elements the document may hold (its depth is bounded by ``MAX_DEPTH``).
+    positions : dict, optional
+        Filled with ``id(element) -> (line, start, end)`` for every element: its first line
+        (from 1) and its bytes ``data[start:end]``, start tag to end tag (or the empty tag).
 
     Raises
     ------
     InputError
-        Not well-formed, declares a document type or entity, or exceeds ``MAX_ELEMENTS`` or
+        Not well-formed, declares a document type or entity, or exceeds ``max_elements`` or
         ``MAX_DEPTH``.
     """
     parser = xml.parsers.expat.ParserCreate()
     builder = ElementTree.TreeBuilder()
     depth = [0, 0]  # current depth, elements seen
+    open_: list[tuple] = []  # (element, line, start) of the elements not yet closed
 
     def refuse(*_):
         raise _Refused("declares a document type or entities (refused: entity expansion)")
@@ -193,13 +353,21 @@ def parse_xml(path: str, data: bytes) -> ElementTree.Element:
     def start(tag, attrs):
         depth[0] += 1
         depth[1] += 1
-        if depth[0] > MAX_DEPTH or depth[1] > MAX_ELEMENTS:
-            raise _Refused(f"more than {MAX_ELEMENTS} elements or {MAX_DEPTH} levels deep")
-        builder.start(tag, attrs)
+        if depth[0] > MAX_DEPTH or depth[1] > max_elements:
+            raise _Refused(f"more than {max_elements} elements or {MAX_DEPTH} levels deep")
+        element = builder.start(tag, attrs)
+        if positions is not None:
+            open_.append((element, parser.CurrentLineNumber, parser.CurrentByteIndex))
 
     def end(tag):
         depth[0] -= 1
         builder.end(tag)
+        if positions is not None:
+            element, line, begin = open_.pop()
+            finish = _tag_end(data, begin)
+            if data[finish - 2 : finish] != b"/>":  # not an empty tag: to its end tag's ">"
+                finish = data.index(b">", parser.CurrentByteIndex) + 1
+            positions[id(element)] = (line, begin, finish)
 
     parser.StartDoctypeDeclHandler = refuse
     parser.EntityDeclHandler = refuse
@@ -215,6 +383,21 @@ def parse_xml(path: str, data: bytes) -> ElementTree.Element:
         raise InputError(path, str(exc)) from None
     except (xml.parsers.expat.ExpatError, AssertionError, ValueError) as exc:
         raise InputError(path, f"is not well-formed XML ({one_line(exc)})") from None
+
+
+def _tag_end(data: bytes, start: int) -> int:
+    """The byte after the ``>`` closing the tag that starts at ``start`` (quotes skipped)."""
+    quote = None
+    for k in range(start, len(data)):
+        ch = data[k : k + 1]
+        if quote is not None:
+            if ch == quote:
+                quote = None
+        elif ch in (b'"', b"'"):
+            quote = ch
+        elif ch == b">":
+            return k + 1
+    return len(data)
 
 
 def _attr(path: str, el: ElementTree.Element, key: str) -> str:
@@ -400,32 +583,52 @@ def _check_mimics(path: str, joints: list[Joint]) -> None:
 def package_roots(urdf_path: str, package: str, package_paths=()) -> list[str]:
     """Folders that may be package ``package``'s root, in search order.
 
-    Each of ``package_paths``, then the URDF's folder and each of its ancestors, offers: itself
-    when it is named ``package`` or its ``package.xml`` names it; its child folder ``package``;
-    a child folder whose ``package.xml`` names it.
+    Each of ``package_paths`` offers: itself when it is named ``package`` or its
+    ``package.xml`` names it; its child folder ``package``; a child folder whose
+    ``package.xml`` names it. The URDF's folder and each of its ancestors offer: itself, and
+    its child folder ``package``, when their ``package.xml`` names ``package`` (a package is a
+    folder that says so: a folder merely named like it above the URDF, ``/home`` for
+    ``package://home/...``, is none).
     """
     start = os.path.dirname(os.path.abspath(urdf_path))
-    ancestors = []
-    at = start
-    while True:
-        ancestors.append(at)
-        up = os.path.dirname(at)
-        if up == at:
-            break
-        at = up
     out = []
-    for base in [*package_paths, *ancestors]:
+    for base in package_paths:
         if os.path.basename(os.path.normpath(base)) == package or _package_name(base) == package:
             out.append(base)
         if os.path.isdir(os.path.join(base, package)):
             out.append(os.path.join(base, package))
-        if base in package_paths:
-            out.extend(
-                os.path.join(base, d)
-                for d in sorted(_subdirs(base))
-                if _package_name(os.path.join(base, d)) == package
-            )
+        out.extend(
+            os.path.join(base, d)
+            for d in sorted(_subdirs(base))
+            if _package_name(os.path.join(base, d)) == package
+        )
+    for base in _ancestors(start):
+        for candidate in (base, os.path.join(base, package)):
+            if _package_name(candidate) == package:
+                out.append(candidate)
     return out
+
+
+def _ancestors(folder: str) -> list[str]:
+    """``folder`` and each folder above it, up to the root."""
+    out = []
+    while True:
+        out.append(folder)
+        up = os.path.dirname(folder)
+        if up == folder:
+            return out
+        folder = up
+
+
+def own_roots(urdf_path: str, package_paths=()) -> list[str]:
+    """The folders any file a URDF names may lie in: its folder, the package it lies in (the
+    nearest folder above it holding a ``package.xml``), and ``package_paths``."""
+    folder = os.path.dirname(os.path.abspath(urdf_path))
+    out = [folder]
+    package = next((a for a in _ancestors(folder) if _package_name(a) is not None), None)
+    if package is not None:
+        out.append(package)
+    return out + [os.path.abspath(p) for p in package_paths]
 
 
 def _subdirs(base: str) -> list[str]:
@@ -449,34 +652,81 @@ def _package_name(folder: str) -> str | None:
     return None if found is None else found.group(1).decode("utf-8", "replace")
 
 
-def resolve_mesh(urdf_path: str, filename: str, package_paths=()) -> str:
-    """The file a URDF mesh ``filename`` names (``package://``, ``file://`` or relative)."""
+def is_inside(path: str, roots: Sequence[str]) -> bool:
+    """Whether ``path`` lies inside ``roots``, by the letter of the path (``..`` resolved)
+    and after its symbolic links are followed."""
+    lexical, real = os.path.abspath(path), os.path.realpath(path)
+
+    def within(p: str, folders) -> bool:
+        return any(_contains(r, p) for r in folders)
+
+    return within(lexical, [os.path.abspath(r) for r in roots]) and within(
+        real, [os.path.realpath(r) for r in roots]
+    )
+
+
+def _contains(folder: str, path: str) -> bool:
+    """Whether absolute ``path`` is ``folder`` or below it (False on another drive)."""
+    try:
+        return os.path.commonpath([path, folder]) == folder
+    except ValueError:
+        return False
+
+
+def resolve_mesh(
+    urdf_path: str, filename: str, package_paths=(), *, allow_outside: bool = False
+) -> str:
+    """The file a URDF mesh ``filename`` names (``package://``, ``file://`` or a path).
+
+    ``package://NAME/REL`` is ``REL`` below the first root of package NAME
+    (``package_roots``) that holds it; anything else is a path, relative to the URDF's folder.
+
+    Raises
+    ------
+    InputError
+        The file is missing; or it lies outside the package root it was found in and the
+        URDF's own folders (``own_roots``), by ``..``, an absolute path or a symbolic link,
+        and ``allow_outside`` is off (the check does not read what is not the robot's).
+    """
+    roots = own_roots(urdf_path, package_paths)
+    hint = "refused (--allow-outside-paths reads it)"
     if filename.startswith("package://"):
         package, _, rel = filename[len("package://") :].partition("/")
-        for root in package_roots(urdf_path, package, package_paths):
+        for root in package_roots(urdf_path, package, package_paths) if package else ():
             candidate = os.path.join(root, rel)
+            if not allow_outside and not is_inside(candidate, [root, *roots]):
+                raise InputError(
+                    urdf_path, f"mesh {filename}: leads outside package {package!r}: {hint}"
+                )
             if os.path.isfile(candidate):
                 return candidate
         raise InputError(
             urdf_path,
             f"mesh {filename}: not found in package {package!r} (looked in the URDF's folder, its "
-            "ancestors and --package-path)",
+            "ancestors and --package-path, for a package.xml naming it)",
         )
     if filename.startswith("file://"):
         filename = filename[len("file://") :]
     if not os.path.isabs(filename):
         filename = os.path.join(os.path.dirname(urdf_path), filename)
+    if not allow_outside and not is_inside(filename, roots):
+        raise InputError(
+            urdf_path,
+            f"mesh {filename}: outside the URDF's folder, its package and --package-path: {hint}",
+        )
     if not os.path.isfile(filename):
         raise InputError(urdf_path, f"mesh {filename}: no such file")
     return filename
 
 
-def _geometry(robot: Robot, c: Collision, package_paths, budget: Budget, meshes: dict):
+def _geometry(
+    robot: Robot, c: Collision, package_paths, budget: Budget, meshes: dict, *, allow_outside
+):
     """(mesh, scale or None) of a collision element; each file or primitive built once."""
     kind = c.shape[0]
     if kind == "mesh":
         _, filename, scale = c.shape
-        found = resolve_mesh(robot.path, filename, package_paths)
+        found = resolve_mesh(robot.path, filename, package_paths, allow_outside=allow_outside)
         key = ("mesh", os.path.realpath(found))
         if key not in meshes:
             meshes[key] = _read_mesh(robot.path, found, budget)
@@ -555,10 +805,15 @@ def _read_dae(path: str, data: bytes) -> list[Item]:
 
 
 __all__ = [
+    "Joined",
+    "is_inside",
+    "join_elements",
+    "own_roots",
     "package_roots",
     "parse_robot",
     "parse_xml",
     "read_urdf",
     "resolve_mesh",
     "urdf_mechanism",
+    "urdf_pose",
 ]

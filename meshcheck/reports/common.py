@@ -7,12 +7,23 @@ place they are made safe to show; every format that prints a name as text goes t
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 from dataclasses import dataclass
 
+from ..config import ClashTest
 from ..outcome import CheckResult
-from ..results import FINDING_STATUSES, Finding, PairSweep, RobotSweep, SweepStatus, Verdict
+from ..results import (
+    FINDING_STATUSES,
+    AuditedPair,
+    Finding,
+    PairSweep,
+    RobotSweep,
+    SrdfAudit,
+    SweepStatus,
+    Verdict,
+)
 
 _NAMED = {"\n": "\\n", "\r": "\\r", "\t": "\\t"}
 
@@ -85,7 +96,13 @@ def summary(result: CheckResult) -> dict:
     ``tolerance`` is the one the user set, None when each pair had its own (then every finding
     carries the tolerance that decided it); ``config`` the configuration file used, if any.
     With a baseline, ``baseline`` names its file and ``new``, ``active`` and ``resolved`` count
-    the findings against it; ``fail_on_new`` says whether only new findings fail.
+    the findings against it; ``fail_on_new`` says whether only new findings fail. ``pose`` is
+    the joint values each robot (and ``[[joint]]`` mechanism) was checked at, by its URDF (or
+    configuration file): ``{PATH: {joint: value}}``, every joint a pose sets; None without one.
+    With an SRDF audit, ``wrongly_disabled`` counts its entries that disable a collision. A run
+    of clash tests counts the findings of all its tests, and adds ``tests`` (how many) and
+    ``failed_tests`` (their names); its ``tolerance``, ``required_clearance`` and ``fail_on``
+    are the defaults its tests started from.
     """
     counts = {str(status): result.count(status) for status in FINDING_STATUSES}
     doc = {
@@ -102,17 +119,23 @@ def summary(result: CheckResult) -> dict:
         "required_clearance": result.clearance,
         "units": result.units,
         "config": result.settings.config_path,
+        "pose": {p.path: p.to_dict() for p in result.poses} if result.poses else None,
         "warnings": list(result.warnings),
         "passed": result.passed,
     }
-    if result.sweeps:  # --sweep: the work budget its link pairs were swept within
+    if result.sweeps or result.audit is not None:  # the work budget link pairs were swept in
         doc["sweep_budget"] = result.settings.motion.budget
+    if result.audit is not None:
+        doc["wrongly_disabled"] = sum(p.is_wrong for p in result.audit.pairs)
     if result.baseline is not None:
         states = [result.baseline_state(f) for f in result.findings]
         doc["baseline"] = result.baseline.path
         doc["new"] = states.count("new")
         doc["active"] = states.count("active")
         doc["resolved"] = len(result.baseline.resolved(result.findings))
+    if result.tests:
+        doc["tests"] = len(result.tests)
+        doc["failed_tests"] = result.failed_tests
     return doc
 
 
@@ -134,15 +157,20 @@ def summary_chunks(result: CheckResult) -> list[str]:
     """
     s = summary(result)
     verdict = "PASS" if s["passed"] else "FAIL"
-    parts = [f"{s[Verdict.INTERFERENCE]} interference", f"{s[Verdict.TOUCHING]} touching"]
-    if s[Verdict.DUPLICATE]:
-        parts.insert(0, f"{s[Verdict.DUPLICATE]} duplicate")
-    if result.clearance is not None:
-        parts.append(f"{s[Verdict.CLEARANCE]} clearance (< {result.clearance:g})")
-    if s["approved"]:
-        parts.append(f"{s['approved']} approved")
+    if result.tests:  # the tests and how many fail; each test's section has its counts
+        parts = [plural(s["tests"], "test"), f"{len(s['failed_tests'])} failing"]
+    else:
+        parts = [f"{s[Verdict.INTERFERENCE]} interference", f"{s[Verdict.TOUCHING]} touching"]
+        if s[Verdict.DUPLICATE]:
+            parts.insert(0, f"{s[Verdict.DUPLICATE]} duplicate")
+        if result.clearance is not None:
+            parts.append(f"{s[Verdict.CLEARANCE]} clearance (< {result.clearance:g})")
+        if s["approved"]:
+            parts.append(f"{s['approved']} approved")
     if s["failed_in_motion"]:
         parts.append(f"{s['failed_in_motion']} colliding in motion")
+    if result.audit is not None:
+        parts.append(f"{s['wrongly_disabled']} wrongly disabled in the SRDF")
     if result.baseline is not None:
         parts.extend([f"{s['new']} new", f"{s['resolved']} resolved"])
     counts = [f"{part}," for part in parts[:-1]] + parts[-1:]
@@ -154,7 +182,10 @@ def summary_chunks(result: CheckResult) -> list[str]:
 
 
 def tolerance_text(result: CheckResult) -> str:
-    """The given tolerance, or ``per pair`` with the range the findings were decided with."""
+    """The given tolerance, or ``per pair`` with the range the findings were decided with;
+    ``per test`` for a run of clash tests (each test's section says its own)."""
+    if result.tests:
+        return "per test"
     if result.tolerance is not None:
         return f"{result.tolerance:.3g}"
     used = [f.tolerance for f in result.findings if f.tolerance is not None]
@@ -249,7 +280,15 @@ def describe(finding: Finding, tolerance: float | None = None) -> str:
     if finding.location is not None:
         c = [length(x, tolerance) for x in finding.location.centroid]
         detail += f"  at ({c[0]}, {c[1]}, {c[2]})"
+    if finding.elements:
+        detail += "  collision elements: " + printable(elements_text(finding))
     return detail
+
+
+def elements_text(finding: Finding) -> str:
+    """The collision elements a finding involves (``Finding.elements``), as ``base/0,
+    base/1 (post)``; ``""`` without."""
+    return ", ".join(e.label() for e in finding.elements)
 
 
 def shared_prefix(names: list[str]) -> str:
@@ -374,3 +413,67 @@ def pose_text(pair: PairSweep) -> str:
     if pair.status == SweepStatus.ALWAYS and pair.verdict:
         return f"{pair.verdict} at every pose"
     return "neither proven apart nor seen colliding" if pair.status == SweepStatus.UNDECIDED else ""
+
+
+def pose_lines(result: CheckResult) -> list[str]:
+    """``pose ROBOT: elbow=2.7925268,shoulder=1.5 (other joints at 0)``: the joint values each
+    robot (and ``[[joint]]`` mechanism) of the run was checked at (``RobotPose.text``), names
+    printable. What every person-facing format says of the pose."""
+    return [f"pose {printable(p.path)}: {printable(p.text())}" for p in result.poses]
+
+
+def audit_rows(result: CheckResult) -> list[tuple[AuditedPair, bool]]:
+    """(entry, whether it fails the run) of every audited SRDF entry not proven never: those
+    that fail first (``CheckResult.is_failing_audit``), then in file order. What the reports
+    list of an audit."""
+    if result.audit is None:
+        return []
+    rows = [
+        (p, result.is_failing_audit(p)) for p in result.audit.pairs if p.status != SweepStatus.NEVER
+    ]
+    return sorted(rows, key=lambda row: not row[1])
+
+
+def audit_message(audit: SrdfAudit, pair: AuditedPair) -> str:
+    """One line on an audited entry: ``SRDF:LINE: a / b (Never): interference at --pose ...``,
+    its verdict as ``pose_text`` gives it (names printable)."""
+    text = f"{printable(audit.path)}:{pair.line}: {printable(pair.a)} / {printable(pair.b)} "
+    verdict = pose_text(pair.sweep) or "proven never in contact over the joint ranges"
+    text += f"({printable(pair.reason or 'no reason')}): {printable(verdict)}"
+    if pair.status == SweepStatus.ALWAYS:
+        text += "; disabling is right" + (", as Always" if pair.reason.lower() == "never" else "")
+    return text
+
+
+def clash_test_line(test: ClashTest) -> str:
+    """A clash test in one line: ``test NAME: A against B; clearance C; tolerance T; fails on
+    STATUSES`` (patterns and the name printable)."""
+    return printable(f"test {test.name}: ") + clash_test_settings(test)
+
+
+def clash_test_settings(test: ClashTest) -> str:
+    """A clash test's sides and settings: ``A against B; clearance C; tolerance T; fails on
+    STATUSES`` (patterns printable)."""
+    clearance = "no clearance" if test.clearance is None else f"clearance {test.clearance:g}"
+    tolerance = "per pair" if test.tolerance is None else f"{test.tolerance:.3g}"
+    fails = ", ".join(str(s) for s in test.fail_on) or "nothing"
+    return printable(f"{test.describe()}; {clearance}; tolerance {tolerance}; fails on {fails}")
+
+
+def sections(result: CheckResult) -> list[CheckResult]:
+    """Each clash test's own result (``CheckResult.for_test``), in the run's order; the
+    sections of a report of a run of clash tests."""
+    return [result.for_test(t.name) for t in result.tests]
+
+
+def run_remainder(result: CheckResult) -> CheckResult:
+    """What a run of clash tests has beside its tests' findings, as a result of no finding and
+    no test: its sweeps, warnings, configuration file, and the baseline's findings of tests the
+    run no longer has (all resolved); the part of a report after the sections."""
+    settings = dataclasses.replace(result.settings, tests=())
+    baseline = result.baseline
+    if baseline is not None:
+        baseline = baseline.other_than([t.name for t in result.tests])
+    return dataclasses.replace(
+        result, findings=[], settings=settings, baseline=baseline, test_pairs={}, checked_pairs=[]
+    )

@@ -8,6 +8,13 @@ GitHub shows at most ``LIMIT`` annotations of each type from one step and drops 
 a word. So each type is sorted most severe first; when there are more than ``LIMIT``, the last
 annotation of that type says how many more there are, and those are printed as plain log lines
 (``meshcheck: ...``), so nothing is lost.
+
+An audited SRDF entry that disables a collision is an ``::error`` on its line of the SRDF (a
+``::warning`` when nothing fails the run); the pose each robot was checked at is a log line
+before the summary.
+
+In a run of clash tests each annotation's title and message start with its test's name, and a
+log line per test (its name and summary line) comes before the run's summary line.
 """
 
 from __future__ import annotations
@@ -19,13 +26,16 @@ from ..outcome import CheckResult
 from ..results import Finding, Verdict
 from .common import (
     View,
+    audit_message,
     describe,
     ordered,
     part_file,
     part_files,
     plural,
+    pose_lines,
     printable,
     resolution,
+    sections,
     summary_line,
     sweep_message,
 )
@@ -70,14 +80,24 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
     for f in ordered(result):
         extra = f" (approved: {f.approval_reason})" if f.is_approved else ""
         state = result.baseline_state(f)
-        title = f"meshcheck {f.status} [{f.id}]" + (f" {state}" if state else "")
+        test = f"{f.test}: " if f.test else ""
+        title = f"meshcheck {test}{f.status} [{f.id}]" + (f" {state}" if state else "")
+        message = f"{test}{f.a} and {f.b}: {f.status}, {describe(f, tol)}{extra}"
         props = f"file={_property(part_file(paths, f.a))},title={_property(title)}"
-        message = f"{f.a} and {f.b}: {f.status}, {describe(f, tol)}{extra}"
         annotations[level(result, f)].append(_Annotation(props, title, message))
     for robot, pair in result.failing_sweeps:
         title = f"meshcheck {pair.verdict} in motion"
         props = f"file={_property(robot.path)},title={_property(title)}"
         annotations["error"].append(_Annotation(props, title, sweep_message(robot, pair)))
+    if result.audit is not None:
+        for pair in result.audit.pairs:
+            if not pair.is_wrong:
+                continue
+            title = "meshcheck: SRDF disables a collision"
+            props = f"file={_property(result.audit.path)},line={pair.line},title={_property(title)}"
+            name = "error" if result.is_failing_audit(pair) else "warning"
+            message = audit_message(result.audit, pair)
+            annotations[name].append(_Annotation(props, title, message))
     for w in result.warnings:
         annotations["warning"].append(_Annotation("title=meshcheck input", "meshcheck input", w))
 
@@ -99,5 +119,8 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
                 f"{printable(r.b)}: {r.status} [{r.id}]"
             )
     lines += overflow
+    lines += [f"meshcheck: {line}" for line in pose_lines(result)]
+    for section in sections(result):  # a run of clash tests: each test's summary
+        lines.append(f"meshcheck: test {printable(section.test.name)}: {summary_line(section)}")
     lines.append(summary_line(result))
     return "\n".join(lines) + "\n"

@@ -130,6 +130,7 @@ def export_clashes(
         if mesh is None:
             continue
         name = f"interference {f.a} x {f.b}" + (f" [{f.id}]" if f.id else "")
+        name += f" in {f.test}" if f.test else ""  # a clash test's: one node per test
         scene.add_geometry(_painted(mesh, CLASH_COLOR, metres), node_name=name, geom_name=name)
     if file_type == "glb":
         data = scene.export(file_type="glb")

@@ -16,6 +16,10 @@ viewer puts it into the page with ``textContent`` only, showing control characte
 Part names are shown below the folder every part shares (``common.shared_prefix``, named once in
 the header), as in the text report, and wrap only after a ``/``; figures are the text every
 format prints (``common.figures``: lengths to the report's one resolution).
+
+A run of clash tests also carries its ``tests`` (name, sides and settings, verdict, findings) and
+each finding's ``test``; ``tests.js`` and ``tests.css`` (inlined in such a report only) list the
+tests in the header and add a filter by test beside the status filters.
 """
 
 from __future__ import annotations
@@ -36,10 +40,14 @@ from ..outcome import CheckResult
 from ..results import Finding, Verdict, clash_groups
 from .common import (
     View,
+    audit_rows,
+    clash_test_settings,
+    elements_text,
     figures,
     ordered,
     pose_text,
     resolution,
+    sections,
     shared_prefix,
     summary,
     sweep_rows,
@@ -209,6 +217,8 @@ def render_html(
                 line = [_point(p - origin) for p in f.closest]
         row = _finding_row(result, f, origin, solid=solid, line=line)
         row["text"] = figures(f, tolerance)  # as every other format prints them
+        if f.elements:
+            row["elements"] = elements_text(f)
         findings.append(row)
     blob, layout = _pack(meshes)
     for row, place in zip(mesh_rows, layout, strict=True):
@@ -218,7 +228,7 @@ def render_html(
         "shown": sum(len(f) for _, f in shown),
     }
     data = _data(result, units, inputs, version, mesh_rows, parts, findings, triangles)
-    return _document(_json_for_script(data), blob)
+    return _document(_json_for_script(data), blob, has_tests=bool(result.tests))
 
 
 def _parts(
@@ -289,6 +299,7 @@ def _finding_row(
         "box": box,
         "solid": solid,
         "line": line,
+        **({"test": f.test} if f.test else {}),
     }
 
 
@@ -301,7 +312,10 @@ def _data(result, units, inputs, version, mesh_rows, parts, findings, triangles)
         "tolerance": tolerance_text(result),
         "clearance": None if result.clearance is None else f"{result.clearance:g}",
     }
-    return {
+    if result.tests:  # each test has its own (the header lists them): "per test, in mm"
+        settings = {"tolerance": "per test, in", "clearance": "per test, in"}
+        s["fail_on"] = ["per test"]
+    data = {
         "version": str(version),
         "units": str(units),
         "inputs": [str(x) for x in inputs],
@@ -314,6 +328,41 @@ def _data(result, units, inputs, version, mesh_rows, parts, findings, triangles)
         "groups": [g.to_dict() for g in clash_groups(ordered(result))],
         "triangles": triangles,
         "sweeps": _sweeps(result),
+        "poses": [{"robot": str(p.path), "text": p.text()} for p in result.poses],
+        "audit": _audit(result),
+    }
+    if result.tests:
+        data["tests"] = [
+            {
+                "name": section.test.name,
+                "settings": clash_test_settings(section.test),
+                "passed": section.passed,
+                "findings": len(section.findings),
+            }
+            for section in sections(result)
+        ]
+    return data
+
+
+def _audit(result: CheckResult) -> dict | None:
+    """The SRDF audit as the viewer shows it: its summary line and the entries not proven
+    never (``audit_rows``), failing ones first."""
+    if result.audit is None:
+        return None
+    return {
+        "summary": result.audit.summary(),
+        "rows": [
+            {
+                "a": str(pair.a),
+                "b": str(pair.b),
+                "reason": pair.reason or "no reason",
+                "line": pair.line,
+                "status": str(pair.status),
+                "pose": pose_text(pair.sweep),
+                "failed": fails,
+            }
+            for pair, fails in audit_rows(result)
+        ],
     }
 
 
@@ -509,19 +558,25 @@ def _csp_hash(text: str) -> str:
     return "'sha256-" + base64.b64encode(hashlib.sha256(text.encode()).digest()).decode() + "'"
 
 
-def _document(data_json: str, blob: str) -> str:
+def _document(data_json: str, blob: str, *, has_tests: bool = False) -> str:
     license_text = _asset("three.LICENSE").replace("*/", "* /")
     three = _script(f"/*\n{license_text}*/\n" + _asset("three.min.js"))
     viewer = _script(_asset("viewer.js"))
     style = _asset("viewer.css")
+    scripts, styles = [three, viewer], [style]
+    if has_tests:  # a run of clash tests: its tests in the header, the filter by test
+        scripts.append(_script(_asset("tests.js")))
+        styles.append(_asset("tests.css"))
     csp = "; ".join(
         [
             "default-src 'none'",
-            f"script-src {_csp_hash(three)} {_csp_hash(viewer)}",
-            f"style-src {_csp_hash(style)}",
+            "script-src " + " ".join(_csp_hash(text) for text in scripts),
+            "style-src " + " ".join(_csp_hash(text) for text in styles),
             "img-src data:",
         ]
     )
+    style_tags = "".join(f"<style>{text}</style>" for text in styles)
+    script_tags = "".join(f"<script>{text}</script>\n" for text in scripts)
     headings = "".join(
         f"<th>{h}</th>"
         for h in ("ID", "Status", "Parts", "Depth", "Volume", "Distance", "Approved")
@@ -533,7 +588,7 @@ def _document(data_json: str, blob: str) -> str:
 <meta http-equiv="Content-Security-Policy" content="{csp}">
 <meta name="viewport" content="width=device-width, initial-scale=1">
 <title>meshcheck report</title>
-<style>{style}</style>
+{style_tags}
 </head>
 <body>
 <header id="header"></header>
@@ -546,9 +601,7 @@ frame it</span></div>
 </div>
 <script type="application/json" id="meshcheck-data">{data_json}</script>
 <script type="application/octet-stream" id="meshcheck-geometry">{blob}</script>
-<script>{three}</script>
-<script>{viewer}</script>
-</body>
+{script_tags}</body>
 </html>
 """
 

@@ -3,8 +3,14 @@
 A finding that fails the run is a ``<failure>``, an approved one is ``<skipped>``, others
 (touching, unrequested clearance, findings a ``--fail-on new`` baseline holds) pass with their
 measurements in ``<system-out>``. When the pipeline names the pairs it checked, each clear pair is
-a passing test case; otherwise each part without findings is one. XML 1.0 cannot hold most
-control characters, so every name goes through ``printable``.
+a passing test case; otherwise each part without findings is one. An audited SRDF entry is a
+test case too, failed when it disables a collision (its witness pose in the message). The suite's
+properties record the settings and, per robot, the ``pose`` it was checked at. XML 1.0 cannot
+hold most control characters, so every name goes through ``printable``.
+
+A run of clash tests has a ``testsuite`` per test, named after it, holding what the report of
+that test alone would (its properties also name the test and its sides), then a ``meshcheck``
+suite for the mechanisms colliding in motion, the SRDF audit and the warnings when there are any.
 """
 
 from __future__ import annotations
@@ -15,16 +21,50 @@ from xml.etree import ElementTree as ET
 
 from ..outcome import CheckResult
 from ..results import Finding
-from .common import View, describe, ordered, part_files, printable, resolution, sweep_message
+from .common import (
+    View,
+    audit_message,
+    describe,
+    ordered,
+    part_files,
+    pose_lines,
+    printable,
+    resolution,
+    run_remainder,
+    sections,
+    sweep_message,
+)
 
 
 def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None = None) -> str:
-    """The findings, then the clear pairs (or parts), as one ``testsuite``."""
+    """The findings, then the clear pairs (or parts), as one ``testsuite``; one per clash
+    test in a run of clash tests."""
+    if result.tests:
+        suites = [_suite(section, printable(section.test.name)) for section in sections(result)]
+        rest = run_remainder(result)
+        if rest.failing_sweeps or rest.warnings or rest.audit is not None:
+            suites.append(_suite(rest, "meshcheck", has_clear_cases=False))
+    else:
+        suites = [_suite(result, "meshcheck")]
+    keys = ("tests", "failures", "errors", "skipped", "time")
+    counts = {k: str(sum(int(suite.get(k)) for suite in suites)) for k in keys}
+    root = ET.Element("testsuites", name="meshcheck", **counts)
+    root.extend(suites)
+    ET.indent(root)
+    body = ET.tostring(root, encoding="unicode")
+    return '<?xml version="1.0" encoding="UTF-8"?>\n' + body + "\n"
+
+
+def _suite(result: CheckResult, name: str, *, has_clear_cases: bool = True) -> ET.Element:
+    """A ``testsuite`` of the result's findings, failing sweeps, clear pairs (or parts) and
+    warnings, with the settings as properties."""
     paths = part_files(result)
     tol = resolution(result)
     cases = [_finding_case(result, f, paths, tol) for f in ordered(result)]
     cases.extend(_sweep_case(robot, pair) for robot, pair in result.failing_sweeps)
-    cases.extend(_clear_cases(result))
+    cases.extend(_audit_cases(result))
+    if has_clear_cases:
+        cases.extend(_clear_cases(result))
     failures = sum(1 for c in cases if c.find("failure") is not None)
     skipped = sum(1 for c in cases if c.find("skipped") is not None)
     counts = {
@@ -34,20 +74,19 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
         "skipped": str(skipped),
         "time": "0",
     }
-    root = ET.Element("testsuites", name="meshcheck", **counts)
-    suite = ET.SubElement(root, "testsuite", name="meshcheck", **counts)
+    suite = ET.Element("testsuite", name=name, **counts)
     props = ET.SubElement(suite, "properties")
     for key, value in _settings(result).items():
         text = "" if value is None else printable(str(value))
         ET.SubElement(props, "property", name=key, value=text)
+    for line in pose_lines(result):  # "pose PATH: values", a property per robot
+        ET.SubElement(props, "property", name="pose", value=line.removeprefix("pose "))
     suite.extend(cases)
     if result.warnings:
         ET.SubElement(suite, "system-err").text = "\n".join(
             f"warning: {printable(w)}" for w in result.warnings
         )
-    ET.indent(root)
-    body = ET.tostring(root, encoding="unicode")
-    return '<?xml version="1.0" encoding="UTF-8"?>\n' + body + "\n"
+    return suite
 
 
 def _finding_case(
@@ -96,6 +135,32 @@ def _sweep_case(robot, pair) -> ET.Element:
     return case
 
 
+def _audit_cases(result: CheckResult) -> list[ET.Element]:
+    """A test case per audited SRDF entry: failed when it fails the run, else passed with what
+    the sweep says of it."""
+    audit = result.audit
+    if audit is None:
+        return []
+    cases = []
+    for pair in audit.pairs:
+        case = ET.Element(
+            "testcase",
+            classname=f"meshcheck.srdf.{pair.status}",
+            name=f"{printable(pair.a)} <-> {printable(pair.b)} [srdf {printable(pair.reason)}]",
+            file=printable(audit.path),
+            line=str(pair.line),
+            time="0",
+        )
+        message = audit_message(audit, pair)
+        if result.is_failing_audit(pair):
+            message = f"disables a collision: {message}"
+            ET.SubElement(case, "failure", message=message, type=str(pair.sweep.verdict))
+        else:
+            ET.SubElement(case, "system-out").text = f"{pair.status}: {message}"
+        cases.append(case)
+    return cases
+
+
 def _clear_cases(result: CheckResult) -> list[ET.Element]:
     """A passing case per checked pair without a finding; per part when no pairs are named."""
     found = {(f.a, f.b) for f in result.findings}
@@ -124,8 +189,12 @@ def _clear_cases(result: CheckResult) -> list[ET.Element]:
 
 
 def _settings(result: CheckResult) -> dict:
-    """The suite's properties: what the run checked and with which settings."""
+    """The suite's properties: what the run (or clash test) checked and with which settings."""
+    test = (
+        {} if result.test is None else {"test": result.test.name, "sides": result.test.describe()}
+    )
     return {
+        **test,
         "parts": len(result.parts),
         "pairs_checked": len(result.checked_pairs),
         "tolerance": result.tolerance,

@@ -4,7 +4,14 @@ Each result names the file of the pair's first part as its artifact location (th
 file as a related location), carries the finding's stable ID as ``partialFingerprints`` (so code
 scanning follows one clash across runs), its level (``error`` when it fails the run), approvals as
 external suppressions, and with a baseline its ``baselineState`` (``new``, ``unchanged``; resolved
-findings as ``absent``). Messages go through ``printable``; URIs are percent-encoded.
+findings as ``absent``). An audited SRDF entry that disables a collision is a result on the SRDF's
+line, with its witness pose. The run's properties hold the summary and, with robots, the ``pose``
+each was checked at. Messages go through ``printable``; URIs are percent-encoded.
+
+In a run of clash tests a finding's rule is its test's: ``TEST/STATUS`` (``fasteners/touching``),
+one rule per test and status after the four plain ones (which the mechanisms colliding in motion
+keep), each rule's default level from its test's ``fail_on``; every result names its ``test`` in
+its properties and message.
 """
 
 from __future__ import annotations
@@ -18,6 +25,8 @@ from ..outcome import CheckResult
 from ..results import FINDING_STATUSES, Finding, Verdict
 from .common import (
     View,
+    audit_message,
+    clash_test_line,
     describe,
     ordered,
     part_file,
@@ -53,12 +62,27 @@ def _level(result: CheckResult, finding: Finding) -> str:
     return "note" if finding.is_approved or finding.status == Verdict.TOUCHING else "warning"
 
 
-def _result(result: CheckResult, f: Finding, paths: dict[str, str], tol: float | None) -> dict:
+def _rule_ids(result: CheckResult) -> list[str]:
+    """Every rule's ID in order: the four statuses, then ``TEST/STATUS`` for each clash test."""
+    ids = [str(status) for status in FINDING_STATUSES]
+    return ids + [f"{t.name}/{status}" for t in result.tests for status in FINDING_STATUSES]
+
+
+def _rule_id(test: str, status) -> str:
+    """The rule of a finding of ``status`` in clash test ``test`` (``""``: none)."""
+    return f"{test}/{status}" if test else str(status)
+
+
+def _result(
+    result: CheckResult, f: Finding, paths: dict[str, str], tol: float | None, ids: list[str]
+) -> dict:
     detail = describe(f, tol)
     text = f"{printable(f.a)} and {printable(f.b)}: {f.status}, {detail}"
+    if f.test:
+        text = f"{printable(f.test)}: {text}"
     entry = {
-        "ruleId": str(f.status),
-        "ruleIndex": FINDING_STATUSES.index(f.status),
+        "ruleId": _rule_id(f.test, f.status),
+        "ruleIndex": ids.index(_rule_id(f.test, f.status)),
         "level": _level(result, f),
         "message": {"text": text},
         "locations": [{"physicalLocation": {"artifactLocation": uri(part_file(paths, f.a))}}],
@@ -70,7 +94,13 @@ def _result(result: CheckResult, f: Finding, paths: dict[str, str], tol: float |
             }
         ],
         "partialFingerprints": {FINGERPRINT: f.id},
-        "properties": {"id": f.id, "a": f.a, "b": f.b, **_measurements(f)},
+        "properties": {
+            "id": f.id,
+            "a": f.a,
+            "b": f.b,
+            **_measurements(f),
+            **({"test": f.test} if f.test else {}),
+        },
     }
     if f.is_approved:
         entry["suppressions"] = [
@@ -99,9 +129,22 @@ def document(result: CheckResult) -> dict:
         }
         for status in FINDING_STATUSES
     ]
+    for test in result.tests:
+        rules += [
+            {
+                "id": _rule_id(test.name, status),
+                "name": f"{str(status).capitalize()} in {printable(test.name)}",
+                "shortDescription": {
+                    "text": f"{_RULES[status]} ({printable(clash_test_line(test))})"
+                },
+                "defaultConfiguration": {"level": "error" if status in test.fail_on else "warning"},
+            }
+            for status in FINDING_STATUSES
+        ]
+    ids = _rule_ids(result)
     paths = part_files(result)
     tol = resolution(result)
-    results = [_result(result, f, paths, tol) for f in ordered(result)]
+    results = [_result(result, f, paths, tol, ids) for f in ordered(result)]
     for robot, pair in result.failing_sweeps:  # a mechanism's parts collide in motion
         results.append(
             {
@@ -113,12 +156,39 @@ def document(result: CheckResult) -> dict:
                 "properties": {"a": pair.a, "b": pair.b, "pose": dict(pair.witness or {})},
             }
         )
-    if result.baseline is not None:
-        for r in result.baseline.resolved(result.findings):
+    if result.audit is not None:  # SRDF entries that disable a collision, on their line
+        for pair in result.audit.pairs:
+            if not pair.is_wrong:
+                continue
+            location = {
+                "artifactLocation": uri(result.audit.path),
+                "region": {"startLine": pair.line},
+            }
             results.append(
                 {
-                    "ruleId": str(r.status),
-                    "ruleIndex": FINDING_STATUSES.index(r.status),
+                    "ruleId": str(pair.sweep.verdict),
+                    "ruleIndex": FINDING_STATUSES.index(pair.sweep.verdict),
+                    "level": "error" if result.is_failing_audit(pair) else "warning",
+                    "message": {
+                        "text": f"disables a collision: {audit_message(result.audit, pair)}"
+                    },
+                    "locations": [{"physicalLocation": location}],
+                    "properties": {
+                        "a": pair.a,
+                        "b": pair.b,
+                        "reason": pair.reason,
+                        "pose": dict(pair.sweep.witness or {}),
+                    },
+                }
+            )
+    if result.baseline is not None:
+        for r in result.baseline.resolved(result.findings):
+            rule = _rule_id(r.test, r.status)
+            rule = rule if rule in ids else str(r.status)  # its test is gone: the plain rule
+            results.append(
+                {
+                    "ruleId": rule,
+                    "ruleIndex": ids.index(rule),
                     "level": "none",
                     "message": {
                         "text": f"{printable(r.a)} and {printable(r.b)}: {r.status} resolved"
@@ -148,6 +218,8 @@ def document(result: CheckResult) -> dict:
         "results": results,
         "properties": {"summary": summary_line(result)},
     }
+    if result.poses:
+        run["properties"]["pose"] = {p.path: p.to_dict() for p in result.poses}
     return {"$schema": SCHEMA, "version": "2.1.0", "runs": [run]}
 
 

@@ -5,6 +5,10 @@ Every line fits the width. Part names are shown after the directory prefix every
 (named once above the table), cut in the middle when they still do not fit, the same cut
 wherever a name appears (table, groups, baseline, sweep); the JSON report keeps them whole. The
 summary and group lines wrap between their comma-separated pieces, never inside one.
+
+A run of clash tests has a section per test: a line naming the test, its sides and settings,
+then the report of that test alone (its table, groups and summary line); then the run's sweep and
+configuration lines, and its summary line (how many tests fail) last.
 """
 
 from __future__ import annotations
@@ -17,11 +21,15 @@ from ..outcome import CheckResult
 from ..results import clash_groups
 from .common import (
     View,
+    audit_rows,
+    clash_test_line,
     describe,
     ordered,
     pose_text,
     printable,
     resolution,
+    run_remainder,
+    sections,
     shared_prefix,
     summary_chunks,
     sweep_rows,
@@ -146,12 +154,15 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
     """The table of findings (most severe first), resolved baseline findings, the
     configuration file, the summary; ``view`` picks the rows and the width."""
     view = view or View()
+    if result.tests:
+        return _render_tests(result, view)
     width = view.width
     prefix = shared_prefix([p.name for p in result.parts])
     has_baseline = result.baseline is not None
     shown = [f for f in ordered(result) if view.shows(result, f)]
     resolved = result.baseline.resolved(result.findings) if has_baseline else []
     swept = [row for row in sweep_rows(result) if row[2] or not view.is_quiet]
+    audited = [row for row in audit_rows(result) if row[1] or not view.is_quiet]
 
     def below(name: str) -> str:
         return printable(name[len(prefix) :] if name.startswith(prefix) else name)
@@ -167,6 +178,9 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
         rows.append((f.id, status, state, below(f.a), below(f.b), detail))
     names = [n for f in shown for n in (f.a, f.b)] + [n for r in resolved for n in (r.a, r.b)]
     names += [n for robot, pair, _ in swept for n in (robot, pair.a, pair.b)]
+    if result.audit is not None:
+        names += [n for pair, _ in audited for n in (pair.a, pair.b)] + [result.audit.path]
+    names += [pose.path for pose in result.poses]
     name_width = _name_width(rows, width=width, has_baseline=has_baseline)
     cut = shorten_all(sorted({below(n) for n in names}), name_width)
 
@@ -206,9 +220,37 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
         lines.extend(wrap(text, _INDENT))
     for robot in result.sweeps:  # each robot's counts, and the work against the budget
         lines.extend(wrap(f"sweep {printable(robot.summary())}", _INDENT))
+    if result.audit is not None:  # --audit-srdf: the entries not proven, failing ones even quiet
+        audit = result.audit
+        for pair, fails in audited:
+            mark = "FAIL " if fails else ""
+            text = f"{mark}srdf {pair.status} ({printable(pair.reason or 'no reason')})  "
+            text += f"{short(audit.path)}:{pair.line}: {short(pair.a)} / {short(pair.b)}  "
+            text += printable(pose_text(pair.sweep))
+            lines.extend(wrap(text, _INDENT))
+        if not view.is_quiet:
+            lines.extend(wrap(f"srdf {printable(audit.summary())}", "  "))
+    for pose in result.poses:  # the pose the report was made at, even when quiet
+        lines.extend(wrap(f"pose {short(pose.path)}: {printable(pose.text())}", "  "))
     if result.settings.config_path:
         lines.extend(wrap(f"configuration: {printable(result.settings.config_path)}", "  "))
     lines.extend(summary_lines(result, width))
+    return "\n".join(lines) + "\n"
+
+
+def _render_tests(result: CheckResult, view: View) -> str:
+    """A section per clash test (a line on the test, then the report of that test alone), then
+    the run's sweep and configuration lines and its summary."""
+    lines = []
+    for section in sections(result):
+        heading = _pieces_after(clash_test_line(section.test), "; ")
+        lines.extend(_pack(heading, view.width, "  "))
+        lines.extend(render(section, view=view).splitlines())
+        lines.append("")
+    rest = run_remainder(result)
+    tail = render(rest, view=view).splitlines()
+    lines.extend(tail[: len(tail) - len(summary_lines(rest, view.width))])
+    lines.extend(summary_lines(result, view.width))
     return "\n".join(lines) + "\n"
 
 

@@ -1,6 +1,7 @@
 """What the run's mechanisms (``load.Assembly.mechanisms``) change in the check and the sweep:
-adjacent links' findings approved, the joints a sweep moves, and the approval reasons of a
-``[[joint]]`` mechanism's swept pairs."""
+adjacent links' findings approved, the joints a sweep moves, the order it takes the link pairs
+in, the link pairs an SRDF audit sweeps, and the approval reasons of a ``[[joint]]``
+mechanism's swept pairs."""
 
 from __future__ import annotations
 
@@ -85,22 +86,57 @@ def link_order(mech: Mechanism) -> list[str]:
     return [n for n in order if n in mech.parts and not (n in seen or seen.add(n))]
 
 
-def pairs_in_order(links: Sequence[str]) -> Iterator[tuple[str, str]]:
-    """Every pair of ``links`` (each pair's names sorted), the later link's pairs after all
-    pairs of the links before it: a budget that runs out leaves the pairs of the last links,
-    and the first ``k (k - 1) / 2`` pairs need only the first ``k`` links."""
+def pairs_in_order(
+    links: Sequence[str], wanted: set[frozenset[str]] | None = None
+) -> Iterator[tuple[str, str]]:
+    """Every pair of ``links`` (each pair's names sorted), or only those in ``wanted``, the later
+    link's pairs after all pairs of the links before it: a budget that runs out leaves the
+    pairs of the last links, and the first ``k (k - 1) / 2`` pairs need only the first ``k``
+    links."""
     for j, b in enumerate(links):
         for a in links[:j]:
-            yield (a, b) if a < b else (b, a)
+            if wanted is None or frozenset((a, b)) in wanted:
+                yield (a, b) if a < b else (b, a)
 
 
-def links_within(mech: Mechanism, pairs: int) -> list[str]:
-    """The links (``link_order``) of the first ``pairs`` link pairs (``pairs_in_order``)."""
+def pair_count(mech: Mechanism, wanted: set[frozenset[str]] | None = None) -> int:
+    """How many pairs ``pairs_in_order`` gives over all the mechanism's links."""
+    count = len(link_order(mech))
+    if wanted is None:
+        return count * (count - 1) // 2
+    return sum(len(p) == 2 and all(link in mech.parts for link in p) for p in wanted)
+
+
+def links_within(
+    mech: Mechanism, pairs: int, wanted: set[frozenset[str]] | None = None
+) -> list[str]:
+    """The links (``link_order``) of the first ``pairs`` link pairs (``pairs_in_order``, of
+    ``wanted`` when given)."""
     order = link_order(mech)
-    count = 0
-    while count < len(order) and count * (count - 1) // 2 < pairs:
-        count += 1
-    return order[:count]
+    if wanted is None:
+        count = 0
+        while count < len(order) and count * (count - 1) // 2 < pairs:
+            count += 1
+        return order[:count]
+    position = {link: k for k, link in enumerate(order)}
+    last = sorted(
+        max(position[link] for link in p)
+        for p in wanted
+        if len(p) == 2 and all(link in position for link in p)
+    )
+    return order[: last[pairs - 1] + 1] if len(last) >= pairs else order
+
+
+def is_audited(reason: str, reasons: Sequence[str]) -> bool:
+    """Whether an SRDF entry with ``reason`` is audited (``Motion.audit_reasons``: empty for
+    every entry; reasons compare without regard to case, as MoveIt writes them capitalised)."""
+    return not reasons or reason.casefold() in {r.casefold() for r in reasons}
+
+
+def audited_pairs(srdf, motion) -> set[frozenset[str]]:
+    """The link pairs of an SRDF (``load.srdf.Srdf``) an audit sweeps: its entries whose
+    reason ``motion.audit_reasons`` names."""
+    return {frozenset((p.a, p.b)) for p in srdf.pairs if is_audited(p.reason, motion.audit_reasons)}
 
 
 def with_approval_reasons(

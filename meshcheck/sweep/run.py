@@ -18,9 +18,10 @@ from ..units import scale as unit_scale
 from .distances import link_geometries
 from .kinematics import frame_reach, joint_ranges, link_sides, motion_weights
 from .mechanisms import (
+    audited_pairs,
     check_swept,
-    link_order,
     links_within,
+    pair_count,
     pairs_in_order,
     swept_joints,
     with_approval_reasons,
@@ -36,9 +37,10 @@ def sweep_mechanism(
     *,
     tolerance: float | None = None,
     budget: WorkBudget | None = None,
+    pairs: set[frozenset[str]] | None = None,
 ) -> tuple[PairSweep, ...]:
     """Classify every pair of a robot's links over the swept joints' ranges (``sweep_pair``),
-    as far as the work budget goes.
+    or only ``pairs``, as far as the work budget goes.
 
     Parameters
     ----------
@@ -56,18 +58,27 @@ def sweep_mechanism(
     budget : WorkBudget, optional
         The run's (default one of ``motion.budget`` for this robot alone). Pairs are swept in
         ``pairs_in_order``; those it cannot pay for are counted in ``budget.unswept``.
+    pairs : set of frozenset of str, optional
+        Sweep only these link pairs (an SRDF's, ``sweep.audit``): only their links need
+        ``pieces``, and each pair's tolerance is the rule's over those links.
 
     Returns
     -------
     tuple of PairSweep
-        One per pair of links with collision geometry that was swept, sorted by link names.
+        One per pair of links with collision geometry (of ``pairs``) that was swept, sorted by
+        link names.
     """
+    if pairs is not None:
+        named = {link for pair in pairs for link in pair}
+        mech = dataclasses.replace(mech, parts={k: v for k, v in mech.parts.items() if k in named})
+        if not mech.parts:
+            return ()
     robot = mech.robot
     budget = WorkBudget(motion.budget) if budget is None else budget
     base = joint_values(robot, motion.pose)
     swept = swept_joints(robot, motion.sweep)
     scale = unit_scale(mech.units, bodies[mech.parts[next(iter(mech.parts))][0]].units)
-    order = links_within(mech, budget.pairs_left)
+    order = links_within(mech, budget.pairs_left, pairs)
     links = link_geometries(robot, mech, bodies, pieces, base, scale, only=set(order))
     radius = {name: link.radius for name, link in links.items()}
     points = {name: link.points for name, link in links.items()}
@@ -77,11 +88,10 @@ def sweep_mechanism(
     upper = np.array([links[n].points.max(axis=0) for n in names])
     diagonal, _ = part_sizes(lower, upper)
     magnitude = np.full(len(names), max(radius.values()) + frame_reach(robot, swept, base) * scale)
-    count = len(link_order(mech))
-    total = count * (count - 1) // 2
+    total = pair_count(mech, pairs)
     out, done, current = [], 0, ()
     with Progress("sweeping link pairs", total, detail=lambda: " / ".join(current)) as progress:
-        for current in pairs_in_order(order):
+        for current in pairs_in_order(order, pairs):
             a, b = current
             tol = tolerance
             if tol is None:
@@ -123,22 +133,33 @@ def mechanism_pieces(
     executor=None,
     cache=None,
 ) -> dict[int, list[np.ndarray]]:
-    """Convex pieces of every part of the mechanisms a ``--sweep`` poses, by body index; ``{}``
-    without ``--sweep``. A ``--sweep-joints`` name no mechanism has is refused first. CoACD
-    runs on ``executor``; pieces are kept in ``cache``, the run's decompositions.
+    """Convex pieces of the parts of the mechanisms a ``--sweep`` poses, by body index; without
+    ``--sweep``, of the links an audited SRDF's pairs name (``sweep.audit``), else ``{}``; in
+    both, only of the links the work budget can reach (``links_within``). A ``--sweep-joints``
+    name no mechanism has is refused first. CoACD runs on ``executor``; pieces are kept in
+    ``cache``, the run's decompositions.
 
     Each part is CoACD's decomposition, never a stand-in hull: no time limit (a time-out would
     swap a link's pieces for its hull, and the sweep's classes, the SRDF, would then depend on
     how the run went), whatever the check's cost model says. The check uses these pieces for
     the parts it needs (``pipeline.decompose_parts``), so no part is decomposed twice.
     """
-    if settings.motion.sweep is None:
+    if settings.motion.sweep is None and not any(m.srdf is not None for m in mechanisms):
         return {}
     check_swept(mechanisms, settings.motion.sweep)
     out: dict[int, list[np.ndarray]] = {}
     reach = WorkBudget(settings.motion.budget).pairs_left
     for mech in mechanisms:
-        ks = sorted(k for link in links_within(mech, reach) for k in mech.parts[link])
+        wanted = None
+        if settings.motion.sweep is None:
+            if mech.srdf is None:
+                continue
+            wanted = audited_pairs(mech.srdf, settings.motion)
+            named = {link for pair in wanted for link in pair}
+            mech = dataclasses.replace(
+                mech, parts={k: v for k, v in mech.parts.items() if k in named}
+            )
+        ks = sorted(k for link in links_within(mech, reach, wanted) for k in mech.parts[link])
         piece_lists = decompose_bodies(
             [bodies[k] for k in ks],
             threshold=settings.threshold,

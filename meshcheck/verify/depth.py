@@ -61,6 +61,7 @@ from ..geometry.triangles import (
     ray_hits,
     winding_numbers,
 )
+from ..mesh import manifold_solid
 
 #: Relative gap between the bounds at which the search stops: the lower bound is then within
 #: 1e-3 of the largest ball, which is the accuracy the depth is documented to have.
@@ -249,13 +250,8 @@ def _is_thinner_than(v: np.ndarray, f: np.ndarray, radius: float, max_pieces: in
 
     if not radius > 0.0:
         return False
-    solid = manifold3d.Manifold(
-        manifold3d.Mesh64(
-            vert_properties=np.array(v, dtype=np.float64),  # a writable copy, as nanobind wants
-            tri_verts=np.array(f, dtype=np.uint64),
-        )
-    )
-    if solid.status() != manifold3d.Error.NoError:
+    solid = manifold_solid(v, f)
+    if solid is None:
         return False
     stack = [(v.min(axis=0), v.max(axis=0))]
     pieces = 0

@@ -32,7 +32,7 @@ from ..geometry.triangles import (
     triangle_boxes,
     winding_numbers,
 )
-from ..mesh import is_closed
+from ..mesh import is_closed, manifold_solid
 from ..results import PairVerdict, Solid, Verdict
 from .depth import depth_bounds, evenly_strided
 
@@ -254,23 +254,13 @@ BOOLEAN_TRIANGLE_BYTES = 256
 
 
 def _manifold(v: np.ndarray, f: np.ndarray):
-    import manifold3d
-
     # manifold3d crashes (SIGSEGV) when an allocation fails under an address-space limit
     # instead of raising: refuse the boolean first when the room left cannot hold it.
     left = address_space_left()
     if left is not None and left < BOOLEAN_BASE_BYTES + BOOLEAN_TRIANGLE_BYTES * len(f):
         raise MemoryError(f"{left} bytes of address space left for a boolean of {len(f)} triangles")
 
-    solid = manifold3d.Manifold(
-        manifold3d.Mesh64(
-            vert_properties=np.ascontiguousarray(v, dtype=np.float64),
-            tri_verts=np.ascontiguousarray(f, dtype=np.uint64),
-        )
-    )
-    if solid.status() != manifold3d.Error.NoError:
-        return None
-    return solid
+    return manifold_solid(v, f)
 
 
 def shared_solid(

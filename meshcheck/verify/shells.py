@@ -26,11 +26,13 @@ def warn_overlapping_shells(bodies: Sequence[Body]) -> None:
     """Warn once per mesh whose closed shells overlap each other (``overlapping_shells``).
 
     Instances of one mesh (``Body.mesh`` shared) are warned about once, under the first one's
-    name; the message starts with the part name, as the loader's warnings do.
+    name; the message starts with the part name, as the loader's warnings do. A URDF link made
+    of several collision elements (``Body.elements``) is left alone: they overlap by design,
+    and the loader joined them into one solid (or said why it could not).
     """
     seen: set[int] = set()  # id(Body.mesh): instances share their mesh
     for body in bodies:
-        if id(body.mesh) in seen:
+        if id(body.mesh) in seen or body.elements:
             continue
         seen.add(id(body.mesh))
         overlap = overlapping_shells(body.mesh)

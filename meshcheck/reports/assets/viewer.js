@@ -109,6 +109,7 @@
       [s.failed, "failing the run"],
     ];
     if (s.failed_in_motion) items.push([s.failed_in_motion, "colliding in motion"]);
+    if (data.audit) items.push([s.wrongly_disabled, "wrongly disabled in the SRDF"]);
     items.forEach(([n, label], k) => {
       if (k) counts.append(" \u00b7 ");
       counts.append(el("b", null, n), " " + label);
@@ -133,6 +134,13 @@
       settings.append(k + " ", el("b", null, v));
     });
     header.append(settings);
+
+    for (const p of data.poses) {
+      // the joint values each robot was checked at
+      const pose = el("p", "pose", "pose ");
+      pose.append(el("b", null, short(p.robot)), ": " + p.text);
+      header.append(pose);
+    }
 
     if (data.prefix) {
       const below = el("p", "prefix", "parts below ");
@@ -165,6 +173,24 @@
       }
       sweep.append(sl);
       header.append(sweep);
+    }
+
+    if (data.audit) {
+      // --audit-srdf: the audited entries not proven never, failing ones first and open
+      const a = data.audit;
+      const failing = a.rows.filter((r) => r.failed).length;
+      const audit = el("details", "audit");
+      audit.id = "audit";
+      audit.open = failing > 0;
+      audit.append(el("summary", null, "SRDF audit: " + a.summary));
+      const al = el("ul");
+      for (const r of a.rows) {
+        const text = (r.failed ? "FAIL " : "") + r.status + " (" + r.reason + ") line " + r.line + ": " +
+          short(r.a) + " / " + short(r.b) + (r.pose ? " — " + r.pose : "");
+        al.append(el("li", r.failed ? "fail" : null, text));
+      }
+      audit.append(al);
+      header.append(audit);
     }
 
     if (s.warnings.length) {
@@ -615,6 +641,7 @@
     if (group) status.append(" ", el("span", "note group-ref", "group " + group.id));
     const parts = el("td", "part");
     parts.append(nameEl("div", null, f.a), nameEl("div", null, f.b));
+    if (f.elements) parts.append(el("div", "note", "collision elements: " + f.elements));
     tr.append(
       el("td", "id", f.id),
       status,
