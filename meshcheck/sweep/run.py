@@ -26,7 +26,7 @@ from .mechanisms import (
     swept_joints,
     with_approval_reasons,
 )
-from .search import LinkPair, WorkBudget, sweep_pair
+from .search import PAIR_WORK, SKIP_WORK, LinkPair, WorkBudget, sweep_pair
 
 
 def sweep_mechanism(
@@ -78,7 +78,7 @@ def sweep_mechanism(
     base = joint_values(robot, motion.pose)
     swept = swept_joints(robot, motion.sweep)
     scale = unit_scale(mech.units, bodies[mech.parts[next(iter(mech.parts))][0]].units)
-    order = links_within(mech, budget.pairs_left, pairs)
+    order = links_within(mech, budget.pairs_within(least_work(mech)), pairs)
     links = link_geometries(robot, mech, bodies, pieces, base, scale, only=set(order))
     radius = {name: link.radius for name, link in links.items()}
     points = {name: link.points for name, link in links.items()}
@@ -105,7 +105,7 @@ def sweep_mechanism(
             progress.update(done)
             weights = motion_weights(robot, (a, b), radius, swept, base, scale, points)
             if not weights and not mech.is_urdf:
-                budget.charge(0)
+                budget.charge(SKIP_WORK, least=SKIP_WORK)
                 continue  # nothing moves them: the check judged them at the pose
             free = sorted(weights)
             sides = link_sides(robot, (a, b), links, free, swept, base, scale)
@@ -123,6 +123,13 @@ def sweep_mechanism(
             )
         progress.close(is_complete=total == done)
     return tuple(sorted(out, key=lambda p: (p.a, p.b)))
+
+
+def least_work(mech: Mechanism) -> int:
+    """The least work a link pair of ``mech`` costs: a URDF robot sweeps every pair
+    (``search.PAIR_WORK``); a ``[[joint]]`` mechanism passes over the pairs no swept joint
+    moves (``search.SKIP_WORK``)."""
+    return PAIR_WORK if mech.is_urdf else SKIP_WORK
 
 
 def mechanism_pieces(
@@ -148,7 +155,7 @@ def mechanism_pieces(
         return {}
     check_swept(mechanisms, settings.motion.sweep)
     out: dict[int, list[np.ndarray]] = {}
-    reach = WorkBudget(settings.motion.budget).pairs_left
+    budget = WorkBudget(settings.motion.budget)
     for mech in mechanisms:
         wanted = None
         if settings.motion.sweep is None:
@@ -159,6 +166,7 @@ def mechanism_pieces(
             mech = dataclasses.replace(
                 mech, parts={k: v for k, v in mech.parts.items() if k in named}
             )
+        reach = budget.pairs_within(least_work(mech))
         ks = sorted(k for link in links_within(mech, reach, wanted) for k in mech.parts[link])
         piece_lists = decompose_bodies(
             [bodies[k] for k in ks],

@@ -51,6 +51,9 @@ DESCENT_TRIES = 32
 #: second), so that the budget bounds the time of a robot of many cheap pairs too.
 PAIR_WORK = 4096
 VERIFY_WORK = 1024
+#: What a pair of a ``[[joint]]`` mechanism that no swept joint moves costs: it is passed over
+#: (the check judged it at the pose) after a few microseconds, never set up.
+SKIP_WORK = 64
 
 #: The real meshes' statuses that make a pose a witness.
 COLLIDING = (Verdict.INTERFERENCE, Verdict.TOUCHING)
@@ -237,11 +240,15 @@ class WorkBudget:
     @property
     def pairs_left(self) -> int:
         """A bound on the link pairs still to be visited (each costs ``PAIR_WORK`` or more)."""
-        return max(self.limit - self.used, 0) // PAIR_WORK + 1
+        return self.pairs_within(PAIR_WORK)
 
-    def charge(self, work: int) -> None:
-        """Count a visited link pair's work (at least ``PAIR_WORK``)."""
-        self.used += max(int(work), PAIR_WORK)
+    def pairs_within(self, least: int) -> int:
+        """A bound on the link pairs still to be visited when each costs ``least`` or more."""
+        return max(self.limit - self.used, 0) // least + 1
+
+    def charge(self, work: int, *, least: int = PAIR_WORK) -> None:
+        """Count a visited link pair's work (at least ``least``)."""
+        self.used += max(int(work), least)
 
 
 def chain_poses(
