@@ -24,7 +24,7 @@ DEFAULT_RESOLUTION = 1e-3
 
 #: Default sweep budget: the work one run's sweep may do (a pose of a link pair costs the joints
 #: that move it, a convex-piece pair measured 1; see ``sweep.search.WorkBudget``). The PR2's
-#: 1,431 link pairs need about a fifth of it (``bench/sweep.py --robot pr2`` prints the work);
+#: 1,431 link pairs need about two fifths of it (``bench/sweep.py --robot pr2`` prints the work);
 #: any input, however many links, stops there with the pairs left over undecided.
 DEFAULT_SWEEP_BUDGET = 400_000_000
 #: The largest budget accepted (a bound a CI job can still rely on).
