@@ -1,167 +1,372 @@
-"""STEP input: what tessellation costs and how far its answers are from the CAD model.
+"""STEP assemblies, whole processes: meshcheck cold and warm against trimesh + cascadio +
+CollisionManager, and against the exact check a CAD user would script with OpenCASCADE.
 
-Run from the repository root (needs the ``dev`` extra, for OpenCASCADE's STEP writer)::
+Run from the repository root (needs the ``dev`` extra; ``pip install cascadio`` for the
+CollisionManager peer)::
 
-    python bench/step.py
+    python bench/step.py [FOLDER ...] [--jobs N] [--repeat N]
 
-Prints, all measured in this run:
+The assemblies: ``tests/data/step/*.STEP`` (real exports kept in the repository), two written here
+by OpenCASCADE (a plate with three bolts line to line in their holes and a nut under each; 2,000
+instances of one bolt at one placement), and every ``.step``/``.stp`` file in the folders given
+(real exports fetched by hand, e.g. ``as1-oc-214.stp``, the AP214 assembly of
+``tpaviot/pythonocc-demos``' ``assets/models``: plate, brackets, rod, bolts and nuts in nested
+sub-assemblies).
 
-1. Tessellation time per part of the sample assembly (each product written to its own STEP file,
-   read with ``read_step``), triangles and file size, at the default deflection against
-   0.01 mm and a coarse 0.1 mm: the ratios are the price of the default.
-2. Pin-in-hole accuracy: a pin with 0.1 mm radial clearance and one 0.2 mm too big, for a small
-   (3.1 mm) and a large (25 mm) hole, measured by ``check_bodies`` from the tessellation, against
-   the CAD truth, for several deflections. The promise: clearance within 0.01 mm, depth within
-   0.03 mm, at the default.
-3. The sample assembly end to end: its STEP file against the STL files of ``make_samples.py``
-   (sizes; load and check times, same process).
+For each, in this run, each a fresh process (imports included), alternated, best of ``--repeat``:
+
+- ``cold``: ``meshcheck FILE -j N --format json`` with an empty cache directory and a fresh key;
+- ``warm``: the same command again on the cache the cold run filled;
+- ``CM``: ``cascadio.step_to_glb`` (OpenCASCADE's mesher at cascadio's defaults), ``trimesh.load``,
+  ``CollisionManager.in_collision_internal`` (FCL): a clock only, its answers are wrong on every
+  coincident fit;
+- ``OCP``: ``STEPControl_Reader``, then every pair of solids whose boxes come within 1e-5 of the
+  smaller diagonal: ``BRepAlgoAPI_Common`` (its volume) and ``BRepExtrema_DistShapeShape``;
+  past 500 pairs the rest is estimated at the rate of the first 500 (the 2,000 coincident
+  instances make 1,999,000 pairs).
+
+Prints wall seconds and the ratios cold/CM, warm/CM, cold/OCP, then the same ratios of CPU
+seconds (each process and the workers it waited for: less moved by other jobs on a shared
+machine), with the load averages before and after. ``--peer cm FILE`` and ``--peer ocp FILE``
+run one peer (what the table times).
+
+``--phases`` prints instead where a cold run's CPU seconds go, for each assembly: one process
+at ``-j 1`` without a cache, its imports (meshcheck with click and numpy; trimesh with scipy;
+OpenCASCADE's bindings), OpenCASCADE reading the file (``read_document``), the tessellation,
+the pairs decided on the B-rep (``decide_on_brep``), and the rest (broad phase, filters,
+report), best of ``--repeat``.
+
+meshcheck's modules are compiled to bytecode first, as an installed wheel has them (an editable
+checkout run with ``PYTHONDONTWRITEBYTECODE`` would compile them again in every process).
 """
 
 from __future__ import annotations
 
+import argparse
+import glob
+import json
 import os
-import statistics
+import resource
+import subprocess
 import sys
 import tempfile
 import time
-import warnings
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.join(HERE, "..")
-sys.path.insert(0, ROOT)
-sys.path.insert(0, os.path.join(ROOT, "tests"))
-sys.path.insert(0, os.path.join(ROOT, "sample_meshes"))
-
-from make_step_sample import HOLES, bolt  # noqa: E402
-from step_writer import box, cut, cylinder, fuse, placement, write_step  # noqa: E402
-
-from meshcheck.load import Body, load_bodies  # noqa: E402
-from meshcheck.load.step import DEFAULT_DEFLECTION_MM, read_step  # noqa: E402
-from meshcheck.pipeline import check_bodies  # noqa: E402
-
-DEFLECTIONS = (0.1, 0.02, 0.01, DEFAULT_DEFLECTION_MM, 0.0025)
 
 
-def best_of(fn, repeat=3):
-    """Smallest wall time of ``repeat`` calls, seconds, and the last result."""
-    times, result = [], None
-    for _ in range(repeat):
-        t = time.perf_counter()
-        result = fn()
-        times.append(time.perf_counter() - t)
-    return min(times), result
+def peer_cm(path: str) -> str:
+    """trimesh + cascadio + CollisionManager on one STEP file: the pairs it calls colliding."""
+    import cascadio
+    import trimesh
 
-
-def quiet(fn, *args, **kwargs):
-    """Call ``fn`` with OpenCASCADE's messages on file descriptor 1 sent to /dev/null."""
-    sys.stdout.flush()
-    saved = os.dup(1)
-    with open(os.devnull, "wb") as null:
-        os.dup2(null.fileno(), 1)
-        try:
-            return fn(*args, **kwargs)
-        finally:
-            os.dup2(saved, 1)
-            os.close(saved)
-
-
-def per_part(tmp):
-    plate = cut(box((-50, -30, 0), (50, 30, 10)), *[cylinder(3.3, -1, 11, x, y) for x, y in HOLES])
-    bracket = fuse(box((-10, -10, 10), (20, 10, 14)), box((16, -10, 14), (20, 10, 40)))
-    parts = {"plate": plate, "bolt_m6": bolt(3.0), "bolt_m8": bolt(4.0), "bracket": bracket}
-    print("1. Tessellation time per part (best of 5; read_step: OpenCASCADE + welding)")
-    head = f"{'part':10} {'STEP bytes':>10}"
-    for d in (DEFAULT_DEFLECTION_MM, 0.01, 0.1):
-        head += f" {f'{d:g} mm: ms':>14} {'triangles':>9}"
-    print(head + f" {'ms ratio':>9}")
-    ratios = []
-    for name, shape in parts.items():
-        path = quiet(
-            write_step, os.path.join(tmp, f"{name}.step"), {name: shape}, [(name, placement())]
-        )
-        row = f"{name:10} {os.path.getsize(path):>10}"
-        times = []
-        for d in (DEFAULT_DEFLECTION_MM, 0.01, 0.1):
-            seconds, asm = best_of(lambda d=d, path=path: read_step(path, deflection=d), repeat=5)
-            times.append(seconds)
-            row += f" {1e3 * seconds:>14.1f} {sum(len(m.faces) for _, m, _ in asm.items):>9}"
-        ratios.append(times[0] / times[1])
-        print(row + f" {times[0] / times[1]:>8.2f}x")
-    print(f"   default / 0.01 mm: {statistics.median(ratios):.2f}x time (median)")
-
-
-def pins(tmp):
-    print("\n2. Pin in hole, measured from the tessellation vs CAD truth (mm)")
-    print(
-        f"{'hole r':>7} {'deflection':>10} {'clearance (0.1)':>16} {'error':>8}"
-        f" {'depth (0.2)':>12} {'error':>8} {'triangles':>9}"
-    )
-    for hole in (3.1, 25.0):
-        half = max(10.0, 1.4 * hole)
-        housing = cut(box((-half, -half, 0), (half, half, 10)), cylinder(hole, -1, 11))
-        files = {}
-        for label, radius in (("clear", hole - 0.1), ("over", hole + 0.2)):
-            files[label] = quiet(
-                write_step,
-                os.path.join(tmp, f"{label}{hole}.step"),
-                {"housing": housing, "pin": cylinder(radius, -2, 12)},
-                [("housing", placement()), ("pin", placement(angle_deg=7.0))],
-            )
-        for d in DEFLECTIONS:
-            found = {}
-            triangles = 0
-            for label, path in files.items():
-                asm = read_step(path, deflection=d)
-                triangles = max(triangles, sum(len(m.faces) for _, m, _ in asm.items))
-                bodies = [Body(f"{path}#{n}", path, m, t) for n, m, t in asm.items]
-                (finding,) = check_bodies(bodies, clearance=0.5, jobs=1).findings
-                found[label] = finding
-            gap = found["clear"].distance
-            depth = found["over"].depth
-            mark = "  <- default" if d == DEFAULT_DEFLECTION_MM else ""
-            print(
-                f"{hole:>7g} {d:>10g} {gap:>16.5f} {gap - 0.1:>+8.5f}"
-                f" {depth:>12.5f} {depth - 0.2:>+8.5f} {triangles:>9}{mark}"
-            )
-
-
-def sample():
-    print("\n3. Sample assembly: STEP against the STL files (same parts)")
-    step = os.path.join(ROOT, "sample_meshes", "assembly.step")
-    stls = sorted(
-        os.path.join(ROOT, "sample_meshes", f)
-        for f in os.listdir(os.path.join(ROOT, "sample_meshes"))
-        if f.endswith(".stl")
-    )
-    step_bytes = os.path.getsize(step)
-    stl_bytes = sum(os.path.getsize(f) for f in stls)
-    print(
-        f"   files: STEP {step_bytes} bytes, STL {stl_bytes} bytes ({step_bytes / stl_bytes:.2f}x)"
-    )
-    t_step, step_bodies = best_of(lambda: load_bodies([step]))
-    t_stl, stl_bodies = best_of(lambda: load_bodies(stls))
-    tri_step = sum(len(b.mesh.faces) for b in step_bodies)
-    tri_stl = sum(len(b.mesh.faces) for b in stl_bodies)
-    print(
-        f"   load: STEP {1e3 * t_step:.1f} ms ({tri_step} triangles), "
-        f"STL {1e3 * t_stl:.1f} ms ({tri_stl} triangles): {t_step / t_stl:.1f}x"
-    )
-    c_step, r_step = best_of(lambda: check_bodies(step_bodies, jobs=1), repeat=1)
-    c_stl, r_stl = best_of(lambda: check_bodies(stl_bodies, jobs=1), repeat=1)
-    print(
-        f"   check (no cache, 1 job): STEP {c_step:.2f} s, STL {c_stl:.2f} s: {c_step / c_stl:.2f}x"
-    )
-    for result in (r_step, r_stl):
-        worst = max(result.findings, key=lambda f: f.depth or 0.0)
-        print(f"   {worst.a}: depth {worst.depth:.4f} (CAD 0.7)")
-
-
-def main():
-    warnings.simplefilter("ignore")
     with tempfile.TemporaryDirectory() as tmp:
-        per_part(tmp)
-        pins(tmp)
-    sample()
+        glb = os.path.join(tmp, "model.glb")
+        cascadio.step_to_glb(path, glb)
+        scene = trimesh.load(glb, force="scene")
+    manager = trimesh.collision.CollisionManager()
+    solids = 0
+    for node in scene.graph.nodes_geometry:
+        transform, geometry = scene.graph[node]
+        if isinstance(scene.geometry[geometry], trimesh.Trimesh):  # not the curves it may hold
+            manager.add_object(node, scene.geometry[geometry], transform=transform)
+            solids += 1
+    _, names = manager.in_collision_internal(return_names=True)
+    return f"{solids} solids, {len(names)} colliding pairs"
+
+
+def peer_ocp(path: str, max_pairs: int = 500) -> str:
+    """The scripted exact check: every box-overlapping pair of solids, boolean and distance
+    (past ``max_pairs`` pairs, the rest is estimated at the rate of the first ones)."""
+    import math
+
+    from OCP.Bnd import Bnd_Box
+    from OCP.BRepAlgoAPI import BRepAlgoAPI_Common
+    from OCP.BRepBndLib import BRepBndLib
+    from OCP.BRepExtrema import BRepExtrema_DistShapeShape
+    from OCP.BRepGProp import BRepGProp
+    from OCP.GProp import GProp_GProps
+    from OCP.STEPControl import STEPControl_Reader
+    from OCP.TopAbs import TopAbs_SOLID
+    from OCP.TopExp import TopExp_Explorer
+
+    reader = STEPControl_Reader()
+    reader.ReadFile(path)
+    reader.TransferRoots()
+    solids, explorer = [], TopExp_Explorer(reader.OneShape(), TopAbs_SOLID)
+    while explorer.More():
+        solids.append(explorer.Current())
+        explorer.Next()
+    boxes = []
+    for solid in solids:
+        box = Bnd_Box()
+        BRepBndLib.Add_s(solid, box, False)
+        boxes.append(box)
+    counts = {"interference": 0, "touching": 0, "clear": 0}
+    pairs = []
+    for i in range(len(solids)):
+        for j in range(i + 1, len(solids)):
+            size = min(math.sqrt(boxes[k].SquareExtent()) for k in (i, j))
+            if boxes[i].Distance(boxes[j]) <= 1e-5 * size:
+                pairs.append((i, j, 1e-5 * size))
+    start = time.perf_counter()
+    for i, j, tolerance in pairs[:max_pairs]:
+        props = GProp_GProps()
+        BRepGProp.VolumeProperties_s(BRepAlgoAPI_Common(solids[i], solids[j]).Shape(), props)
+        distance = BRepExtrema_DistShapeShape(solids[i], solids[j]).Value()
+        if props.Mass() > math.pi / 6 * tolerance**3:
+            counts["interference"] += 1
+        else:
+            counts["touching" if distance <= tolerance else "clear"] += 1
+    text = f"{len(solids)} solids, {len(pairs)} pairs: {counts}"
+    if len(pairs) > max_pairs:  # the rest at the rate of the first ones
+        rest = (time.perf_counter() - start) * (len(pairs) - max_pairs) / max_pairs
+        text += f" in the first {max_pairs}; the rest estimated at {rest:.1f} s\nestimated {rest!r}"
+    return text
+
+
+def phases(path: str) -> str:
+    """CPU seconds of one cold run of ``meshcheck PATH -j 1`` in this process, by phase."""
+    clock = time.process_time
+    start = clock()
+    import meshcheck.cli
+
+    marks = {"imports: meshcheck, click, numpy": clock() - start}
+    mark = clock()
+    import trimesh  # noqa: F401
+
+    marks["imports: trimesh, scipy"] = clock() - mark
+    mark = clock()
+    import OCP.OCP  # noqa: F401
+
+    marks["imports: OpenCASCADE (OCP)"] = clock() - mark
+    mark = clock()
+    import meshcheck.pipeline
+    import meshcheck.verify.brep
+
+    marks["imports: meshcheck, click, numpy"] += clock() - mark
+    spent = dict.fromkeys(("read_document", "tessellation", "decide_on_brep"), 0.0)
+
+    def timed_call(name, function):
+        def call(*args, **kwargs):
+            begin = clock()
+            try:
+                return function(*args, **kwargs)
+            finally:
+                spent[name] += clock() - begin
+
+        return call
+
+    from meshcheck.load.step import read
+
+    read.read_document = timed_call("read_document", read.read_document)
+    read._tessellation = timed_call("tessellation", read._tessellation)
+    pipeline = meshcheck.pipeline
+    pipeline.decide_on_brep = timed_call("decide_on_brep", pipeline.decide_on_brep)
+    begin = clock()
+    with quiet():
+        try:
+            meshcheck.cli.main(
+                [path, "-j", "1", "--format", "json", "--no-cache", "-o", os.devnull],
+                standalone_mode=False,
+            )
+        except SystemExit:
+            pass
+    run = clock() - begin
+    marks["STEP read (OpenCASCADE transfer)"] = spent["read_document"]
+    marks["tessellation"] = spent["tessellation"]
+    marks["pairs on the B-rep (OpenCASCADE)"] = spent["decide_on_brep"]
+    marks["the rest (broad phase, filters, report)"] = run - sum(spent.values())
+    return json.dumps({"total": clock() - start, **marks})
+
+
+def print_phases(paths: list[str], repeat: int) -> None:
+    """Each assembly's cold CPU seconds by phase (``phases``), best of ``repeat`` processes."""
+    for path in paths:
+        best: dict | None = None
+        for _ in range(repeat):
+            command = [sys.executable, __file__, "--peer", "phases", path]
+            done = subprocess.run(command, capture_output=True, text=True)
+            if done.returncode != 0:
+                raise SystemExit(f"phases failed on {path}:\n{done.stderr[-2000:]}")
+            marks = json.loads(done.stdout.strip().splitlines()[-1])
+            if best is None or marks["total"] < best["total"]:
+                best = marks
+        print(f"{os.path.basename(path)}: {best.pop('total'):.2f} s CPU")
+        for name, seconds in best.items():
+            print(f"  {name:42} {seconds:5.2f} s")
+
+
+def compile_meshcheck() -> None:
+    """meshcheck's modules compiled to bytecode, as an installed wheel has them."""
+    import compileall
+
+    compileall.compile_dir(os.path.join(ROOT, "meshcheck"), quiet=1)
+
+
+def written_assemblies(folder: str) -> list[str]:
+    """The assemblies written here by OpenCASCADE (tests/step_writer.py)."""
+    import numpy as np
+
+    sys.path.insert(0, os.path.join(ROOT, "tests"))
+    sys.path.insert(0, os.path.join(ROOT, "sample_meshes"))
+    from make_step_sample import bolt
+    from step_writer import box, cut, cylinder, fuse, placement, write_step
+
+    holes = (-20.0, 0.0, 20.0)
+    plate = cut(box((-30, -10, 0), (30, 10, 6)), *[cylinder(2.5, -1, 7, x, 0) for x in holes])
+    screw = fuse(cylinder(4.0, 6.0, 9.0), cylinder(2.5, -6.0, 6.0))
+    nut = cut(box((-4, -4, -4), (4, 4, 0)), cylinder(2.5, -5, 1))
+    instances = [("plate", np.eye(4))]
+    for x in holes:
+        instances += [("bolt", placement((x, 0, 0), 30.0)), ("nut", placement((x, 0, 0), 30.0))]
+    out = []
+    with quiet():
+        out.append(
+            write_step(
+                os.path.join(folder, "fastened_plate.step"),
+                {"plate": plate, "bolt": screw, "nut": nut},
+                instances,
+            )
+        )
+        out.append(
+            write_step(
+                os.path.join(folder, "bolt_2000_instances.step"),
+                {"bolt": bolt(3.0)},
+                [("bolt", np.eye(4))] * 2000,
+            )
+        )
+    return [str(p) for p in out]
+
+
+class quiet:
+    """OpenCASCADE's writer messages on file descriptor 1 sent to /dev/null."""
+
+    def __enter__(self):
+        sys.stdout.flush()
+        self.saved = os.dup(1)
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, 1)
+        os.close(null)
+
+    def __exit__(self, *exc):
+        sys.stdout.flush()
+        os.dup2(self.saved, 1)
+        os.close(self.saved)
+
+
+def timed(command: list[str], env: dict) -> tuple[float, float, subprocess.CompletedProcess]:
+    """(wall seconds, CPU seconds of the process and the workers it waited for, its outcome)."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    start = time.perf_counter()
+    done = subprocess.run(command, capture_output=True, text=True, env=env)
+    wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return wall, cpu, done
+
+
+def bench_one(path: str, jobs: int, repeat: int, has_cascadio: bool) -> dict:
+    """Seconds of each column for one file, best of ``repeat``, and what each found."""
+    best: dict[str, float] = {}
+    cpu: dict[str, float] = {}
+    found: dict[str, str] = {}
+    for attempt in range(repeat):
+        with tempfile.TemporaryDirectory() as cache:
+            env = dict(os.environ, MESHCHECK_CACHE_SECRET=f"bench-{os.getpid()}-{attempt}")
+            command = [sys.executable, "-m", "meshcheck", path, "-j", str(jobs)]
+            command += ["--format", "json", "--cache-dir", cache]
+            runs = {"cold": command, "warm": command}
+            if has_cascadio:
+                runs["CM"] = [sys.executable, __file__, "--peer", "cm", path]
+            runs["OCP"] = [sys.executable, __file__, "--peer", "ocp", path]
+            reports = []
+            for name, cmd in runs.items():
+                seconds, cpu_seconds, done = timed(cmd, env)
+                if done.returncode not in ((0, 1) if name in ("cold", "warm") else (0,)):
+                    raise SystemExit(f"{name} failed on {path}:\n{done.stderr[-2000:]}")
+                best[name] = min(best.get(name, seconds), seconds)
+                cpu[name] = min(cpu.get(name, cpu_seconds), cpu_seconds)
+                if name in ("cold", "warm"):
+                    reports.append(done.stdout)
+                    summary = json.loads(done.stdout)["summary"]
+                    found[name] = (
+                        f"{summary['parts']} parts, {summary['pairs_checked']} pairs: "
+                        + ", ".join(
+                            f"{summary[k]} {k}"
+                            for k in ("interference", "touching", "clearance", "duplicate")
+                            if summary[k]
+                        )
+                    )
+                else:
+                    text, _, estimated = done.stdout.strip().partition("\nestimated ")
+                    found[name] = text
+                    if estimated:  # the peer's pairs past the ones it made, at its rate
+                        seconds += float(estimated)
+                        best[name] = seconds if attempt == 0 else min(best[name], seconds)
+                        cpu[name] += float(estimated)
+            if reports[0] != reports[1]:
+                raise SystemExit(f"{path}: the warm report differs from the cold one")
+    return {"seconds": best, "cpu": cpu, "found": found}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("folders", nargs="*", help="folders of real STEP exports")
+    parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--repeat", type=int, default=1)
+    parser.add_argument("--peer", choices=("cm", "ocp", "phases"))
+    parser.add_argument("--phases", action="store_true", help="cold CPU seconds by phase")
+    args = parser.parse_args()
+    if args.peer:
+        print({"cm": peer_cm, "ocp": peer_ocp, "phases": phases}[args.peer](args.folders[0]))
+        return
+    compile_meshcheck()
+    try:
+        import cascadio  # noqa: F401
+
+        has_cascadio = True
+    except ImportError:
+        has_cascadio = False
+        print("cascadio is not installed: no CollisionManager column (pip install cascadio)")
+    print(f"load average {os.getloadavg()[0]:.1f} at the start")
+    with tempfile.TemporaryDirectory() as folder:
+        paths = sorted(glob.glob(os.path.join(ROOT, "tests", "data", "step", "*.STEP")))
+        for extra in args.folders:
+            paths += sorted(
+                p
+                for p in glob.glob(os.path.join(extra, "*"))
+                if p.lower().endswith((".step", ".stp"))
+            )
+        paths += written_assemblies(folder)
+        if args.phases:
+            print_phases(paths, args.repeat)
+            return
+        head = f"{'assembly':30} {'cold':>7} {'warm':>7} {'CM':>7} {'OCP':>7}"
+        print(
+            head
+            + f" {'cold/CM':>8} {'warm/CM':>8} {'cold/OCP':>9}  CPU: {'cold/CM':>7} {'cold/OCP':>8}"
+        )
+        rows = []
+        for path in paths:
+            result = bench_one(path, args.jobs, args.repeat, has_cascadio)
+            s, c = result["seconds"], result["cpu"]
+            cm, cm_cpu = s.get("CM", float("nan")), c.get("CM", float("nan"))
+            print(
+                f"{os.path.basename(path)[:30]:30} {s['cold']:>6.2f}s {s['warm']:>6.2f}s "
+                f"{cm:>6.2f}s {s['OCP']:>6.2f}s {s['cold'] / cm:>7.2f}x {s['warm'] / cm:>7.2f}x "
+                f"{s['cold'] / s['OCP']:>8.2f}x  CPU: {c['cold'] / cm_cpu:>6.2f}x "
+                f"{c['cold'] / c['OCP']:>7.2f}x",
+                flush=True,
+            )
+            rows.append((path, result["found"]))
+    print("found:")
+    for path, found in rows:
+        print(f"  {os.path.basename(path)}")
+        for name, text in found.items():
+            print(f"    {name:5} {text}")
+    print(f"load average {os.getloadavg()[0]:.1f} at the end; {os.cpu_count()} cores")
 
 
 if __name__ == "__main__":

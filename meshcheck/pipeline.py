@@ -10,7 +10,9 @@ Each stage narrows the part pairs the next one looks at:
    The pieces cover every triangle of their part, so pairs whose pieces stay beyond the reach have
    surfaces beyond the reach: they are clear unless one part is buried inside the other, which the
    verify stage decides with one point per shell;
-4. ``verify_pairs`` decides the rest on the real meshes;
+4. ``decide_on_brep`` decides the pairs of STEP solids on their exact B-rep, once per pair of
+   products and relative placement (the meshes only filter out pairs clear by a margin), and
+   ``verify_pairs`` decides the rest on the real meshes;
 5. ``approve`` marks approved findings, in one place.
 
 Every pair is decided with its own tolerance (``tolerances.pair_tolerances``) unless the user
@@ -46,7 +48,7 @@ from .sweep import audit_srdf, mechanism_pieces, sweep_bodies, with_adjacent_app
 from .tolerances import part_sizes
 from .units import DEFAULT_UNIT
 from .verify import verify_pairs
-from .verify.brep import confirm_on_brep
+from .verify.brep import decide_on_brep, largest_reach_margin, reach_margin, warn_unconfirmed
 from .verify.clash_tests import (
     held_by_any,
     judged,
@@ -178,14 +180,16 @@ def check_bodies(
         hulls = pack_convex(_world_hulls(bodies, geometry), is_hull=True)
         diagonal, magnitude = part_sizes(hulls.lower, hulls.upper, [b.is_float32 for b in bodies])
         deflection = np.array([b.deflection for b in bodies], dtype=np.float64)
-        pairs = select_pairs(hulls, settings, names, diagonal, magnitude, deflection)
+        pairs = select_pairs(
+            hulls, settings, names, diagonal, magnitude, deflection, largest_reach_margin(bodies)
+        )
         copies = duplicate_sets(bodies, geometry, tolerance=settings.tolerance)
         pairs = without_duplicate_pairs(pairs, copies, len(bodies))
         check_candidate_pairs(len(pairs), len(bodies))  # budgeted, like triangles
         # Triangles of a part read from CAD lie up to its deflection from the true surface:
         # overlaps and gaps within the two deflections cannot be told apart, so they touch.
         tolerance = widest_tolerances(diagonal, magnitude, pairs, settings, deflection=deflection)
-        reach = tolerance + pair_clearances(settings, names, pairs)
+        reach = tolerance + pair_clearances(settings, names, pairs) + reach_margin(bodies, pairs)
         hull_query = query_pairs(hulls, pairs, tolerance=tolerance, depth=False, max_distance=reach)
         near = may_come_within(hull_query, reach)
     pairs_near, tol_near, reach_near = pairs[near], tolerance[near], reach[near]
@@ -213,17 +217,22 @@ def check_bodies(
         )
         verified = []
         for plan in plans:  # one without clash tests; else one per tolerance among the tests
+            planned, surfaces = pairs_near[plan.mask], near_surfaces[plan.mask]
+            solid_findings, on_meshes, unconfirmed = decide_on_brep(
+                bodies, planned, surfaces, plan.settings, executor=executor, cache=caches.verdicts
+            )
             findings = verify_pairs(
                 bodies,
-                pairs_near[plan.mask],
-                plan.tolerance,
-                near_surfaces[plan.mask],
+                planned[on_meshes],
+                plan.tolerance[on_meshes],
+                surfaces[on_meshes],
                 plan.settings,
                 executor=executor,
                 cache=caches.verdicts,
-                hulls_penetrate=penetrate[plan.mask],
+                hulls_penetrate=penetrate[plan.mask][on_meshes],
             )
-            findings = confirm_on_brep(bodies, findings, plan.settings, cache=caches.verdicts)
+            warn_unconfirmed(findings, unconfirmed)
+            findings = [*findings, *solid_findings]
             findings = with_elements(bodies, findings, clearance=plan.settings.clearance)
             verified.append(findings)
         sweeps = sweep_bodies(bodies, mechanisms, settings, pieces=swept)
@@ -275,16 +284,18 @@ def select_pairs(
     diagonal: np.ndarray,
     magnitude: np.ndarray,
     deflection: np.ndarray | None = None,
+    margin: float = 0.0,
 ) -> np.ndarray:
     """Part pairs whose boxes come within reach, restricted by the groups rule or the clash
     tests' sides; ``(k, 2)``.
 
-    The boxes grow by the largest tolerance any pair can get (``tolerances``; of any test) and
-    the largest clearance, so no pair within its own reach is pruned.
+    The boxes grow by the largest tolerance any pair can get (``tolerances``; of any test), the
+    largest clearance and ``margin`` (for STEP solids: ``verify.brep.largest_reach_margin``), so
+    no pair within its own reach is pruned.
     """
     largest = largest_tolerance(diagonal, magnitude, settings, deflection=deflection)
-    margin = largest + (largest_clearance(settings) or 0.0)
-    pairs = candidate_pairs(hulls.lower, hulls.upper, margin=margin)
+    reach = largest + (largest_clearance(settings) or 0.0) + margin
+    pairs = candidate_pairs(hulls.lower, hulls.upper, margin=reach)
     if settings.groups is not None:
         pairs = pairs[settings.groups.pair_mask(names, pairs)]
     if settings.tests:

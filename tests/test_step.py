@@ -208,6 +208,36 @@ def test_close_mesh_welds_faces_that_were_tessellated_apart():
     assert inverted.volume == pytest.approx(8.0)  # faced outward again
 
 
+def test_close_mesh_joins_the_copies_of_a_shared_edge_whatever_their_distance():
+    # Each face evaluates an edge's nodes on its own surface: a sloppy export puts the copies up
+    # to the edge's tolerance apart, beyond any distance weld that keeps small features. The
+    # topology says which copies are one node.
+    cube = trimesh.creation.box(extents=(2.0, 2.0, 2.0))
+    split = cube.vertices[cube.faces].reshape(-1, 3)
+    faces = np.arange(len(split)).reshape(-1, 3)
+    moved = split.copy()
+    moved[faces[:2].ravel()] += 1e-4  # one side's copies 1.7e-4 off, the weld is 1e-5
+    same = np.array(
+        [(i, j) for i in range(len(split)) for j in range(i) if np.allclose(split[i], split[j])]
+    )
+    assert not is_closed(close_mesh(moved, faces, deflection=1e-3))
+    mesh = close_mesh(moved, faces, deflection=1e-3, same=same)
+    assert is_closed(mesh) and len(mesh.vertices) == 8
+
+
+def test_face_arrays_name_the_copies_of_every_edge_two_faces_share():
+    from OCP.BRepMesh import BRepMesh_IncrementalMesh
+
+    from meshcheck.load.step.tessellate import face_arrays
+
+    shape = cut(box((0, 0, 0), (4, 4, 4)), cylinder(1.0, -1, 5, 2, 2))
+    BRepMesh_IncrementalMesh(shape, 0.01, False, 0.5, False)
+    vertices, faces, same = face_arrays(shape)
+    assert len(same)
+    assert np.abs(vertices[same[:, 0]] - vertices[same[:, 1]]).max() < 1e-9
+    assert is_closed(close_mesh(vertices, faces, 1e-9, same=same))  # no distance weld needed
+
+
 # --------------------------------------------------------------------------------------------
 # Names, instances, placements
 

@@ -60,14 +60,22 @@ def candidate_pairs(
     offsets = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
     second = first + 1 + offsets
 
-    keep = np.all((lo[second] <= hi[first]) & (lo[first] <= hi[second]), axis=1)
+    keep = np.ones(len(first), dtype=bool)
+    for d in range(3):  # one axis at a time: contiguous columns, no (k, 3) temporaries
+        lo_d, hi_d = np.ascontiguousarray(lo[:, d]), np.ascontiguousarray(hi[:, d])
+        keep &= lo_d[second] <= hi_d[first]
+        keep &= lo_d[first] <= hi_d[second]
     i, j = order[first[keep]], order[second[keep]]
     if owner is not None:
         owner = np.asarray(owner)
         distinct = owner[i] != owner[j]
         i, j = i[distinct], j[distinct]
-    pairs = np.stack([np.minimum(i, j), np.maximum(i, j)], axis=1).astype(np.int64)
-    return pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
+    # Lexicographic order of (i, j), i < j < m, is the order of i * m + j: one sort of integers.
+    key = np.minimum(i, j).astype(np.int64, copy=False) * m + np.maximum(i, j)
+    key.sort()
+    pairs = np.empty((len(key), 2), dtype=np.int64)
+    np.divmod(key, m, out=(pairs[:, 0], pairs[:, 1]))
+    return pairs
 
 
 def group_pairs(

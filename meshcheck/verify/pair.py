@@ -105,6 +105,46 @@ def verify_pair(
     return PairVerdict(Verdict.CLEAR, distance, is_surface_only=not meshes.is_closed)
 
 
+def surface_distance(
+    a: trimesh.Trimesh,
+    b: trimesh.Trimesh,
+    *,
+    reach: float,
+    surfaces_apart: bool = False,
+    memo: dict | None = None,
+) -> float:
+    """The exact distance between two meshes' surfaces when it is within ``reach``; 0 when a
+    shell of one lies inside the other; ``inf`` otherwise (farther apart than ``reach``).
+
+    Parameters
+    ----------
+    a, b : trimesh.Trimesh
+        The two parts, world coordinates, model units.
+    reach : float
+        Model units.
+    surfaces_apart : bool
+        The caller has proven that the surfaces stay farther apart than ``reach``.
+    memo : dict, optional
+        As for ``verify_pair``.
+
+    Examples
+    --------
+    >>> a = trimesh.creation.box(extents=[1, 1, 1])
+    >>> b = trimesh.creation.box(extents=[1, 1, 1]).apply_translation([1.25, 0, 0])
+    >>> surface_distance(a, b, reach=0.2), round(surface_distance(a, b, reach=0.3), 9)
+    (inf, 0.25)
+    """
+    meshes = _recentred(a, b, {} if memo is None else memo)
+    distance = math.inf
+    if not surfaces_apart:
+        near = _near_pairs(meshes, float(reach))
+        if len(near.distance) and float(near.distance.min()) <= reach:
+            distance = float(near.distance.min())
+    if distance > 0.0 and _is_buried(meshes):
+        return 0.0
+    return distance
+
+
 # ---------------------------------------------------------------------------------------------
 
 

@@ -9,7 +9,7 @@ holds must be in a placed product (``check_all_solids_placed``): no solid is eve
 saying so.
 
 Each solid instance (``walk``) is a part named after its product, made unique in a fixed order
-(``bolt``, ``bolt_1``...: ``order_key``, ``unique_name``), placed by the composed transforms of
+(``bolt``, ``bolt_1``...: ``order_key``, ``UniqueNames``), placed by the composed transforms of
 the assembly, in double precision.
 """
 
@@ -215,17 +215,20 @@ def _count(shape, kind) -> int:
     return n
 
 
+def named_instances(instances: list[Instance]) -> list[tuple[str, Instance]]:
+    """(unique part node name, instance) per instance, in ``read_step``'s order."""
+    unique = UniqueNames()
+    return [(unique(i.name), i) for i in sorted(instances, key=order_key)]
+
+
 def placed_solids(instances: list[Instance]) -> list[tuple[str, object]]:
     """(unique part node name, placed shape) per instance, in ``read_step``'s order."""
     from OCP.TopLoc import TopLoc_Location
 
-    order = sorted(range(len(instances)), key=lambda k: order_key(instances[k]))
-    used: set[str] = set()
-    out = []
-    for k in order:
-        inst = instances[k]
-        out.append((unique_name(inst.name, used), inst.product.Moved(TopLoc_Location(inst.trsf))))
-    return out
+    return [
+        (name, inst.product.Moved(TopLoc_Location(inst.trsf)))
+        for name, inst in named_instances(instances)
+    ]
 
 
 def order_key(instance: Instance) -> tuple[str, bytes]:
@@ -239,11 +242,30 @@ def _safe_name(name: str) -> str:
     return text[:_NAME_LIMIT] or "solid"
 
 
-def unique_name(name: str, used: set[str]) -> str:
-    """``name``, or ``name_1``, ``name_2``... whichever is not yet in ``used`` (then add it)."""
-    candidate, k = name, 0
-    while candidate in used:
-        k += 1
-        candidate = f"{name}_{k}"
-    used.add(candidate)
-    return candidate
+class UniqueNames:
+    """Names made unique in the order they are asked for: ``name``, or ``name_1``, ``name_2``...
+    whichever is not given yet.
+
+    The search for a name's suffix starts where the last one for that name stopped (the names
+    before it are all given), so 2,000 instances of one product cost 2,000 steps, not 2 million.
+
+    Examples
+    --------
+    >>> unique = UniqueNames()
+    >>> [unique(n) for n in ("bolt", "bolt_1", "bolt", "bolt")]
+    ['bolt', 'bolt_1', 'bolt_2', 'bolt_3']
+    """
+
+    def __init__(self):
+        self.used: set[str] = set()
+        self._next: dict[str, int] = {}
+
+    def __call__(self, name: str) -> str:
+        k = self._next.get(name, 0)
+        candidate = name if k == 0 else f"{name}_{k}"
+        while candidate in self.used:
+            k += 1
+            candidate = f"{name}_{k}"
+        self.used.add(candidate)
+        self._next[name] = k + 1
+        return candidate

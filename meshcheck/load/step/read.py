@@ -4,6 +4,7 @@ ones, as read (kept, or read when the verify stage first asks for them)."""
 from __future__ import annotations
 
 import hashlib
+import io
 from dataclasses import dataclass
 
 import numpy as np
@@ -12,7 +13,7 @@ import trimesh
 from ...cache import Tessellation, TessellationCache, tessellation_key
 from ...errors import InputError
 from ...units import METRES
-from .assembly import Instance, placed_solids
+from .assembly import Instance, named_instances, placed_solids
 from .document import read_document
 from .tessellate import (
     DEFAULT_ANGULAR_DEFLECTION,
@@ -26,18 +27,24 @@ from .units import declared_unit, deflection_mm, warn_no_unit
 
 class StepSolids:
     """The exact solids of one STEP file, by part node name: what its parts' triangles
-    approximate, for the verify stage to confirm a finding on (``meshcheck.verify.brep``).
+    approximate, for the verify stage to decide their pairs on (``meshcheck.verify.brep``).
 
     Made by ``read_step`` from the bytes the load stage read and checked, and kept by the
     file's bodies (``Body.brep``), so no later stage opens the file. When the file was read to be
     tessellated, its solids are the instances read then (the mesher worked on a copy of their
     topology: they hold no triangulation); when the tessellation came from the cache, the bytes
-    are kept and read into a document on the first call of ``by_node``, and only then. Either
+    are kept and read into a document when a solid is first asked for, and only then. Either
     way the solids are the file as a fresh read gives them, whatever the cache held.
 
+    What fixes a solid in the world is known without reading the document: its product (one per
+    distinct tessellated product, numbered in node order) and its placement, both from the
+    tessellation (``product``, ``placement_mm``); a pair of solids is decided in the first one's
+    frame, so instances of one product share their verdicts (``meshcheck.verify.brep``).
+
     The solids are OpenCASCADE shapes and stay in this process: a pickled copy (a body sent to
-    a worker) keeps the path and digest, not the shapes nor the bytes, and ``by_node`` refuses
-    there.
+    a worker) keeps the path, digest and placements, not the shapes nor the bytes, and
+    ``by_node`` and ``product_text`` refuse there. Workers get a product as OpenCASCADE's BRep
+    text (``product_text``), a few milliseconds to read, instead of the document.
 
     Attributes
     ----------
@@ -45,14 +52,47 @@ class StepSolids:
         The file, as given.
     digest : str
         Hex SHA-256 of its content.
+    unit : str
+        The length unit the file declares (its tessellation's).
     """
 
-    def __init__(self, path: str, data: bytes, instances: list[Instance] | None = None):
+    def __init__(
+        self,
+        path: str,
+        data: bytes,
+        instances: list[Instance] | None = None,
+        *,
+        items: list[tuple[str, trimesh.Trimesh, np.ndarray]] = (),
+        unit: str = "mm",
+    ):
         self.path = path
         self.digest = hashlib.sha256(data).hexdigest()
+        self.unit = unit
         self._data = data if instances is None else None
         self._instances = instances
         self._solids: dict[str, object] | None = None
+        self._texts: dict[int, bytes] = {}
+        self._named: dict[str, Instance] | None = None
+        to_mm = METRES[unit] / 1e-3
+        products: dict[int, int] = {}  # id(mesh) -> product number
+        self._nodes: dict[str, tuple[int, np.ndarray]] = {}
+        for name, mesh, transform in items:
+            matrix = np.array(transform, dtype=np.float64)
+            matrix[:3, 3] *= to_mm
+            self._nodes[name] = (products.setdefault(id(mesh), len(products)), matrix)
+
+    def has_node(self, node: str) -> bool:
+        """Whether ``node`` names one of the file's tessellated solids."""
+        return node in self._nodes
+
+    def product(self, node: str) -> int:
+        """The product number of ``node``'s solid: instances of one product share it."""
+        return self._nodes[node][0]
+
+    def placement_mm(self, node: str) -> np.ndarray:
+        """(4, 4) float64: ``node``'s solid's placement, product frame to the file's assembly
+        frame, millimetres (OpenCASCADE's unit)."""
+        return self._nodes[node][1]
 
     def by_node(self) -> dict[str, object]:
         """The placed solids (``TopoDS_Shape``, the assembly's frame, millimetres whatever the
@@ -65,20 +105,49 @@ class StepSolids:
             As ``read_step`` for the same bytes; or the solids are asked for in another process.
         """
         if self._solids is None:
-            if self._instances is None:
-                if self._data is None:
-                    raise InputError(self.path, "its exact solids stay in the process that read it")
-                self._instances = read_document(self._data, self.path)
-            self._solids = dict(placed_solids(self._instances))
-            self._data, self._instances = None, None
+            self._solids = dict(placed_solids(self._document()))
         return self._solids
 
+    def product_text(self, node: str) -> bytes:
+        """``node``'s product as OpenCASCADE's BRep text, in the product's own frame,
+        millimetres, without triangulation: what a worker reads the solid from.
+
+        Raises
+        ------
+        InputError
+            As ``by_node``.
+        """
+        product = self.product(node)
+        if product not in self._texts:
+            from OCP.BRepTools import BRepTools
+            from OCP.TopTools import TopTools_FormatVersion
+
+            if self._named is None:
+                self._named = dict(named_instances(self._document()))
+            shape = self._named[node].product
+            stream = io.BytesIO()
+            version = TopTools_FormatVersion.TopTools_FormatVersion_VERSION_1
+            BRepTools.Write_s(shape, stream, False, False, version)
+            self._texts[product] = stream.getvalue()
+        return self._texts[product]
+
+    def _document(self) -> list[Instance]:
+        """The file's instances: kept from the tessellation, or read from the bytes once."""
+        if self._instances is None:
+            if self._data is None:
+                raise InputError(self.path, "its exact solids stay in the process that read it")
+            self._instances = read_document(self._data, self.path)
+            self._data = None
+        return self._instances
+
     def __getstate__(self) -> dict:
-        return {"path": self.path, "digest": self.digest}
+        return {"path": self.path, "digest": self.digest, "unit": self.unit, "nodes": self._nodes}
 
     def __setstate__(self, state: dict) -> None:
-        self.path, self.digest = state["path"], state["digest"]
-        self._data, self._instances, self._solids = None, None, None
+        self.path, self.digest, self.unit = state["path"], state["digest"], state["unit"]
+        self._nodes = state["nodes"]
+        self._data, self._instances, self._solids, self._texts = None, None, None, {}
+        self._named = None
 
 
 @dataclass(frozen=True)
@@ -190,7 +259,8 @@ def read_step(
             cache.put(key, found)
     if declared is None and real_unit is None:
         warn_no_unit(path)
-    return StepAssembly(*found, solids=StepSolids(path, data, instances))
+    solids = StepSolids(path, data, instances, items=found.items, unit=found.unit)
+    return StepAssembly(*found, solids=solids)
 
 
 def _tessellation(

@@ -28,13 +28,13 @@ import trimesh
 
 from ...errors import InputError
 from ...units import METRES
-from .assembly import Instance, order_key, unique_name
+from .assembly import Instance, UniqueNames, order_key
 from .document import captured_output
 
 # Linear deflection used when none is given: the largest distance between a curved face and its
 # triangles. 0.005 mm keeps a measured 0.1 mm clearance within 0.01 mm (a pin and its hole are
 # both faceted: the gap can widen by the hole's sag) and a 0.2 mm depth within 0.03 mm; see
-# bench/step.py for what it costs.
+# bench/step_tessellation.py for what it costs.
 DEFAULT_DEFLECTION_MM = 0.005
 # ... or this fraction of the largest solid's diagonal when that is more (parts of metres or
 # kilometres: 0.005 mm across a 20 km part would be more triangles than any budget).
@@ -162,16 +162,31 @@ def _triangle_count(shape) -> int:
     return n
 
 
-def _face_arrays(shape) -> tuple[np.ndarray, np.ndarray]:
-    """(vertices (n, 3) float64 mm, faces (m, 3) int64) of a meshed shape, one copy per face,
-    wound by each face's orientation (outward for a solid)."""
+def face_arrays(shape) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The triangles of a meshed shape, one copy of the vertices per face, wound by each face's
+    orientation (outward for a solid), and which copies the topology says are one point.
+
+    Returns
+    -------
+    vertices : (n, 3) float64
+        mm.
+    faces : (m, 3) int64
+    same : (k, 2) int64
+        Vertex pairs that are one node of an edge two faces share (OpenCASCADE meshes an edge
+        once; each face evaluates the node on its own surface, so the copies may differ by up to
+        the edge's tolerance).
+    """
     from OCP.BRep import BRep_Tool
-    from OCP.TopAbs import TopAbs_FACE, TopAbs_REVERSED
-    from OCP.TopExp import TopExp_Explorer
+    from OCP.OCP.collections import IndexedMap_TopoDS_Shape_TopTools_ShapeMapHasher
+    from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_REVERSED
+    from OCP.TopExp import TopExp, TopExp_Explorer
     from OCP.TopLoc import TopLoc_Location
     from OCP.TopoDS import TopoDS
 
-    vertices, faces, offset = [], [], 0
+    edges = IndexedMap_TopoDS_Shape_TopTools_ShapeMapHasher()
+    TopExp.MapShapes_s(shape, TopAbs_EDGE, edges)
+    first: dict[int, np.ndarray] = {}  # edge index -> its nodes in the first face meshed
+    vertices, faces, same, offset = [], [], [], 0
     explorer = TopExp_Explorer(shape, TopAbs_FACE)
     while explorer.More():
         face = TopoDS.Face(explorer.Current())
@@ -190,12 +205,30 @@ def _face_arrays(shape) -> tuple[np.ndarray, np.ndarray]:
         )
         if face.Orientation() == TopAbs_REVERSED:
             triangles = triangles[:, ::-1]
+        edge_explorer = TopExp_Explorer(face, TopAbs_EDGE)
+        while edge_explorer.More():
+            edge = TopoDS.Edge(edge_explorer.Current())
+            edge_explorer.Next()
+            polygon = BRep_Tool.PolygonOnTriangulation_s(edge, tri, location)
+            if polygon is None:
+                continue
+            ids = (
+                offset
+                - 1
+                + np.array(
+                    [polygon.Node(i) for i in range(1, polygon.NbNodes() + 1)], dtype=np.int64
+                )
+            )
+            known = first.setdefault(edges.FindIndex(edge), ids)
+            if known is not ids and len(known) == len(ids):
+                same.append(np.stack([known, ids], axis=1))
         vertices.append(nodes)
         faces.append(triangles - 1 + offset)
         offset += len(nodes)
     if not faces:
-        return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
-    return np.concatenate(vertices), np.concatenate(faces)
+        return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64), np.zeros((0, 2), np.int64)
+    pairs = np.concatenate(same) if same else np.zeros((0, 2), dtype=np.int64)
+    return np.concatenate(vertices), np.concatenate(faces), pairs
 
 
 def placed_meshes(
@@ -204,13 +237,13 @@ def placed_meshes(
     """(unique product name, closed local mesh, transform) per solid instance, file units."""
     meshes: dict[str, trimesh.Trimesh] = {}  # one closed mesh per product
     items = []
-    used: set[str] = set()
+    unique = UniqueNames()
     for inst in sorted(instances, key=order_key):
         if inst.product_key not in meshes:
-            vertices, faces = _face_arrays(inst.product)
+            vertices, faces, same = face_arrays(inst.product)
             if not np.all(np.isfinite(vertices)):
                 raise InputError(f"{path}#{inst.name}", "vertices have NaN or infinite coordinates")
-            meshes[inst.product_key] = close_mesh(vertices * to_unit, faces, deflection)
+            meshes[inst.product_key] = close_mesh(vertices * to_unit, faces, deflection, same=same)
         transform = inst.matrix.copy()
         transform[:3, 3] *= to_unit
         if not np.all(np.isfinite(transform)):
@@ -218,16 +251,18 @@ def placed_meshes(
                 f"{path}#{inst.name}", "placement transform holds NaN or infinite values"
             )
         if len(meshes[inst.product_key].faces):
-            items.append((unique_name(inst.name, used), meshes[inst.product_key], transform))
+            items.append((unique(inst.name), meshes[inst.product_key], transform))
         else:
-            used.add(unique_name(inst.name, used))  # names in step with placed_solids
+            unique(inst.name)  # names in step with placed_solids
     if not items:
         raise InputError(path, "holds no solids (nothing OpenCASCADE could tessellate)")
     items.sort(key=lambda item: item[0])
     return items
 
 
-def close_mesh(vertices: np.ndarray, faces: np.ndarray, deflection: float) -> trimesh.Trimesh:
+def close_mesh(
+    vertices: np.ndarray, faces: np.ndarray, deflection: float, *, same: np.ndarray | None = None
+) -> trimesh.Trimesh:
     """Weld a tessellation's faces into one surface: close seams, drop slivers, face outward.
 
     Parameters
@@ -240,6 +275,9 @@ def close_mesh(vertices: np.ndarray, faces: np.ndarray, deflection: float) -> tr
         The tessellation's linear deflection, same unit: vertices closer than a hundredth of it
         (but never a thousandth of the mesh's size: a deflection coarser than a part must not
         merge it to a point; and at least 2**-40 of the coordinates) are one point.
+    same : (k, 2) int64, optional
+        Vertex pairs that are one point whatever their distance (the nodes of an edge shared by
+        two faces, ``face_arrays``).
 
     Returns
     -------
@@ -264,6 +302,8 @@ def close_mesh(vertices: np.ndarray, faces: np.ndarray, deflection: float) -> tr
     for group in trimesh.grouping.clusters(vertices, tol):
         group = np.asarray(group, dtype=np.int64)
         rep[group] = group.min()
+    if same is not None and len(same):
+        rep = _joined(rep, np.asarray(same, dtype=np.int64).reshape(-1, 2))
     faces = rep[faces]
     keep = (
         (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 0] != faces[:, 2])
@@ -273,3 +313,18 @@ def close_mesh(vertices: np.ndarray, faces: np.ndarray, deflection: float) -> tr
     if mesh.is_watertight and mesh.is_winding_consistent and mesh.volume < 0:
         mesh.invert()
     return mesh
+
+
+def _joined(rep: np.ndarray, same: np.ndarray) -> np.ndarray:
+    """``rep`` (each vertex's cluster's lowest index) with the clusters of each pair in ``same``
+    joined: each vertex's joined cluster's lowest index."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    n = len(rep)
+    links = np.concatenate([np.stack([np.arange(n), rep], axis=1), same])
+    graph = coo_matrix((np.ones(len(links)), (links[:, 0], links[:, 1])), shape=(n, n))
+    _, labels = connected_components(graph, directed=False)
+    lowest = np.full(labels.max() + 1, n, dtype=np.int64)
+    np.minimum.at(lowest, labels, np.arange(n))
+    return lowest[labels]

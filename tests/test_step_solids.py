@@ -1,0 +1,265 @@
+"""STEP pairs decided on the exact solids: every verdict and figure against OpenCASCADE's own
+boolean and distance, instance pairs decided once, the same report however it was computed.
+
+The oracle here is OpenCASCADE called directly on the file's placed solids in the world frame
+(``BRepAlgoAPI_Common`` with its defaults, ``BRepExtrema_DistShapeShape``), or a closed form;
+meshcheck decides each pair in its first solid's frame, on copies, through its own code path
+(``meshcheck.verify.brep``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+from click.testing import CliRunner
+from step_writer import box, cut, cylinder, fuse, placement, write_step
+
+from meshcheck.cache import open_caches
+from meshcheck.cli import main
+from meshcheck.config import parse_test
+from meshcheck.execute import LocalPool
+from meshcheck.load import load_bodies
+from meshcheck.pipeline import check_bodies
+from meshcheck.verify import brep, solids
+
+BOX_SIDES = str(Path(__file__).parent / "data" / "step" / "box_sides.STEP")
+EYE = np.eye(4)
+INCH = 25.4
+
+
+def oracle(shape_a, shape_b, tolerance: float) -> tuple[str, float, float]:
+    """(status without clearance, common volume, distance) of two placed solids, mm."""
+    from OCP.BRepAlgoAPI import BRepAlgoAPI_Common
+    from OCP.BRepExtrema import BRepExtrema_DistShapeShape
+    from OCP.BRepGProp import BRepGProp
+    from OCP.GProp import GProp_GProps
+
+    props = GProp_GProps()
+    BRepGProp.VolumeProperties_s(BRepAlgoAPI_Common(shape_a, shape_b).Shape(), props)
+    volume = max(props.Mass(), 0.0)
+    distance = BRepExtrema_DistShapeShape(shape_a, shape_b).Value()
+    if volume > math.pi / 6 * tolerance**3:
+        return "interference", volume, distance
+    return ("touching" if distance <= tolerance else "apart"), volume, distance
+
+
+def node(body) -> str:
+    return body.name.split("#", 1)[1]
+
+
+# --------------------------------------------------------------------------------------------
+# A real export: every candidate pair against the solids
+
+
+def test_box_sides_every_pair_as_opencascade_decides_it():
+    clearance = 0.05  # inches: some faces 0.0375 apart become clearance findings
+    bodies = load_bodies([BOX_SIDES])
+    result = check_bodies(bodies, clearance=clearance, jobs=1)
+    assert len(result.checked_pairs) == 20
+    found = {(f.a, f.b): f for f in result.findings}
+    shapes = bodies[0].brep.by_node()
+    statuses = []
+    for a, b in result.checked_pairs:
+        finding = found.get((a, b))
+        tolerance = finding.tolerance if finding else 1e-5 * INCH  # below any gap found here
+        status, volume, distance = oracle(
+            shapes[a.split("#", 1)[1]], shapes[b.split("#", 1)[1]], tolerance * INCH
+        )
+        if status == "apart":
+            status = "clearance" if distance <= clearance * INCH else "clear"
+        statuses.append(status)
+        assert (finding.status if finding else "clear") == status, (a, b)
+        if status == "interference":
+            assert finding.volume * INCH**3 == pytest.approx(volume, rel=1e-6)
+            assert finding.depth == pytest.approx(0.0075, rel=1e-6)  # the sides' 0.0075 in seat
+            assert finding.tolerance < 1e-3  # the solids' own, not the deflections'
+        if status == "clearance":
+            assert finding.distance * INCH == pytest.approx(distance, rel=1e-6)
+    assert statuses.count("interference") == 8 and statuses.count("touching") == 8
+    assert statuses.count("clearance") == 4  # each distance checked against BRepExtrema
+
+
+def test_no_valid_solid_of_a_real_export_is_reported_open():
+    # every solid OpenCASCADE's checker calls valid is meshed closed, and its findings carry the
+    # solid's figures: no surface-only verdict, every interference with its depth and volume
+    from OCP.BRepCheck import BRepCheck_Analyzer
+
+    bodies = load_bodies([BOX_SIDES])
+    shapes = bodies[0].brep.by_node()
+    valid = [b for b in bodies if BRepCheck_Analyzer(shapes[node(b)]).IsValid()]
+    assert len(valid) == 10
+    assert all(b.is_closed for b in valid)
+    findings = check_bodies(bodies, jobs=1).findings
+    assert len(findings) == 16
+    assert not any(f.verdict.is_surface_only for f in findings)
+    interferences = [f for f in findings if f.status == "interference"]
+    assert len(interferences) == 8
+    assert all(f.depth > 0 and f.volume > 0 for f in interferences)
+
+
+# --------------------------------------------------------------------------------------------
+# Figures of the solid, in closed form
+
+
+def test_clearance_is_the_solids_distance_not_the_chords(tmp_path):
+    # 0.2 mm radial clearance: the chords of a 0.005 mm tessellation read up to 0.01 mm off
+    housing = cut(box((-8, -8, 0), (8, 8, 6)), cylinder(3.2, -1, 7))
+    path = write_step(
+        tmp_path / "screw.step",
+        {"housing": housing, "screw": cylinder(3.0, -2, 8)},
+        [("housing", EYE), ("screw", placement(angle_deg=7.0))],
+    )
+    (finding,) = check_bodies(load_bodies([path]), clearance=0.25, jobs=1).findings
+    assert finding.status == "clearance"
+    assert finding.distance == pytest.approx(0.2, rel=1e-9)
+    p, q = finding.closest
+    assert np.linalg.norm(p - q) == pytest.approx(0.2, rel=1e-9)
+    assert np.hypot(*p[:2]) == pytest.approx(3.2, rel=1e-9)  # on the hole, exactly
+
+
+def test_clash_tests_decide_step_pairs_on_the_solids_at_their_own_tolerance(tmp_path):
+    # two tests on one screw in its housing, at two tolerances (two verifications): each judges
+    # the B-rep's verdict, the 0.2 mm gap exact
+    housing = cut(box((-8, -8, 0), (8, 8, 6)), cylinder(3.2, -1, 7))
+    path = write_step(
+        tmp_path / "screw.step",
+        {"housing": housing, "screw": cylinder(3.0, -2, 8)},
+        [("housing", EYE), ("screw", placement(angle_deg=7.0))],
+    )
+    tests = [
+        parse_test("fit:*screw:*housing:clearance=0.25:tolerance=0.001"),
+        parse_test("tight:*screw:*housing:clearance=0.1"),
+    ]
+    (finding,) = check_bodies(load_bodies([path]), jobs=1, tests=tests).findings
+    assert (finding.test, finding.status) == ("fit", "clearance")
+    assert finding.distance == pytest.approx(0.2, rel=1e-9)
+    assert finding.tolerance == 0.001
+
+
+def test_interference_volume_and_location_are_the_common_solids(tmp_path):
+    # a 2 mm cube sunk 0.5 mm into a plate, the cube rotated a quarter turn about z and placed
+    # away from the origin: volume 2 mm3, centroid and box of the 2 x 2 x 0.5 slab
+    path = write_step(
+        tmp_path / "sunk.step",
+        {"plate": box((0, 0, 0), (20, 20, 4)), "cube": box((-1, -1, 0), (1, 1, 2))},
+        [("plate", EYE), ("cube", placement((12.5, 7.5, 3.5), angle_deg=90.0))],
+    )
+    (finding,) = check_bodies(load_bodies([path]), jobs=1).findings
+    assert finding.status == "interference"
+    assert finding.volume == pytest.approx(2.0, rel=1e-9)
+    assert finding.depth == pytest.approx(0.5, rel=1e-6)
+    assert np.allclose(finding.location.centroid, [12.5, 7.5, 3.75], atol=1e-9)
+    assert np.allclose(finding.location.lower, [11.5, 6.5, 3.5], atol=1e-9)
+    assert np.allclose(finding.location.upper, [13.5, 8.5, 4.0], atol=1e-9)
+    solid = trimesh.Trimesh(finding.solid.vertices, finding.solid.faces)
+    assert solid.volume == pytest.approx(2.0, rel=1e-6)  # the shared solid, drawn where it is
+
+
+def test_a_solid_meshed_open_is_still_decided_on_its_b_rep(tmp_path):
+    # The tessellation of a valid solid loses a triangle (as exporters' seams can): the pair is
+    # still decided on the solids, with their depth and volume.
+    path = write_step(
+        tmp_path / "press.step",
+        {
+            "housing": cut(box((-6, -6, 0), (6, 6, 4)), cylinder(3.0, -1, 5)),
+            "pin": cylinder(3.01, -1, 5),
+        },
+        [("housing", EYE), ("pin", placement(angle_deg=7.0))],
+    )
+    bodies = load_bodies([path])
+    holed = trimesh.Trimesh(bodies[0].mesh.vertices, bodies[0].mesh.faces[1:], process=False)
+    bodies[0] = dataclasses.replace(bodies[0], mesh=holed)
+    assert not bodies[0].is_closed
+    (finding,) = check_bodies(bodies, jobs=1).findings
+    annulus = math.pi * (3.01**2 - 3.0**2) * 4.0
+    assert finding.status == "interference"
+    assert finding.volume == pytest.approx(annulus, rel=1e-6)
+    assert finding.depth == pytest.approx(0.01, rel=1e-3)
+
+
+# --------------------------------------------------------------------------------------------
+# Instances decided once; the same report however it was computed
+
+
+def fastened(path) -> str:
+    """A plate with three holes, a bolt line to line in each and a nut under each bolt: three
+    bolt/nut pairs at one relative placement (the bolts turned alike), the others apart."""
+    holes = (-20.0, 0.0, 20.0)
+    plate = cut(box((-30, -10, 0), (30, 10, 6)), *[cylinder(2.5, -1, 7, x, 0) for x in holes])
+    bolt = fuse(cylinder(4.0, 6.0, 9.0), cylinder(2.5, -6.0, 6.0))
+    nut = cut(box((-4, -4, -4), (4, 4, 0)), cylinder(2.5, -5, 1))
+    instances = [("plate", EYE)]
+    for x in holes:
+        instances += [("bolt", placement((x, 0, 0), 30.0)), ("nut", placement((x, 0, 0), 30.0))]
+    return write_step(path, {"plate": plate, "bolt": bolt, "nut": nut}, instances)
+
+
+def pair_entries(folder) -> int:
+    return len(list(Path(folder).glob("pairs-v*/**/*.json")))
+
+
+def test_pairs_of_the_same_products_at_the_same_relative_placement_are_decided_once(
+    tmp_path, monkeypatch
+):
+    monkeypatch.setenv("MESHCHECK_CACHE_SECRET", "test-secret")
+    path = fastened(tmp_path / "fastened.step")
+    bodies = load_bodies([path])
+    caches = open_caches(str(tmp_path / "cache"))
+    result = check_bodies(bodies, jobs=1, caches=caches)
+    statuses = sorted((node(b), f.status) for f in result.findings for b in bodies if b.name == f.a)
+    assert [s for _, s in statuses] == ["touching"] * 9  # 3 bolt/nut, 3 bolt/plate, 3 nut/plate
+    # one verdict for the three bolt/nut pairs, one for each bolt/plate and nut/plate pair
+    assert pair_entries(tmp_path / "cache") == 7
+
+
+def test_reports_are_the_same_cold_warm_and_in_workers(tmp_path, monkeypatch):
+    monkeypatch.setenv("MESHCHECK_CACHE_SECRET", "test-secret")
+    path = fastened(tmp_path / "fastened.step")
+    press = write_step(
+        tmp_path / "press.step",
+        {
+            "housing": cut(box((-6, -6, 0), (6, 6, 4)), cylinder(3.0, -1, 5)),
+            "pin": cylinder(3.01, -1, 5),
+        },
+        [("housing", placement((100, 0, 0))), ("pin", placement((100, 0, 0), 7.0))],
+    )
+    args = [path, press, "--format", "json", "--clearance", "1"]
+    cache = ["--cache-dir", str(tmp_path / "cache")]
+    outputs = [
+        CliRunner().invoke(main, [*args, "--no-cache", "-j", "1"]),
+        CliRunner().invoke(main, [*args, *cache, "-j", "2"]),
+        CliRunner().invoke(main, [*args, *cache, "-j", "1"]),  # warm
+    ]
+    assert [r.exit_code for r in outputs] == [1, 1, 1], outputs[0].output
+    assert outputs[0].stdout == outputs[1].stdout == outputs[2].stdout
+    statuses = [r["status"] for r in json.loads(outputs[0].stdout)["results"]]
+    assert statuses.count("interference") == 1
+    # and in worker processes (the cost model keeps pairs this few in this process)
+    monkeypatch.setattr(brep, "PAIR_SECONDS", 100.0)
+    bodies = load_bodies([path, press])
+    here = check_bodies(bodies, jobs=1, clearance=1.0).findings
+    with LocalPool(2) as pool:
+        there = check_bodies(bodies, jobs=2, clearance=1.0, executor=pool).findings
+    assert here == there
+    assert [f.verdict.solid.vertices.tobytes() for f in here if f.solid] == [
+        f.verdict.solid.vertices.tobytes() for f in there if f.solid
+    ]
+
+
+def test_the_solids_travel_to_workers_as_brep_text(tmp_path):
+    # the text a worker reads back is the product as read, with no triangulation
+    path = fastened(tmp_path / "fastened.step")
+    body = next(b for b in load_bodies([path]) if node(b) == "bolt_1")
+    text = body.brep.product_text("bolt_1")
+    assert text == body.brep.product_text("bolt")  # one product, one text
+    assert b"Triangulations 0" in text
+    store = {("brep", "p"): text}
+    shape = solids._shape(store, ("brep", "p"))
+    assert solids.is_closed_solid(shape)
+    assert solids._shape(store, ("brep", "p")) is shape  # read once per process
