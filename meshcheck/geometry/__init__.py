@@ -24,11 +24,12 @@ from .gjk import (
     PairQuery,
     Status,
     intersects,
+    placed_distances,
     query,
     query_pairs,
     signed_distance,
 )
-from .support import ConvexPack, concat_packs, pack_convex, repeat_pack
+from .support import ConvexPack, concat_packs, farthest_from_lines, pack_convex, repeat_pack
 
 __all__ = [
     "Contact",
@@ -36,8 +37,10 @@ __all__ = [
     "PairQuery",
     "Status",
     "concat_packs",
+    "farthest_from_lines",
     "intersects",
     "pack_convex",
+    "placed_distances",
     "query",
     "query_pairs",
     "repeat_pack",
