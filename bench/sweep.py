@@ -19,20 +19,23 @@ sweep proves never that sampling sees colliding would be a bug.
     python bench/sweep.py --robot pr2 --max-boxes 20000   # a smaller per-pair box budget
 
 ``--max-boxes`` sets ``meshcheck.sweep.search.MAX_BOXES`` (boxes one pair may evaluate before it is
-left undecided): a smaller budget trades proven pairs for time.
+left undecided) and ``--budget`` the run's sweep budget (``--sweep-budget``): smaller
+budgets trade decided pairs for time. The sweep's time is also printed by class (the undecided
+pairs' share is what a larger budget buys nothing with), with the work it did and the load
+average at the end (the machine is shared; the ratio is measured in one run).
 
     python bench/sweep.py --robot pr2 --pair head_tilt_link:l_forearm_link --pair ...
 
-sweeps only the named link pairs and prints each one's class, boxes, time and GJK piece pairs
-(no sampling): where one pair's time goes.
+sweeps only the named link pairs and prints each one's class, joints, boxes and time (no
+sampling): where one pair's time goes.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
-import tempfile
 import time
 
 import numpy as np
@@ -149,58 +152,54 @@ def _bvh(mesh):
     return model
 
 
-def _progress_on_stderr() -> None:
-    """Say on stderr every 100 link pairs how far the sweep got (the PR2's takes a while)."""
+def _time_pairs() -> list:
+    """Each swept pair's (a, b, class, joints, boxes, seconds), as ``sweep_pair`` returns."""
     import meshcheck.sweep.run as module
 
-    sweep_pair, done, start = module.sweep_pair, [0], time.perf_counter()
+    sweep_pair, rows = module.sweep_pair, []
 
-    def counted(*args, **kwargs):
-        out = sweep_pair(*args, **kwargs)
-        done[0] += 1
-        if done[0] % 100 == 0:
-            print(f"  {done[0]} pairs swept, {time.perf_counter() - start:.0f} s", file=sys.stderr)
+    def timed(pair, lower, *args, **kwargs):
+        start = time.perf_counter()
+        out = sweep_pair(pair, lower, *args, **kwargs)
+        seconds = time.perf_counter() - start
+        rows.append((out.a, out.b, str(out.status), len(lower), out.boxes, seconds))
         return out
 
-    module.sweep_pair = counted
+    module.sweep_pair = timed
+    return rows
 
 
 def sweep_pairs(path: str, named: list[str], max_boxes: int | None) -> int:
     """Sweep only the ``named`` link pairs (``A:B``) of the robot, printing each one's class,
-    boxes, seconds and the GJK piece pairs its boxes measured."""
-    import meshcheck.sweep.distances as distances
+    joints, boxes and seconds."""
     import meshcheck.sweep.run as run
     import meshcheck.sweep.search as search
-    from meshcheck.decompose import decompose_bodies
     from meshcheck.load import load_assembly
     from meshcheck.motion import Motion
     from meshcheck.results import PairSweep
+    from meshcheck.settings import Settings
+    from meshcheck.sweep import mechanism_pieces
 
     if max_boxes is not None:
         search.MAX_BOXES = max_boxes
     wanted = {tuple(sorted(p.split(":"))) for p in named}
-    query_pairs, sweep_pair, gjk = distances.query_pairs, run.sweep_pair, [0]
+    sweep_pair = run.sweep_pair
 
-    def counted_query(pack, pairs, **kwargs):
-        gjk[0] += len(pairs)
-        return query_pairs(pack, pairs, **kwargs)
-
-    def only_wanted(pair, lower, upper, resolution):
+    def only_wanted(pair, lower, upper, resolution, **kwargs):
         if (pair.a, pair.b) not in wanted:
             return PairSweep(pair.a, pair.b, "skipped")
-        gjk[0], start = 0, time.perf_counter()
-        out = sweep_pair(pair, lower, upper, resolution)
+        start = time.perf_counter()
+        out = sweep_pair(pair, lower, upper, resolution, **kwargs)
         print(f"{pair.a} / {pair.b}: {out.status}, {len(lower)} joints, {out.boxes} boxes, "
-              f"{time.perf_counter() - start:.2f} s, {gjk[0]} GJK piece pairs")  # fmt: skip
+              f"{time.perf_counter() - start:.2f} s")  # fmt: skip
         return out
 
-    distances.query_pairs, run.sweep_pair = counted_query, only_wanted
+    run.sweep_pair = only_wanted
+    settings = Settings(motion=Motion(sweep=()), cache_dir=None, jobs=1)
     assembly = load_assembly([os.path.normpath(path)])
     bodies, (mech,) = assembly.bodies, assembly.mechanisms
-    ks = sorted(k for ks in mech.parts.values() for k in ks)
-    with tempfile.TemporaryDirectory() as cache:
-        pieces = decompose_bodies([bodies[k] for k in ks], cache_dir=cache, jobs=1)
-    run.sweep_mechanism(mech, bodies, dict(zip(ks, pieces, strict=True)), Motion(sweep=()))
+    pieces = mechanism_pieces(bodies, [mech], settings)
+    run.sweep_mechanism(mech, bodies, pieces, settings.motion)
     return 0
 
 
@@ -210,7 +209,10 @@ def main() -> int:
     parser.add_argument("--samples", type=int, default=10_000)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--max-boxes", type=int, default=None)
+    parser.add_argument("--budget", type=int, default=None, help="the sweep's work budget")
     parser.add_argument("--pair", action="append", default=[], metavar="LINK:LINK")
+    parser.add_argument("--rows", metavar="FILE", help="write each pair's class, joints, boxes, "
+                        "seconds and sampling's class to this JSON file")  # fmt: skip
     args = parser.parse_args()
     if args.pair:
         return sweep_pairs(ROBOTS[args.robot], args.pair, args.max_boxes)
@@ -219,7 +221,7 @@ def main() -> int:
 
     if args.max_boxes is not None:
         meshcheck.sweep.search.MAX_BOXES = args.max_boxes
-    _progress_on_stderr()
+    rows = _time_pairs()
 
     from meshcheck.load import load_assembly
     from meshcheck.motion import Motion
@@ -227,7 +229,8 @@ def main() -> int:
     from meshcheck.sweep import mechanism_pieces, sweep_bodies
 
     path = os.path.normpath(ROBOTS[args.robot])
-    settings = Settings(motion=Motion(sweep=()), cache_dir=None, jobs=1)
+    budget = {} if args.budget is None else {"budget": args.budget}
+    settings = Settings(motion=Motion(sweep=(), **budget), cache_dir=None, jobs=1)
     assembly = load_assembly([path])
     bodies, (mech,) = assembly.bodies, assembly.mechanisms
     start = time.perf_counter()
@@ -239,12 +242,18 @@ def main() -> int:
     sampled, fcl_s = fcl_sampling(bodies, mech, args.samples, args.seed)
 
     print(f"robot: {path} ({len(mech.parts)} links with geometry, {len(robot.pairs)} pairs)")
-    print(f"box budget per pair: {meshcheck.sweep.search.MAX_BOXES}")
+    print(f"box budget per pair: {meshcheck.sweep.search.MAX_BOXES}; "
+          f"sweep budget: {settings.motion.budget:,}")  # fmt: skip
     print(f"sweep: {robot.summary()}")
     counts = {s: sum(v == s for v in sampled.values()) for s in ("never", "sometimes", "always")}
     print(f"fcl sampling ({args.samples} poses): {counts}")
     print(f"convex pieces (CoACD, the sweep's, the check uses): {pieces_s:.1f} s")
     print(f"sweep (proof + witnesses):                       {sweep_s:.1f} s")
+    by_class: dict = {}
+    for row in rows:
+        by_class[row[2]] = by_class.get(row[2], 0.0) + row[5]
+    shares = ", ".join(f"{k} {v:.1f} s" for k, v in sorted(by_class.items()))
+    print(f"  of which, by class: {shares}")
     print(f"python-fcl sampling at {args.samples} poses:          {fcl_s:.1f} s")
     print(f"ratio sweep / sampling: {sweep_s / fcl_s:.2f}")
     missed = bug = 0
@@ -262,6 +271,10 @@ def main() -> int:
     print(f"pairs sampling would wrongly disable: {missed}; at the witness pose python-fcl sees "
           f"{confirmed['contact']} in contact and the winding number {confirmed['buried']} "
           f"buried (unconfirmed: {confirmed[None]}); contradictions: {bug}")  # fmt: skip
+    if args.rows:
+        with open(args.rows, "w") as f:
+            json.dump([[*r, sampled[r[0], r[1]]] for r in rows], f)
+    print("load average at the end: " + " ".join(f"{x:.1f}" for x in os.getloadavg()))
     bug += confirmed[None]  # a witness no independent check confirms is a bug too
     return 1 if bug else 0
 

@@ -27,6 +27,7 @@ from .errors import (
     ResourceError,
     resource_error,
 )
+from .motion import MAX_SWEEP_BUDGET
 from .outcome import exit_status
 from .output import STDOUT, check_output, write_output
 from .reports import FORMATS, printable, render, summary_line
@@ -303,6 +304,15 @@ def _units(values) -> tuple[str | None, tuple]:
     help="Sweep only these joints (the others stay at --pose). Implies --sweep.",
 )
 @click.option(
+    "--sweep-budget",
+    type=click.IntRange(min=1, max=MAX_SWEEP_BUDGET),
+    default=None,
+    metavar="N",
+    help="Work the sweep may do: each pose of a link pair costs the joints that move it, each "
+    "pair of convex pieces measured costs 1 (default 400 million; config key sweep_budget). "
+    "Pairs left over are undecided, never proven apart.",
+)
+@click.option(
     "--srdf",
     "srdf_path",
     type=click.Path(dir_okay=False),
@@ -392,6 +402,7 @@ def _run(
     adjacent=None,
     sweep=False,
     sweep_joints=None,
+    sweep_budget=None,
     quiet=None,
     hide_touching=None,
     units=(),
@@ -412,6 +423,7 @@ def _run(
             "audit": audit_path,
             "audit_reasons": audit_reasons,
             "allow_outside": allow_outside,
+            "budget": sweep_budget,
         }
         report_unit, file_units = _units(units)
         settings = _settings(

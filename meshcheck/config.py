@@ -279,7 +279,7 @@ def approval_reason(
 
 CONFIG_NAMES = ("meshcheck.toml", "pyproject.toml")  # in one directory, meshcheck.toml wins
 _KEYS = ("tolerance", "clearance", "threshold", "units", "fail_on", "ignore", "groups", "scheduler")
-_KEYS += ("pose", "adjacent", "package_paths", "joint")  # mechanisms (meshcheck.motion)
+_KEYS += ("pose", "adjacent", "package_paths", "joint", "sweep_budget")  # meshcheck.motion
 _KEYS += ("quiet", "hide_touching")  # what the text and Markdown reports list
 _KEYS += ("test",)  # clash tests
 
@@ -534,9 +534,10 @@ def _file_units(value, path: str, fail) -> tuple:
 
 
 def _motion(doc: dict, path: str) -> dict | None:
-    """The mechanism keys (``pose``, ``adjacent``, ``package_paths``, ``joint``), checked, or
-    None."""
-    motion = {k: doc[k] for k in ("pose", "adjacent", "package_paths", "joint") if k in doc}
+    """The mechanism keys (``pose``, ``adjacent``, ``package_paths``, ``joint``,
+    ``sweep_budget``), checked, or None."""
+    keys = ("pose", "adjacent", "package_paths", "joint", "sweep_budget")
+    motion = {k: doc[k] for k in keys if k in doc}
     if not motion:
         return None
     from .motion import checked_motion

@@ -22,6 +22,14 @@ from .errors import ConfigError
 #: colliding witness, else "undecided". 0.001 rad moves a point 1 m from the axis by 1 mm.
 DEFAULT_RESOLUTION = 1e-3
 
+#: Default sweep budget: the work one run's sweep may do (a pose of a link pair costs the joints
+#: that move it, a convex-piece pair measured 1; see ``sweep.search.WorkBudget``). The PR2's
+#: 1,431 link pairs need about two fifths of it (``bench/sweep.py --robot pr2`` prints the work);
+#: any input, however many links, stops there with the pairs left over undecided.
+DEFAULT_SWEEP_BUDGET = 400_000_000
+#: The largest budget accepted (a bound a CI job can still rely on).
+MAX_SWEEP_BUDGET = 10**12
+
 #: Joint types a ``[[joint]]`` table may have (URDF's, less floating and planar).
 JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed")
 #: ``[[joint]]`` tables one configuration may hold: real mechanisms have a few; patterns are
@@ -113,6 +121,9 @@ class Motion:
         Narrowest joint interval the sweep splits, radians or metres.
     joints : tuple of JointSpec
         The configuration's ``[[joint]]`` tables: a mechanism made of mesh-file parts.
+    budget : int
+        Work the sweep may do (``DEFAULT_SWEEP_BUDGET``); link pairs past it are
+        undecided.
     audit : str or None
         An SRDF whose ``disable_collisions`` entries are audited over the joint ranges
         (``--audit-srdf``).
@@ -130,6 +141,7 @@ class Motion:
     sweep: tuple[str, ...] | None = None
     resolution: float = DEFAULT_RESOLUTION
     joints: tuple[JointSpec, ...] = ()
+    budget: int = DEFAULT_SWEEP_BUDGET
     audit: str | None = None
     audit_reasons: tuple[str, ...] = AUDIT_REASONS
     allow_outside: bool = False
@@ -141,6 +153,26 @@ class Motion:
             raise ConfigError(None, f"pose gives joint {twice[0]!r} more than once")
         if not (math.isfinite(self.resolution) and self.resolution > 0.0):
             raise ConfigError(None, f"sweep resolution must be positive, not {self.resolution!r}")
+        checked_budget(self.budget)
+
+
+def checked_budget(value, *, path: str | None = None) -> int:
+    """A sweep budget: a whole number from 1 to ``MAX_SWEEP_BUDGET``.
+
+    Examples
+    --------
+    >>> checked_budget(5_000_000)
+    5000000
+    """
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, int)
+        or not (1 <= value <= MAX_SWEEP_BUDGET)
+    ):
+        raise ConfigError(
+            path, f"sweep_budget must be a whole number from 1 to {MAX_SWEEP_BUDGET}, not {value!r}"
+        )
+    return value
 
 
 def parse_value(joint: str, text: str | float | int, *, where: str | None = None) -> JointValue:
@@ -201,8 +233,10 @@ def checked_motion(table: Mapping, *, path: str | None = None) -> dict:
     ``adjacent`` (bool), ``package_paths`` (folders inside the file's folder, relative to it:
     a configuration a pull request can change never points the readers elsewhere; the command
     line's ``--package-path`` can), ``joint`` (an array of ``[[joint]]`` tables,
-    ``checked_joints``)."""
+    ``checked_joints``), ``sweep_budget`` (a whole number, ``checked_budget``)."""
     out: dict = {}
+    if "sweep_budget" in table:
+        out["budget"] = checked_budget(table["sweep_budget"], path=path)
     if "joint" in table:
         out["joints"] = checked_joints(table["joint"], path=path)
     if "pose" in table:
@@ -361,6 +395,7 @@ def motion_from_options(
     adjacent: bool | None = None,
     sweep=None,
     resolution: float | None = None,
+    budget: int | None = None,
     audit: str | None = None,
     audit_reasons=None,
     allow_outside: bool = False,
@@ -382,6 +417,7 @@ def motion_from_options(
         sweep=None if sweep is None else tuple(sweep),
         resolution=DEFAULT_RESOLUTION if resolution is None else resolution,
         joints=file.get("joints", ()),
+        budget=file.get("budget", DEFAULT_SWEEP_BUDGET) if budget is None else budget,
         audit=audit,
         audit_reasons=AUDIT_REASONS if audit_reasons is None else parse_reasons(audit_reasons),
         allow_outside=bool(allow_outside),
@@ -424,10 +460,12 @@ def _is_values(pose) -> bool:
 __all__ = [
     "AUDIT_REASONS",
     "DEFAULT_RESOLUTION",
+    "DEFAULT_SWEEP_BUDGET",
     "JOINT_TYPES",
     "JointSpec",
     "JointValue",
     "Motion",
+    "checked_budget",
     "checked_joints",
     "checked_motion",
     "motion_from_options",

@@ -583,10 +583,13 @@ def _check_patterns(settings: Settings, names: Sequence[tuple[str, ...]]) -> Non
                     f"test {test.name!r}: {side} ({', '.join(map(repr, patterns))}) matches no "
                     "part; " + examples(),
                 )
+    every = {n for ns in names for n in ns}  # a pattern without wildcards names one part
     for rule in settings.approvals:
         if rule.id is not None:
             continue
         for pattern in (rule.a, rule.b):
+            if not any(c in pattern for c in "*?[") and pattern in every:
+                continue
             if not any(matches(pattern, n) for n in names):
                 warnings.warn(
                     MeshcheckWarning(

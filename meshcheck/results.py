@@ -359,33 +359,59 @@ class PairSweep:
 @dataclass(frozen=True)
 class RobotSweep:
     """One robot's sweep: its URDF (or configuration file), its name, every link pair's
-    ``PairSweep``, and whether it is a URDF robot (the SRDF describes one)."""
+    ``PairSweep``, and whether it is a URDF robot (the SRDF describes one).
+
+    Attributes
+    ----------
+    unswept : int
+        Link pairs the sweep's work budget left over: undecided, and not listed in ``pairs``
+        (a hostile robot may have millions).
+    work : int
+        Work the sweep of this robot did (``sweep.search.WorkBudget``).
+    budget : int or None
+        The run's sweep budget (``motion.Motion.budget``), shared by its robots in order.
+    """
 
     path: str
     name: str
     pairs: tuple[PairSweep, ...]
     is_urdf: bool = True
+    unswept: int = 0
+    work: int = 0
+    budget: int | None = None
 
     @property
     def counts(self) -> dict[SweepStatus, int]:
-        """Link pairs of each status, every status listed."""
-        return {s: sum(p.status == s for p in self.pairs) for s in SweepStatus}
+        """Link pairs of each status, every status listed (``unswept`` pairs undecided)."""
+        out = {s: sum(p.status == s for p in self.pairs) for s in SweepStatus}
+        out[SweepStatus.UNDECIDED] += self.unswept
+        return out
 
     def summary(self) -> str:
         """One line: how many link pairs are never, sometimes, always in contact (``always``
-        only when some are), and undecided."""
+        only when some are), and undecided; the work done against the budget."""
         shown = ", ".join(
             f"{n} {s}" for s, n in self.counts.items() if n or s != SweepStatus.ALWAYS
         )
         adjacent = sum(p.is_adjacent for p in self.pairs)
-        return f"{self.path}: {len(self.pairs)} link pairs ({adjacent} adjacent): {shown}"
+        total = len(self.pairs) + self.unswept
+        line = f"{self.path}: {total} link pairs ({adjacent} adjacent): {shown}"
+        if self.unswept:
+            line += f" ({self.unswept} left unswept when the budget ran out)"
+        if self.budget is not None:
+            line += f"; work {self.work:,} of the budget's {self.budget:,}"
+        return line
 
     def to_dict(self) -> dict:
-        """The robot's sweep as the JSON report lists it: counts by status, every pair."""
+        """The robot's sweep as the JSON report lists it: counts by status, the work done and
+        the budget, every pair swept."""
         return {
             "robot": self.path,
             "name": self.name,
             "counts": {str(s): n for s, n in self.counts.items()},
+            "unswept": self.unswept,
+            "work": self.work,
+            "budget": self.budget,
             "pairs": [p.to_dict() for p in self.pairs],
         }
 

@@ -167,3 +167,17 @@ def gltf_document(meshes: dict, nodes: list[dict], roots: list[int] | None = Non
 def matrix_node(transform, **node) -> dict:
     """A glTF node placed by a 4 x 4 ``transform`` (column-major ``matrix``)."""
     return {**node, "matrix": np.asarray(transform, dtype=np.float64).T.ravel().tolist()}
+
+
+def chain_urdf(count: int, *, box: str = "0.06 0.02 0.02", limit: float = 0.5) -> str:
+    """A URDF of ``count`` links in a row, each a box centred 0.05 m along its frame's x axis,
+    joined by revolute joints about z every 0.1 m with the range ``-limit..limit`` (radians)."""
+    geometry = f'<origin xyz="0.05 0 0"/><geometry><box size="{box}"/></geometry>'
+    links = [f'<link name="l{k}"><collision>{geometry}</collision></link>' for k in range(count)]
+    joints = [
+        f'<joint name="j{k}" type="revolute"><parent link="l{k - 1}"/><child link="l{k}"/>'
+        f'<origin xyz="0.1 0 0"/><axis xyz="0 0 1"/><limit lower="{-limit}" upper="{limit}"/>'
+        "</joint>"
+        for k in range(1, count)
+    ]
+    return "\n".join(['<robot name="chain">', *links, *joints, "</robot>"])

@@ -648,3 +648,31 @@ def test_jobs_are_capped_by_available_memory():
     with executor_for(jobs=10_000) as executor:
         assert executor.jobs <= max(1, int(available.split()[1]) * 1024 // WORKER_BYTES)
         assert not executor.is_started
+
+
+# ------------------------------------------------------------------------------------------
+# Sweeps are budgeted in work, like every other input
+
+
+@pytest.mark.posix_only
+@pytest.mark.parametrize("joint", ["revolute", "fixed"])
+def test_sweep_of_a_3000_link_chain_stops_at_its_budget_with_progress(tmp_path, joint):
+    # 4,498,500 link pairs: those the budget cannot pay for are undecided, counted, not listed,
+    # never "never". Joined by fixed joints, each pair is one check on the real meshes and
+    # costs the least a pair costs (4,096): the budget bounds how many are visited.
+    from meshes import chain_urdf
+
+    path = tmp_path / "chain.urdf"
+    path.write_text(chain_urdf(3000).replace('type="revolute"', f'type="{joint}"'))
+    # A budget of 10 million: several seconds of sweeping, so progress lines are due.
+    args = [path, "--sweep", "--sweep-budget", "10000000", "-j", "1", "--format", "json"]
+    status, out, lines = run(args, seconds=60)
+    assert status == ExitStatus.OK, lines  # a URDF robot's sweep never fails the run
+    (sweep,) = json.loads(out)["sweeps"]
+    assert json.loads(out)["summary"]["sweep_budget"] == 10_000_000
+    assert sweep["budget"] == 10_000_000 and 10_000_000 <= sweep["work"] < 10_100_000
+    assert sweep["unswept"] > 4_000_000 and len(sweep["pairs"]) <= 10_000_000 // 4096 + 1
+    assert sweep["counts"]["undecided"] >= sweep["unswept"]
+    assert sum(sweep["counts"].values()) == 3000 * 2999 // 2
+    assert any("sweeping link pairs" in line for line in lines), lines
+    assert any("the sweep budget (10,000,000) ran out" in line for line in lines), lines

@@ -303,3 +303,23 @@ def test_sweep_joints_names_a_joint_table_and_refuses_an_unknown_one(tmp_path):
     assert {tuple(p["joints"]) for p in robot["pairs"]} == {("hinge",)}  # lever held at 0
     unknown = run(tmp_path, files, [hinge(), lever], "--sweep-joints", "elbow")
     assert unknown.exit_code == ExitStatus.USAGE and "no joint named 'elbow'" in unknown.stderr
+
+
+def test_parts_no_joint_moves_cost_little_of_the_budget_so_the_door_is_still_swept(tmp_path):
+    """Sixty bolts beside a door that hits its stop: 1,953 pairs, of which those the hinge does
+    not move are passed over at 64 each (a swept pair costs at least 4,096). A budget of a
+    million reaches every pair, the door's collision fails the run; were each passed-over pair
+    charged 4,096, 1,708 pairs would be left unswept, and a door later in the order with them."""
+    files = door_files(tmp_path)
+    for k in range(60):
+        x = 3000.0 + 50.0 * k
+        box_between((x, 0, 0), (x + 10, 10, 10)).export(tmp_path / f"bolt{k:02d}.stl")
+        files.append(str(tmp_path / f"bolt{k:02d}.stl"))
+    args = ["--sweep", "--sweep-budget", "1000000", "--format", "json"]
+    done = run(tmp_path, files, [hinge()], *args)
+    assert done.exit_code == ExitStatus.FAILED, done.output
+    (robot,) = json.loads(done.stdout)["sweeps"]
+    assert robot["unswept"] == 0 and robot["work"] <= 1_000_000
+    pairs = {(p["a"].rsplit("/", 1)[-1], p["b"].rsplit("/", 1)[-1]): p for p in robot["pairs"]}
+    assert pairs["door.stl", "stop.stl"]["status"] == "sometimes"
+    assert sum(p["status"] == "never" for p in robot["pairs"]) >= 60  # the door and each bolt

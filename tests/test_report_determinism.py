@@ -69,3 +69,47 @@ def test_json_is_the_same_bytes_cold_warm_any_jobs_with_timed_out_decompositions
     assert b'"interference"' in first and b"took over" not in first
     for key, report in reports.items():
         assert report == first, key
+
+
+def test_a_sweep_past_its_budget_is_the_same_report_cold_warm_any_jobs(tmp_path):
+    """A sweep whose budget runs out in the middle of a link pair: exit 0 (a URDF robot's
+    sweep never fails the run), one note on stderr, no traceback; the JSON, text and SRDF
+    are the same bytes cold or warm, at -j 1 or -j 2, and with ``MESHCHECK_COACD_BUDGET`` set
+    to 1 ms (the sweep's pieces, which the check reuses, take no time limit); the SRDF
+    disables as Never only pairs proven so."""
+    import json
+
+    sys.path.insert(0, os.path.join(ROOT, "tests"))
+    from meshes import chain_urdf
+
+    path = tmp_path / "chain.urdf"
+    path.write_text(chain_urdf(6, limit=1.6375))
+    outputs, budget = {}, ["--sweep", "--sweep-budget", "30000"]
+    for jobs, cache, hook in ((1, "a", None), (1, "a", None), (2, "b", None), (2, "c", "0.001")):
+        env = _env(tmp_path) if hook is None else _env(tmp_path, MESHCHECK_COACD_BUDGET=hook)
+        for fmt in ("json", "text"):
+            srdf = tmp_path / f"{jobs}-{cache}-{fmt}.srdf"
+            args = [sys.executable, "-m", "meshcheck", str(path), *budget, "--no-config"]
+            args += ["--format", fmt, "--cache-dir", str(tmp_path / cache), "-j", str(jobs)]
+            done = subprocess.run(
+                [*args, "--srdf", str(srdf)], cwd=ROOT, env=env, capture_output=True, timeout=300
+            )
+            lines = done.stderr.decode().splitlines()
+            assert done.returncode == 0, lines
+            assert not any("Traceback" in line for line in lines), lines
+            notes = [line for line in lines if "the sweep budget (30,000) ran out" in line]
+            assert notes == ["meshcheck: the sweep budget (30,000) ran out: 8 link pairs of "
+                             "chain left undecided"], lines  # fmt: skip
+            outputs.setdefault(fmt, set()).add(done.stdout)
+            outputs.setdefault("srdf", set()).add(srdf.read_bytes())
+    assert all(len(found) == 1 for found in outputs.values()), outputs.keys()
+    (doc,) = (json.loads(out) for out in outputs["json"])
+    (sweep,) = doc["sweeps"]
+    assert (sweep["budget"], sweep["unswept"]) == (30_000, 8) and sweep["work"] >= 30_000
+    assert sweep["counts"]["undecided"] == 9  # the pair it ran out on, and the eight after it
+    never = {(p["a"], p["b"]) for p in sweep["pairs"] if p["status"] == "never"}
+    adjacent = {(p["a"], p["b"]) for p in sweep["pairs"] if p["adjacent"]}
+    (srdf,) = outputs["srdf"]
+    entries = [line.split('"')[1:6:2] for line in srdf.decode().splitlines() if "link1" in line]
+    assert {(a, b) for a, b, reason in entries if reason == "Never"} == never - adjacent
+    assert {(a, b) for a, b, reason in entries if reason != "Never"} <= adjacent

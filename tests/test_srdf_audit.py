@@ -194,6 +194,27 @@ def test_the_reasons_audited(tmp_path, reasons, expected):
     assert all(p["status"] == "never" for p in bare)  # no collision geometry: nothing collides
 
 
+@pytest.mark.parametrize("sweep", [[], ["--sweep"]])
+def test_an_audited_pair_the_budget_does_not_reach_is_undecided_never_never(tmp_path, sweep):
+    """With the whole default budget every audited pair of the chain is proven never; with a
+    budget of 1 only the first pair visited is swept, and it finishes the batch of boxes it is
+    in (the audit's first, l0 / l2, is proven in its first; the sweep's first is l0 / l1): the
+    pairs not reached are undecided (kept, not failing), the pair without geometry still never,
+    and the summary says the budget."""
+    urdf = write(tmp_path, "chain.urdf", chain())
+    entries = (("l0", "l2", "Never"), ("l1", "l3", "Never"), ("l3", "bare", "Never"))
+    path = write(tmp_path, "c.srdf", srdf(*entries))
+    status, doc = audited(urdf, "--audit-srdf", path, *sweep)
+    assert status == ExitStatus.OK
+    assert [p["status"] for p in doc["audit"]["pairs"]] == ["never", "never", "never"]
+    status, doc = audited(urdf, "--audit-srdf", path, "--sweep-budget", "1", *sweep)
+    assert status == ExitStatus.OK and doc["summary"]["sweep_budget"] == 1
+    found = {(p["a"], p["b"]): p["status"] for p in doc["audit"]["pairs"]}
+    first = "undecided" if sweep else "never"
+    assert found == {("l0", "l2"): first, ("l1", "l3"): "undecided", ("bare", "l3"): "never"}
+    assert doc["summary"]["wrongly_disabled"] == 0
+
+
 def test_the_audit_reads_the_sweep_when_there_is_one(tmp_path):
     urdf = write(tmp_path, "door.urdf", door(STOP_ANGLE + 0.05))
     path = write(tmp_path, "door.srdf", srdf(("door", "stop", "Never")))

@@ -11,6 +11,9 @@ import os
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from hypothesis import given
+from hypothesis import settings as hypothesis_settings
+from hypothesis import strategies as st
 from meshes import fcl_collide, fcl_distance, winding_inside
 
 from meshcheck.cli import main
@@ -436,3 +439,132 @@ def test_coarse_pieces_with_their_pads_never_raise_the_distance_bound():
         assert np.array_equal(settled <= reach, full <= reach)
         near = full <= reach
         assert np.all(settled[near] >= full[near]) and np.array_equal(settled[~near], full[~near])
+
+
+# ------------------------------------------------------------------------------------------
+# The work budget
+
+
+def test_a_spent_budget_leaves_the_rest_undecided_and_changes_no_decided_class(tmp_path):
+    """A chain of six links whose pairs are all proven never with the default budget: with a
+    budget of 10,000 (a visited pair costs at least 4,096), the pairs visited first (links
+    nearest the root) keep their class, the rest are counted undecided and unlisted, the work
+    stops within a batch of the budget, the same budget gives the same answer twice, and the
+    JSON report says the budget."""
+    import json
+
+    from meshes import chain_urdf
+
+    path = write(tmp_path, chain_urdf(6))
+    full = sweep(path)
+    assert len(full) == 15 and all(p.status == "never" for p in full.values())
+
+    def budgeted():
+        settings = Settings(motion=Motion(sweep=(), budget=10_000))
+        assembly = load_assembly([path], motion=settings.motion)
+        (robot,) = sweep_bodies(assembly.bodies, assembly.mechanisms, settings)
+        return robot
+
+    robot = budgeted()
+    assert robot == budgeted()
+    assert robot.budget == 10_000 and 10_000 <= robot.work <= 10_000 + 4096
+    assert 0 < len(robot.pairs) < 15 and robot.unswept == 15 - len(robot.pairs)
+    assert robot.counts["undecided"] >= robot.unswept
+    assert sum(robot.counts.values()) == 15
+    for pair in robot.pairs:
+        assert pair.status in (full[pair.a, pair.b].status, "undecided")
+    swept = {(p.a, p.b) for p in robot.pairs}
+    assert ("l0", "l1") in swept and ("l4", "l5") not in swept  # the root's links first
+    assert "left unswept when the budget ran out" in robot.summary()
+
+    args = [path, "--sweep", "--sweep-budget", "10000", "--format", "json", "--no-cache"]
+    run = CliRunner().invoke(main, [*args, "--no-config", "-j", "1"])
+    assert run.exit_code == 0, run.output
+    doc = json.loads(run.stdout)
+    assert doc["summary"]["sweep_budget"] == 10_000
+    (entry,) = doc["sweeps"]
+    assert (entry["budget"], entry["work"], entry["unswept"]) == (10_000, robot.work, robot.unswept)
+    assert entry["counts"]["undecided"] == robot.counts["undecided"]
+    text = CliRunner().invoke(main, [*args[:4], "--no-cache", "--no-config", "-j", "1"])
+    assert f"work {robot.work:,} of the budget's 10,000" in " ".join(text.stdout.split())
+
+
+@pytest.mark.parametrize(
+    ("given", "message"),
+    [
+        (["--sweep-budget", "0"], "--sweep-budget"),
+        (["--sweep-budget", "lots"], "--sweep-budget"),
+        (["--config", "bad.toml"], "sweep_budget must be a whole number"),
+    ],
+)
+def test_a_budget_that_is_not_a_positive_whole_number_is_a_usage_error(tmp_path, given, message):
+    path = write(tmp_path, door(1.0))
+    (tmp_path / "bad.toml").write_text('sweep_budget = "lots"\n')
+    given = [str(tmp_path / g) if g.endswith(".toml") else g for g in given]
+    run = CliRunner().invoke(main, [path, "--sweep", *given, "--no-cache", "-j", "1"])
+    assert run.exit_code == ExitStatus.USAGE, run.output
+    assert message in run.stderr and "Traceback" not in run.stderr
+
+
+def test_the_configuration_sets_the_budget_and_the_option_wins(tmp_path):
+    import json
+
+    path = write(tmp_path, door(1.0))
+    config = tmp_path / "meshcheck.toml"
+    config.write_text("sweep_budget = 123456\n")
+    base = [path, "--sweep", "--format", "json", "--config", str(config), "--no-cache", "-j", "1"]
+    run = CliRunner().invoke(main, base)
+    assert json.loads(run.stdout)["summary"]["sweep_budget"] == 123456
+    run = CliRunner().invoke(main, [*base, "--sweep-budget", "654321"])
+    assert json.loads(run.stdout)["sweeps"][0]["budget"] == 654321
+
+
+# A chain of six links whose joints reach 1.6375 rad: the pairs three and four links apart pass
+# within a hair of each other or collide, and each costs several times the least a pair costs.
+NEAR_MISS_LIMIT = 1.6375
+
+
+def budgeted_sweep(path: str, budget: int):
+    settings = Settings(motion=Motion(sweep=(), budget=budget))
+    assembly = load_assembly([path], motion=settings.motion)
+    (robot,) = sweep_bodies(assembly.bodies, assembly.mechanisms, settings)
+    return robot
+
+
+@pytest.fixture(scope="module")
+def near_miss_chain(tmp_path_factory):
+    from meshes import chain_urdf
+
+    path = write(tmp_path_factory.mktemp("chain"), chain_urdf(6, limit=NEAR_MISS_LIMIT))
+    return path, budgeted_sweep(path, 400_000_000)
+
+
+def test_the_near_miss_chain_has_every_class_and_costs_more_than_a_few_pairs(near_miss_chain):
+    _, full = near_miss_chain
+    assert full.counts["never"] >= 10 and full.counts["sometimes"] >= 2 and full.unswept == 0
+    assert full.work > 15 * 4096
+
+
+@hypothesis_settings(max_examples=25, derandomize=True, deadline=None)
+@given(st.integers(1, 100_000), st.integers(1, 100_000))
+def test_a_larger_budget_decides_what_a_smaller_one_does_and_never_changes_a_class(
+    near_miss_chain, small, large
+):
+    """Against the run with the whole default budget: every pair a budget decides has the
+    whole run's class (never proven apart when it is not), a larger budget decides every pair
+    a smaller one does, each run counts all 15 pairs, and the work stops within one pair's
+    least cost or one batch of boxes of the budget."""
+    path, full = near_miss_chain
+    small, large = sorted((small, large))
+    classes = {(p.a, p.b): p.status for p in full.pairs}
+    decided = {}
+    for budget in (small, large):
+        robot = budgeted_sweep(path, budget)
+        assert sum(robot.counts.values()) == 15 and robot.unswept == 15 - len(robot.pairs)
+        assert robot.work <= max(budget, 0) + 4096 + 1024 * 8
+        if robot.unswept or any(p.status == "undecided" for p in robot.pairs):
+            assert robot.work >= budget
+        decided[budget] = {(p.a, p.b) for p in robot.pairs if p.status != "undecided"}
+        for pair in robot.pairs:
+            assert pair.status in (classes[pair.a, pair.b], "undecided")
+    assert decided[small] <= decided[large]

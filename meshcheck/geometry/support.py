@@ -16,6 +16,7 @@ from typing import NamedTuple
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
+from . import _kernels
 from .constants import HILL_CLIMB_MIN_VERTICES
 
 
@@ -336,3 +337,39 @@ def place_packs(
     else:
         lower = upper = np.empty((0, 3), dtype=np.float64)
     return ConvexPack(points, starts, nbr_starts, nbrs, lower, upper)
+
+
+def farthest_from_lines(
+    points: np.ndarray, placed: np.ndarray, origins: np.ndarray, directions: np.ndarray
+) -> np.ndarray:
+    """The largest distance of a few points, rigidly placed E times, from T lines each time.
+
+    Parameters
+    ----------
+    points : (k, 3) float64
+        In their own frame.
+    placed : (E, 4, 4) float64
+        Each placement of that frame.
+    origins, directions : (E, T, 3) float64
+        A point on each line and its unit direction, per placement.
+
+    Returns
+    -------
+    (E, T) float64
+        ``max_p |(p - o) - ((p - o) . u) u|`` over the placed points; ``inf`` where that is
+        not a number.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> z_axis = np.array([[[0.0, 0.0, 0.0]]]), np.array([[[0.0, 0.0, 1.0]]])
+    >>> farthest_from_lines(np.array([[3.0, 4.0, 7.0]]), np.eye(4)[None], *z_axis)
+    array([[5.]])
+    """
+    f8 = np.float64
+    return _kernels.hull_levers(
+        np.ascontiguousarray(points, f8),
+        np.ascontiguousarray(placed, f8),
+        np.ascontiguousarray(origins, f8),
+        np.ascontiguousarray(directions, f8),
+    )

@@ -19,6 +19,7 @@ __all__ = [
     "closest_points_on_triangles",
     "inscribed_ball",
     "pair_distances",
+    "placed_surface_distance",
     "point_distances",
     "ray_hits",
     "triangle_boxes",
@@ -83,6 +84,50 @@ def box_pairs(alo, ahi, blo, bhi, reach: float) -> np.ndarray:
         Index into the first set, index into the second.
     """
     return _kernels.box_pairs(_f8(alo), _f8(ahi), _f8(blo), _f8(bhi), float(reach))
+
+
+def placed_surface_distance(
+    va, fa, vb, fb, relative, reach: float, *, settle: bool = False
+) -> tuple[float, int]:
+    """The distance between two meshes, ``b`` placed in ``a``'s frame by ``relative``.
+
+    Only the triangles of each mesh whose boxes come within ``reach`` of the other's are
+    paired (a hierarchy over ``b``'s), and the pairs whose boxes come within ``reach`` are
+    measured exactly, nearest boxes first. 0 where the surfaces cross.
+
+    Parameters
+    ----------
+    va, vb : (n, 3) float64
+        Vertices, each mesh's own frame.
+    fa, fb : (m, 3) int64
+    relative : (4, 4) float64
+        ``b``'s frame into ``a``'s.
+    reach : float
+    settle : bool, keyword-only
+        Only whether the meshes come within ``reach`` matters: the first pair within it
+        answers.
+
+    Returns
+    -------
+    distance : float
+        Exact when at most ``reach`` (with ``settle``: some pair's distance within it);
+        otherwise a value above ``reach`` (``inf`` when no pair's boxes come within it);
+        ``-inf`` when ``relative`` or ``reach`` is not a number.
+    pairs : int
+        Triangle pairs measured.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> tri = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    >>> up = np.eye(4)
+    >>> up[2, 3] = 0.5
+    >>> placed_surface_distance(tri, [[0, 1, 2]], tri, [[0, 1, 2]], up, 1.0)
+    (0.5, 1)
+    """
+    return _kernels.placed_surface_distance(
+        _f8(va), _i8(fa), _f8(vb), _i8(fb), _f8(relative), float(reach), bool(settle)
+    )
 
 
 def pair_distances(va, fa, vb, fb, pairs):

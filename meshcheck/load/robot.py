@@ -9,6 +9,7 @@ from the root down to it (``link_transforms``; ``chain_transforms`` at many pose
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
@@ -132,9 +133,17 @@ class Robot:
         """Joints a pose sets: movable and not mimicking another."""
         return tuple(j for j in self.joints if j.type in MOVABLE and j.mimic is None)
 
+    @functools.cached_property
+    def _by_child(self) -> dict[str, Joint]:
+        return {j.child: j for j in self.joints}
+
+    @functools.cached_property
+    def _by_name(self) -> dict[str, Joint]:
+        return {j.name: j for j in self.joints}
+
     def chain(self, link: str) -> list[Joint]:
         """The joints from the root down to ``link``."""
-        by_child = {j.child: j for j in self.joints}
+        by_child = self._by_child
         out = []
         while link in by_child:
             out.append(by_child[link])
@@ -144,7 +153,7 @@ class Robot:
     def leader(self, joint: Joint) -> tuple[str, float]:
         """(leading joint's name, multiplier): ``joint``'s mimic chain followed to the joint
         that leads it (``(joint.name, 1.0)`` for a joint that mimics none)."""
-        by_name = {j.name: j for j in self.joints}
+        by_name = self._by_name
         multiplier = 1.0
         while joint.mimic is not None:
             multiplier *= joint.mimic[1]

@@ -123,6 +123,8 @@ def summary(result: CheckResult) -> dict:
         "warnings": list(result.warnings),
         "passed": result.passed,
     }
+    if result.sweeps or result.audit is not None:  # the work budget link pairs were swept in
+        doc["sweep_budget"] = result.settings.motion.budget
     if result.audit is not None:
         doc["wrongly_disabled"] = sum(p.is_wrong for p in result.audit.pairs)
     if result.baseline is not None:

@@ -218,6 +218,8 @@ def render(result: CheckResult, *, inputs: Sequence[str] = (), view: View | None
         if pair.approval_reason is not None:
             text += f" (approved: {printable(pair.approval_reason)})"
         lines.extend(wrap(text, _INDENT))
+    for robot in result.sweeps:  # each robot's counts, and the work against the budget
+        lines.extend(wrap(f"sweep {printable(robot.summary())}", _INDENT))
     if result.audit is not None:  # --audit-srdf: the entries not proven, failing ones even quiet
         audit = result.audit
         for pair, fails in audited:

@@ -2,10 +2,11 @@
 joint ranges (``--sweep``), asking the verify stage's kernels for distances along them.
 
 - ``mechanisms``: what the run's robots (``load.Assembly.mechanisms``) change in the check
-  (adjacent links approved) and which joints a sweep moves;
+  (adjacent links approved), which joints a sweep moves, and the order it takes the links in;
 - ``kinematics``: joint ranges and the bound on how fast a joint moves a link's points;
 - ``distances``: posed links' distances, from their convex pieces and their real meshes;
-- ``search``: one link pair's boxes of joint values, witnesses and descent;
+- ``search``: one link pair's boxes of joint values, witnesses and descent, and the work
+  budget every pair draws on;
 - ``run``: every robot's link pairs, the stage the pipeline calls;
 - ``audit``: the link pairs an SRDF disables, swept and judged (``--audit-srdf``).
 """

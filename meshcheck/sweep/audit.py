@@ -4,7 +4,8 @@ ranges, proven never in contact or shown colliding at a witness pose.
 Only the pairs the SRDF names are swept (``run.sweep_mechanism`` with ``pairs``), their links'
 convex pieces made beforehand (``run.mechanism_pieces``); with ``--sweep`` the whole robot's
 sweep is read instead. A link without collision geometry never collides: its pairs are never,
-with no box evaluated. What fails the run is ``outcome.CheckResult``'s to say.
+with no box evaluated. Pairs the sweep's work budget did not reach are undecided. What fails
+the run is ``outcome.CheckResult``'s to say.
 """
 
 from __future__ import annotations
@@ -63,7 +64,10 @@ def audit_srdf(
             continue
         key = frozenset((entry.a, entry.b))
         sweep = by_pair.get(key)
-        if sweep is None:  # a link without collision geometry: nothing of it can collide
+        if sweep is None and len(key) == 2 and all(link in mech.parts for link in key):
+            # both links have geometry: the work budget ran out before the pair
+            sweep = PairSweep(entry.a, entry.b, SweepStatus.UNDECIDED)
+        elif sweep is None:  # a link without collision geometry: nothing of it can collide
             sweep = PairSweep(entry.a, entry.b, SweepStatus.NEVER)
         sweep = PairSweep(
             sweep.a,

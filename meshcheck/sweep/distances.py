@@ -7,12 +7,12 @@ Each link's geometry lives in its own frame (``LinkGeometry``), report units; a 
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..geometry import ConvexPack, Status, concat_packs, pack_convex, query_pairs, repeat_pack
+from ..geometry import ConvexPack, pack_convex, placed_distances, query_pairs
 from ..load import Body
 from ..load.robot import Mechanism, Robot, link_transforms
 
@@ -107,6 +107,8 @@ def link_geometries(
     pieces: dict[int, list[np.ndarray]],
     base: dict[str, float],
     scale: float,
+    *,
+    only: Collection[str] | None = None,
 ) -> dict[str, LinkGeometry]:
     """Each link's pieces and meshes in its own frame and its parts' offsets from it.
 
@@ -118,10 +120,14 @@ def link_geometries(
         Every movable joint's value at the run's pose.
     scale : float
         Report units per unit of the robot's lengths.
+    only : collection of str, optional
+        The links wanted (default every link with parts).
     """
     placed = link_transforms(robot, base)
     out = {}
     for link, ks in sorted(mech.parts.items()):
+        if only is not None and link not in only:
+            continue
         frame = placed[link].copy()
         frame[:3, 3] *= scale
         inverse = np.linalg.inv(frame)
@@ -152,7 +158,16 @@ def link_geometries(
 
 
 def piece_distances(
-    pack_a, pack_b, ta, tb, reach: np.ndarray, pad_a=None, pad_b=None, *, settle: bool = False
+    pack_a,
+    pack_b,
+    ta,
+    tb,
+    reach: np.ndarray,
+    pad_a=None,
+    pad_b=None,
+    *,
+    settle: bool = False,
+    work: list[int] | None = None,
 ):
     """Lower bounds on the distance between two links' pieces at E placements.
 
@@ -170,8 +185,9 @@ def piece_distances(
         Only whether each placement comes within ``reach`` matters: the piece pair whose
         boxes are nearest is measured first, and a placement it brings within reach gets that
         pair's distance (at most ``reach``, not the least) and no more GJK; the others are
-        measured in full. The sweep's boxes split or close on this alone (``bench/sweep.py
-        --pair`` prints the piece pairs a link pair's boxes measured).
+        measured in full. The sweep's boxes split or close on this alone.
+    work : list of one int, optional
+        Gets the work done added (``geometry.placed_distances``).
 
     Returns
     -------
@@ -187,9 +203,11 @@ def piece_distances(
     lowest = np.full(len(ta), np.inf)
     near = spheres_within(pack_a, pack_b, ta, tb, reach, float(pad_a.max() + pad_b.max()))
     if np.any(near):  # pose only the placements whose links' spheres come within reach
-        lowest[near] = posed_distances(
+        lowest[near], done = posed_distances(
             pack_a, pack_b, ta[near], tb[near], reach[near], pad_a, pad_b, settle=settle
         )
+        if work is not None:
+            work[0] += done
     return lowest
 
 
@@ -205,78 +223,44 @@ def spheres_within(pack_a, pack_b, ta, tb, reach: np.ndarray, pad: float) -> np.
     return np.linalg.norm(pa - pb, axis=1) - ra - rb - pad <= reach
 
 
-def posed_points(pack: ConvexPack, transforms: np.ndarray) -> tuple[np.ndarray, ...]:
-    """A local pack's points placed by each of E transforms: (E, N, 3) points and each piece's
-    (E, m, 3) lower and upper corners."""
-    points = np.matmul(pack.points, transforms[:, :3, :3].transpose(0, 2, 1))
-    points += transforms[:, None, :3, 3]
-    starts = pack.starts[:-1]
-    lower = np.minimum.reduceat(points, starts, axis=1)
-    upper = np.maximum.reduceat(points, starts, axis=1)
-    return points, lower, upper
-
-
 def posed_distances(
     pack_a, pack_b, ta, tb, reach, pad_a, pad_b, *, settle: bool = False
-) -> np.ndarray:
-    """``piece_distances`` of placements whose links come near: link b's pieces posed in link
-    a's frame (distances do not change under the rigid motion of both, and a's pieces then
-    serve every placement unmoved), the piece pairs whose boxes come within reach (plus pads)
-    measured by GJK."""
-    e_count = len(ta)
-    lowest = np.full(e_count, np.inf)
+) -> tuple[np.ndarray, int]:
+    """``piece_distances`` of placements whose links come near, and the work done: link b's
+    pieces posed in link a's frame (distances do not change under the rigid motion of both,
+    and a's pieces then serve every placement unmoved), the piece pairs whose boxes come
+    within reach (plus pads) measured by GJK, in one compiled call
+    (``geometry.placed_distances``)."""
     rotation = ta[:, :3, :3].transpose(0, 2, 1)
-    relative = np.zeros((e_count, 4, 4))
+    relative = np.zeros((len(ta), 4, 4))
     relative[:, :3, :3] = rotation @ tb[:, :3, :3]
     relative[:, :3, 3] = np.einsum("eij,ej->ei", rotation, tb[:, :3, 3] - ta[:, :3, 3])
     relative[:, 3, 3] = 1.0
-    pb, lb, ub = posed_points(pack_b, relative)
-    la, ua = pack_a.lower, pack_a.upper
-    ma, mb = len(pack_a.starts) - 1, len(pack_b.starts) - 1
-    gap = np.maximum(
-        la[None, :, None, :] - ub[:, None, :, :], lb[:, None, :, :] - ua[None, :, None, :]
-    )
-    box_gap = np.linalg.norm(np.maximum(gap, 0.0), axis=3)  # (E, ma, mb), a lower bound
-    pads = pad_a[:, None] + pad_b[None, :]
-    e, i, j = np.nonzero(box_gap - pads[None] <= reach[:, None, None])
-    if len(e) == 0:
-        return lowest
-    # One pack: a's pieces, then b's at each placement (placement k's piece j: ma + k * mb + j).
-    pack = concat_packs([pack_a, repeat_pack(pack_b, pb, lb, ub)])
-    pairs = np.stack([i, ma + e * mb + j], axis=1)
-    pad = pads[i, j]
-
-    def measure(rows):
-        res = query_pairs(pack, pairs[rows], tolerance=0.0, depth=False,
-                          max_distance=reach[e[rows]] + pad[rows])  # fmt: skip
-        found = np.where(res.status == Status.UNDECIDED, np.minimum(res.distance, 0.0),
-                         res.distance)  # fmt: skip
-        return found - pad[rows]
-
-    rest = np.arange(len(e))
-    if settle:  # each placement's nearest boxes first: is it within reach?
-        order = np.lexsort((box_gap[e, i, j] - pad, e))
-        first = order[np.flatnonzero(np.diff(e[order], prepend=-1))]
-        lowest[e[first]] = measure(first)
-        rest = rest[lowest[e] > reach[e]]
-        lowest[e[first]] = np.where(lowest[e[first]] <= reach[e[first]], lowest[e[first]], np.inf)
-    np.minimum.at(lowest, e[rest], measure(rest))
-    return lowest
+    return placed_distances(pack_a, pack_b, relative, reach, pad_a, pad_b, settle=settle)
 
 
 def surface_distance(
-    a: LinkGeometry, b: LinkGeometry, ta: np.ndarray, tb: np.ndarray, reach: float
+    a: LinkGeometry,
+    b: LinkGeometry,
+    ta: np.ndarray,
+    tb: np.ndarray,
+    reach: float,
+    *,
+    settle: bool = False,
+    work: list[int] | None = None,
 ) -> float:
     """The distance between two links' real surfaces placed by ``ta``, ``tb``, exact when at
-    most ``reach`` (else a value above it): the triangle pairs whose boxes come within
-    ``reach`` (a bounding-volume hierarchy), measured exactly; 0 where surfaces cross."""
-    from ..geometry.triangles import box_pairs, pair_distances, triangle_boxes
+    most ``reach`` (else a value above it; with ``settle``, some triangle pair's distance
+    within it): link b's triangles placed in link a's frame, the triangle pairs whose boxes
+    come within ``reach`` measured exactly, nearest first (``placed_surface_distance``); 0
+    where surfaces cross. The work (triangle pairs measured, and the triangles boxed over 64)
+    goes to ``work``."""
+    from ..geometry.triangles import placed_surface_distance
 
-    va = a.vertices @ ta[:3, :3].T + ta[:3, 3]
-    vb = b.vertices @ tb[:3, :3].T + tb[:3, 3]
-    alo, ahi = triangle_boxes(va, a.faces)
-    blo, bhi = triangle_boxes(vb, b.faces)
-    pairs = box_pairs(alo, ahi, blo, bhi, reach)
-    if len(pairs) == 0:
-        return np.inf
-    return float(pair_distances(va, a.faces, vb, b.faces, pairs)[0].min())
+    relative = np.linalg.solve(ta, tb)
+    found, pairs = placed_surface_distance(
+        a.vertices, a.faces, b.vertices, b.faces, relative, reach, settle=settle
+    )
+    if work is not None:
+        work[0] += pairs + (len(a.faces) + len(b.faces)) // 64
+    return found

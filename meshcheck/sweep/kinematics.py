@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..geometry import farthest_from_lines
 from ..load.robot import MOVABLE, Joint, Robot
 
 
@@ -241,19 +242,19 @@ def box_weights(
     """
     out = np.zeros(half.shape)
     for side, placed in zip(sides, (ta, tb), strict=True):
-        hull = np.matmul(side.hull, placed[:, :3, :3].transpose(0, 2, 1))
-        hull += placed[:, None, :3, 3]  # (E, k, 3)
+        turning = [t.joint.name for t in side.terms if t.joint.type != "prismatic"]
+        levers = {}
+        if turning:
+            origins = np.stack([axes[name][0] for name in turning], axis=1)
+            directions = np.stack([axes[name][1] for name in turning], axis=1)
+            found = farthest_from_lines(side.hull, placed, origins, directions)
+            levers = {name: found[:, k] for k, name in enumerate(turning)}
         below = np.zeros(len(half))
         for term in reversed(side.terms):  # from the link up
             if term.joint.type == "prismatic":
                 r = np.full(len(half), term.weight)
             else:
-                point, direction = axes[term.joint.name]
-                d = hull - point[:, None, :]
-                along = np.einsum("ekj,ej->ek", d, direction)
-                off = d - along[:, :, None] * direction[:, None, :]
-                lever = np.sqrt(np.einsum("ekj,ekj->ek", off, off).max(axis=1))
-                r = np.minimum(term.weight, lever + side.pad + below)
+                r = np.minimum(term.weight, levers[term.joint.name] + side.pad + below)
             out[:, term.lead] += term.multiplier * r
             below = below + term.multiplier * half[:, term.lead] * r
     return out

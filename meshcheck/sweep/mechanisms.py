@@ -1,12 +1,13 @@
 """What the run's mechanisms (``load.Assembly.mechanisms``) change in the check and the sweep:
-adjacent links' findings approved, the joints a sweep moves, the link pairs an SRDF audit
-sweeps, and the approval reasons of a ``[[joint]]`` mechanism's swept pairs."""
+adjacent links' findings approved, the joints a sweep moves, the order it takes the link pairs
+in, the link pairs an SRDF audit sweeps, and the approval reasons of a ``[[joint]]``
+mechanism's swept pairs."""
 
 from __future__ import annotations
 
 import dataclasses
 import glob
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 
 from ..config import Approval, approval_reason
 from ..errors import ConfigError
@@ -74,6 +75,56 @@ def swept_joints(robot: Robot, named) -> set[str]:
             raise ConfigError(robot.path, f"--sweep {name}: not a movable joint that leads")
         out.add(name)
     return out
+
+
+def link_order(mech: Mechanism) -> list[str]:
+    """The mechanism's links with parts, root first, each after its parent (joint order): the
+    order the sweep's budget reaches them in."""
+    robot = mech.robot
+    order = [robot.root, *(j.child for j in robot.joints)]
+    seen: set[str] = set()
+    return [n for n in order if n in mech.parts and not (n in seen or seen.add(n))]
+
+
+def pairs_in_order(
+    links: Sequence[str], wanted: set[frozenset[str]] | None = None
+) -> Iterator[tuple[str, str]]:
+    """Every pair of ``links`` (each pair's names sorted), or only those in ``wanted``, the later
+    link's pairs after all pairs of the links before it: a budget that runs out leaves the
+    pairs of the last links, and the first ``k (k - 1) / 2`` pairs need only the first ``k``
+    links."""
+    for j, b in enumerate(links):
+        for a in links[:j]:
+            if wanted is None or frozenset((a, b)) in wanted:
+                yield (a, b) if a < b else (b, a)
+
+
+def pair_count(mech: Mechanism, wanted: set[frozenset[str]] | None = None) -> int:
+    """How many pairs ``pairs_in_order`` gives over all the mechanism's links."""
+    count = len(link_order(mech))
+    if wanted is None:
+        return count * (count - 1) // 2
+    return sum(len(p) == 2 and all(link in mech.parts for link in p) for p in wanted)
+
+
+def links_within(
+    mech: Mechanism, pairs: int, wanted: set[frozenset[str]] | None = None
+) -> list[str]:
+    """The links (``link_order``) of the first ``pairs`` link pairs (``pairs_in_order``, of
+    ``wanted`` when given)."""
+    order = link_order(mech)
+    if wanted is None:
+        count = 0
+        while count < len(order) and count * (count - 1) // 2 < pairs:
+            count += 1
+        return order[:count]
+    position = {link: k for k, link in enumerate(order)}
+    last = sorted(
+        max(position[link] for link in p)
+        for p in wanted
+        if len(p) == 2 and all(link in position for link in p)
+    )
+    return order[: last[pairs - 1] + 1] if len(last) >= pairs else order
 
 
 def is_audited(reason: str, reasons: Sequence[str]) -> bool:

@@ -11,13 +11,22 @@ import numpy as np
 from ..decompose import decompose_bodies
 from ..load import Body
 from ..load.robot import Mechanism, joint_values
+from ..progress import Progress
 from ..results import PairSweep, RobotSweep
 from ..tolerances import pair_tolerances, part_sizes
 from ..units import scale as unit_scale
 from .distances import link_geometries
 from .kinematics import frame_reach, joint_ranges, link_sides, motion_weights
-from .mechanisms import audited_pairs, check_swept, swept_joints, with_approval_reasons
-from .search import LinkPair, sweep_pair
+from .mechanisms import (
+    audited_pairs,
+    check_swept,
+    links_within,
+    pair_count,
+    pairs_in_order,
+    swept_joints,
+    with_approval_reasons,
+)
+from .search import PAIR_WORK, SKIP_WORK, LinkPair, WorkBudget, sweep_pair
 
 
 def sweep_mechanism(
@@ -27,10 +36,11 @@ def sweep_mechanism(
     motion,
     *,
     tolerance: float | None = None,
+    budget: WorkBudget | None = None,
     pairs: set[frozenset[str]] | None = None,
 ) -> tuple[PairSweep, ...]:
     """Classify every pair of a robot's links over the swept joints' ranges (``sweep_pair``),
-    or only ``pairs``.
+    or only ``pairs``, as far as the work budget goes.
 
     Parameters
     ----------
@@ -41,10 +51,13 @@ def sweep_mechanism(
         Convex pieces of each of the robot's parts, world coordinates at that pose, covering
         every triangle (``mechanism_pieces``).
     motion : motion.Motion
-        The pose (held joints stay there), the joints swept (``()``: every movable one) and the
-        resolution.
+        The pose (held joints stay there), the joints swept (``()``: every movable one), the
+        resolution and the budget.
     tolerance : float, optional
         Touching tolerance, report units; default each pair's own (``tolerances.pair_tolerances``).
+    budget : WorkBudget, optional
+        The run's (default one of ``motion.budget`` for this robot alone). Pairs are swept in
+        ``pairs_in_order``; those it cannot pay for are counted in ``budget.unswept``.
     pairs : set of frozenset of str, optional
         Sweep only these link pairs (an SRDF's, ``sweep.audit``): only their links need
         ``pieces``, and each pair's tolerance is the rule's over those links.
@@ -52,7 +65,8 @@ def sweep_mechanism(
     Returns
     -------
     tuple of PairSweep
-        One per pair of links with collision geometry (of ``pairs``), sorted by link names.
+        One per pair of links with collision geometry (of ``pairs``) that was swept, sorted by
+        link names.
     """
     if pairs is not None:
         named = {link for pair in pairs for link in pair}
@@ -60,37 +74,62 @@ def sweep_mechanism(
         if not mech.parts:
             return ()
     robot = mech.robot
+    budget = WorkBudget(motion.budget) if budget is None else budget
     base = joint_values(robot, motion.pose)
     swept = swept_joints(robot, motion.sweep)
     scale = unit_scale(mech.units, bodies[mech.parts[next(iter(mech.parts))][0]].units)
-    links = link_geometries(robot, mech, bodies, pieces, base, scale)
+    order = links_within(mech, budget.pairs_within(least_work(mech)), pairs)
+    links = link_geometries(robot, mech, bodies, pieces, base, scale, only=set(order))
     radius = {name: link.radius for name, link in links.items()}
     points = {name: link.points for name, link in links.items()}
     names = sorted(links)
+    index = {n: k for k, n in enumerate(names)}
     lower = np.array([links[n].points.min(axis=0) for n in names])
     upper = np.array([links[n].points.max(axis=0) for n in names])
     diagonal, _ = part_sizes(lower, upper)
     magnitude = np.full(len(names), max(radius.values()) + frame_reach(robot, swept, base) * scale)
-    out = []
-    for x, a in enumerate(names):
-        for y in range(x + 1, len(names)):
-            b = names[y]
-            if pairs is not None and frozenset((a, b)) not in pairs:
-                continue
+    total = pair_count(mech, pairs)
+    out, done, current = [], 0, ()
+    with Progress("sweeping link pairs", total, detail=lambda: " / ".join(current)) as progress:
+        for current in pairs_in_order(order, pairs):
+            a, b = current
             tol = tolerance
             if tol is None:
-                tol = float(pair_tolerances(diagonal, magnitude, np.array([[x, y]]))[0])
+                tol = float(
+                    pair_tolerances(diagonal, magnitude, np.array([[index[a], index[b]]]))[0]
+                )
+            allowance = budget.allowance
+            if allowance is None:
+                break
+            done += 1
+            progress.update(done)
             weights = motion_weights(robot, (a, b), radius, swept, base, scale, points)
             if not weights and not mech.is_urdf:
+                budget.charge(SKIP_WORK, least=SKIP_WORK)
                 continue  # nothing moves them: the check judged them at the pose
             free = sorted(weights)
             sides = link_sides(robot, (a, b), links, free, swept, base, scale)
             pair = LinkPair(robot, a, b, free, sides, base, scale, tol, links, bodies)
             lo, hi = joint_ranges(robot, free)
-            swept_pair = sweep_pair(pair, lo, hi, motion.resolution)
+            swept_pair = sweep_pair(pair, lo, hi, motion.resolution, allowance=allowance)
+            budget.charge(pair.work)
             is_adjacent = frozenset((a, b)) in mech.adjacent
             out.append(dataclasses.replace(swept_pair, is_adjacent=is_adjacent))
-    return tuple(out)
+        budget.unswept += total - done
+        if total > done:
+            progress.note(
+                f"the sweep budget ({budget.limit:,}) ran out: "
+                f"{total - done:,} link pairs of {robot.name or 'a robot'} left undecided"
+            )
+        progress.close(is_complete=total == done)
+    return tuple(sorted(out, key=lambda p: (p.a, p.b)))
+
+
+def least_work(mech: Mechanism) -> int:
+    """The least work a link pair of ``mech`` costs: a URDF robot sweeps every pair
+    (``search.PAIR_WORK``); a ``[[joint]]`` mechanism passes over the pairs no swept joint
+    moves (``search.SKIP_WORK``)."""
+    return PAIR_WORK if mech.is_urdf else SKIP_WORK
 
 
 def mechanism_pieces(
@@ -101,10 +140,11 @@ def mechanism_pieces(
     executor=None,
     cache=None,
 ) -> dict[int, list[np.ndarray]]:
-    """Convex pieces of every part of the mechanisms a ``--sweep`` poses, by body index; without
-    ``--sweep``, of the links an audited SRDF's pairs name (``sweep.audit``), else ``{}``. A
-    ``--sweep-joints`` name no mechanism has is refused first. CoACD runs on ``executor``;
-    pieces are kept in ``cache``, the run's decompositions.
+    """Convex pieces of the parts of the mechanisms a ``--sweep`` poses, by body index; without
+    ``--sweep``, of the links an audited SRDF's pairs name (``sweep.audit``), else ``{}``; in
+    both, only of the links the work budget can reach (``links_within``). A ``--sweep-joints``
+    name no mechanism has is refused first. CoACD runs on ``executor``; pieces are kept in
+    ``cache``, the run's decompositions.
 
     Each part is CoACD's decomposition, never a stand-in hull: no time limit (a time-out would
     swap a link's pieces for its hull, and the sweep's classes, the SRDF, would then depend on
@@ -115,15 +155,19 @@ def mechanism_pieces(
         return {}
     check_swept(mechanisms, settings.motion.sweep)
     out: dict[int, list[np.ndarray]] = {}
+    budget = WorkBudget(settings.motion.budget)
     for mech in mechanisms:
+        wanted = None
         if settings.motion.sweep is None:
             if mech.srdf is None:
                 continue
-            named = {link for pair in audited_pairs(mech.srdf, settings.motion) for link in pair}
+            wanted = audited_pairs(mech.srdf, settings.motion)
+            named = {link for pair in wanted for link in pair}
             mech = dataclasses.replace(
                 mech, parts={k: v for k, v in mech.parts.items() if k in named}
             )
-        ks = sorted(k for ks in mech.parts.values() for k in ks)
+        reach = budget.pairs_within(least_work(mech))
+        ks = sorted(k for link in links_within(mech, reach, wanted) for k in mech.parts[link])
         piece_lists = decompose_bodies(
             [bodies[k] for k in ks],
             threshold=settings.threshold,
@@ -163,7 +207,21 @@ def sweep_bodies(
     if pieces is None:
         pieces = mechanism_pieces(bodies, mechanisms, settings, executor=executor)
     out = []
+    budget = WorkBudget(settings.motion.budget)  # one for the run, robot after robot
     for mech in mechanisms:
-        pairs = sweep_mechanism(mech, bodies, pieces, settings.motion, tolerance=settings.tolerance)
-        out.append(RobotSweep(mech.robot.path, mech.robot.name, pairs, mech.is_urdf))
+        used, unswept = budget.used, budget.unswept
+        pairs = sweep_mechanism(
+            mech, bodies, pieces, settings.motion, tolerance=settings.tolerance, budget=budget
+        )
+        out.append(
+            RobotSweep(
+                mech.robot.path,
+                mech.robot.name,
+                pairs,
+                mech.is_urdf,
+                unswept=budget.unswept - unswept,
+                work=budget.used - used,
+                budget=budget.limit,
+            )
+        )
     return with_approval_reasons(out, bodies, settings.approvals)

@@ -15,11 +15,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..load import Body
-from ..load.robot import Robot, chain_transforms, joint_poses
+from ..load.robot import MOVABLE, Joint, Robot, chain_transforms
 from ..results import PairSweep, SweepStatus, Verdict
 from ..verify.pair import verify_pair
 from .distances import LinkGeometry, piece_distances, surface_distance
-from .kinematics import LinkSide, box_weights
+from .kinematics import LinkSide, box_weights, joints_below_common
 
 #: Boxes of joint values one link pair may evaluate before it is left undecided (the panda's
 #: link 0 and link 4 need 71,579; bench/sweep.py on the PR2 sets the time against 10,000
@@ -37,11 +37,23 @@ SAMPLE_CHECKS = 4
 #: Candidate witnesses re-checked on the real meshes per link pair, deepest piece overlap first.
 MAX_WITNESS_CHECKS = 24
 #: A pair not decided after this many boxes looks for a witness by descending the pieces'
-#: distance from the nearest box centres (``descent_witness``): how many, steps, tries.
+#: distance from the nearest box centres (``descent_witness``): how many, steps, tries; and
+#: again, from the centres nearest by then, each time the boxes grow by ``DESCENT_GROWTH``.
 DESCENT_AFTER = 4096
+DESCENT_GROWTH = 4
 DESCENT_STARTS = 8
 DESCENT_STEPS = 10
 DESCENT_TRIES = 32
+#: The least work a link pair visited costs (``WorkBudget``), and what a check on the real
+#: meshes costs besides its triangles over 64: the fixed cost of a pair's set-up and of one
+#: ``verify_pair`` call, in the currency of poses and GJK queries (a 3,000-link chain of fixed
+#: joints visits a pair in about 2 ms, the box search does about a million units of work a
+#: second), so that the budget bounds the time of a robot of many cheap pairs too.
+PAIR_WORK = 4096
+VERIFY_WORK = 1024
+#: What a pair of a ``[[joint]]`` mechanism that no swept joint moves costs: it is passed over
+#: (the check judged it at the pose) after a few microseconds, never set up.
+SKIP_WORK = 64
 
 #: The real meshes' statuses that make a pose a witness.
 COLLIDING = (Verdict.INTERFERENCE, Verdict.TOUCHING)
@@ -69,6 +81,12 @@ class LinkPair:
     links : dict of str -> LinkGeometry
     bodies : sequence of Body
         The run's parts.
+    work : int
+        The work done so far (``WorkBudget``): a pose costs its free joints (at least 1), the
+        distances their GJK queries and triangle pairs, a real-mesh check ``VERIFY_WORK`` and
+        its triangles over 64.
+    allowance : float
+        The work it may do (``sweep_pair``); past it, distances are the pieces' bounds alone.
     """
 
     robot: Robot
@@ -81,14 +99,23 @@ class LinkPair:
     tolerance: float
     links: dict[str, LinkGeometry]
     bodies: Sequence[Body]
+    work: int = 0
+    allowance: float = np.inf
+
+    def __post_init__(self):
+        self.chains = joints_below_common(self.robot, (self.a, self.b))
 
     def placements(self, values: np.ndarray, axes: dict | None = None):
-        """(ta, tb, poses): the links' placements at the rows of ``values`` and every joint's
-        values there; each movable joint's axis line goes to ``axes`` when given."""
-        poses = joint_poses(self.robot, self.base, self.names, values)
+        """(ta, tb, poses): the links' placements at the rows of ``values`` in the frame of
+        their common ancestor (distances, and the motion bound, depend only on where one link
+        lies relative to the other, so the joints above it are never composed) and every
+        joint's values there; each movable joint's axis line below it goes to ``axes`` when
+        given."""
+        poses = chain_poses(self.robot, self.base, self.names, values, self.chains)
         count = len(values)
-        ta = chain_transforms(self.robot.chain(self.a), poses, self.scale, count, axes)
-        tb = chain_transforms(self.robot.chain(self.b), poses, self.scale, count, axes)
+        self.work += count * max(len(self.names), 1)
+        ta = chain_transforms(self.chains[0], poses, self.scale, count, axes)
+        tb = chain_transforms(self.chains[1], poses, self.scale, count, axes)
         return ta, tb, poses
 
     def box_weights(self, ta, tb, axes: dict, half: np.ndarray) -> np.ndarray:
@@ -104,11 +131,30 @@ class LinkPair:
         meshes' exact distance (``surface_distance``: its cost grows with the triangle pairs
         within reach, so it waits for boxes small enough that it can close them)."""
         a, b = self.links[self.a], self.links[self.b]
-        lowest = piece_distances(a.pack, b.pack, ta, tb, reach, a.pad, b.pad, settle=True)
+        work = [0]
+        lowest = piece_distances(
+            a.pack, b.pack, ta, tb, reach, a.pad, b.pad, settle=True, work=work
+        )
         fine = FINE_REACH * min(np.ptp(a.points, axis=0).max(), np.ptp(b.points, axis=0).max())
         for e in np.flatnonzero((lowest <= reach) & (reach <= fine)):
-            lowest[e] = surface_distance(a, b, ta[e], tb[e], float(reach[e]))
+            if self.work + work[0] > self.allowance:
+                break  # the pieces' bounds stand: lower, so nothing is certified wrongly
+            lowest[e] = surface_distance(
+                a, b, ta[e], tb[e], float(reach[e]), settle=True, work=work
+            )
+        self.work += work[0]
         return lowest
+
+    def piece_distances(self, ta: np.ndarray, tb: np.ndarray, reach: float) -> np.ndarray:
+        """The coarse pieces' signed distance bounds at placements ``ta``, ``tb`` (values above
+        ``reach`` are bounds), their work counted."""
+        a, b = self.links[self.a], self.links[self.b]
+        work = [0]
+        out = piece_distances(
+            a.pack, b.pack, ta, tb, np.full(len(ta), reach), a.pad, b.pad, work=work
+        )
+        self.work += work[0]
+        return out
 
     def verdict(self, ta: np.ndarray, tb: np.ndarray, *, surfaces_apart: bool = False) -> Verdict:
         """The real meshes' worst status at one placement of the two links."""
@@ -117,6 +163,7 @@ class LinkPair:
             mesh_a = self.bodies[i].mesh.copy().apply_transform(ta @ offset_i)
             for j, offset_j in self.links[self.b].parts:
                 mesh_b = self.bodies[j].mesh.copy().apply_transform(tb @ offset_j)
+                self.work += VERIFY_WORK + (len(mesh_a.faces) + len(mesh_b.faces)) // 64
                 status = verify_pair(
                     mesh_a,
                     mesh_b,
@@ -150,8 +197,93 @@ class LinkPair:
         return self.outcome(SweepStatus.SOMETIMES, boxes, witness, status)
 
 
+class WorkBudget:
+    """The work a run's sweep may still do.
+
+    Work counts what a link pair's search asks for (``LinkPair.work``): each pose costs the
+    joints that move the pair (at least 1), each convex-piece pair measured by GJK 1 (and every
+    64 piece boxes compared 1), each triangle pair measured 1, a check on the real meshes
+    ``VERIFY_WORK`` and its triangles over 64; every link pair visited costs at least
+    ``PAIR_WORK``. Pairs are visited one after another in a fixed order and each may spend what
+    is left, so which pairs are decided is a function of the inputs and the budget, never of
+    time. A pair still searching when the budget is spent (checked after each batch of boxes)
+    is undecided, and the pairs after it are left unswept, undecided too: never proven apart.
+
+    Parameters
+    ----------
+    limit : int
+        The work in all (``motion.Motion.budget``).
+
+    Examples
+    --------
+    >>> budget = WorkBudget(10_000)
+    >>> budget.charge(5_000)
+    >>> budget.allowance, budget.pairs_left
+    (5000, 2)
+    >>> budget.charge(10)  # a pair costs at least PAIR_WORK
+    >>> budget.allowance, budget.pairs_left
+    (904, 1)
+    >>> budget.charge(5_000)
+    >>> budget.allowance is None  # spent: the next pair is not started
+    True
+    """
+
+    def __init__(self, limit: int):
+        self.limit, self.used, self.unswept = int(limit), 0, 0
+
+    @property
+    def allowance(self) -> int | None:
+        """The work the next link pair may do, None when nothing is left."""
+        left = self.limit - self.used
+        return left if left > 0 else None
+
+    @property
+    def pairs_left(self) -> int:
+        """A bound on the link pairs still to be visited (each costs ``PAIR_WORK`` or more)."""
+        return self.pairs_within(PAIR_WORK)
+
+    def pairs_within(self, least: int) -> int:
+        """A bound on the link pairs still to be visited when each costs ``least`` or more."""
+        return max(self.limit - self.used, 0) // least + 1
+
+    def charge(self, work: int, *, least: int = PAIR_WORK) -> None:
+        """Count a visited link pair's work (at least ``least``)."""
+        self.used += max(int(work), least)
+
+
+def chain_poses(
+    robot: Robot, base: dict, names: list[str], values: np.ndarray, chains
+) -> dict[str, np.ndarray]:
+    """The values, ``{name: (E,) float64}``, of the free joints ``names`` (the rows of
+    ``values``) and of every movable joint of ``chains``: free ones from ``values``, mimic
+    joints following their leaders, the others at ``base`` (as ``load.robot.joint_poses``,
+    for only the joints that place the pair's links)."""
+    count = len(values)
+    out = {name: values[:, k] for k, name in enumerate(names)}
+
+    def value(joint: Joint) -> np.ndarray:
+        if joint.name not in out:
+            if joint.mimic is not None and robot.leader(joint)[0] in names:
+                leader, multiplier, offset = joint.mimic
+                out[joint.name] = multiplier * value(robot.joint(leader)) + offset
+            else:
+                out[joint.name] = np.full(count, base[joint.name])
+        return out[joint.name]
+
+    for chain in chains:
+        for joint in chain:
+            if joint.type in MOVABLE:
+                value(joint)
+    return out
+
+
 def sweep_pair(
-    pair: LinkPair, lower: np.ndarray, upper: np.ndarray, resolution: float
+    pair: LinkPair,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    resolution: float,
+    *,
+    allowance: int | None = None,
 ) -> PairSweep:
     """Classify one link pair over the box ``lower..upper`` of its free joints.
 
@@ -163,11 +295,16 @@ def sweep_pair(
     ``M + tolerance`` is certified free of contact. Other boxes are halved along the joint that
     contributes most to ``M``, down to ``resolution``. Centres where pieces overlap are
     re-checked on the real meshes, nearest first: one that interferes or touches is the witness
-    of ``sometimes``; after ``DESCENT_AFTER`` boxes, a descent from the nearest centres looks
-    for one (``descent_witness``). When every box is certified, the surfaces never come within
+    of ``sometimes``; after ``DESCENT_AFTER`` boxes, and each time they grow by
+    ``DESCENT_GROWTH`` after that, a descent from the nearest centres so far looks for one
+    (``descent_witness``). When every box is certified, the surfaces never come within
     the tolerance, so whether one link is buried in the other cannot change over the sweep: one
-    exact check at the centre decides ``never`` (or ``always``, buried throughout).
+    exact check at the centre decides ``never`` (or ``always``, buried throughout). A pair
+    that would evaluate more than ``MAX_BOXES``, or whose work (``LinkPair.work``) passes
+    ``allowance`` (checked after each batch), is undecided.
     """
+    allowance = np.inf if allowance is None else allowance
+    pair.allowance = allowance
     if len(lower) == 0:  # nothing moves one link relative to the other
         return fixed_pair(pair)
     found = sampled_witness(pair, lower, upper)
@@ -175,13 +312,14 @@ def sweep_pair(
         return found
     lo, hi = lower[None, :].copy(), upper[None, :].copy()
     evaluated, checks, unresolved = SAMPLES, 0, False
-    nearest = NearestCentres(DESCENT_STARTS)
+    nearest, descents = NearestCentres(DESCENT_STARTS), 0
     while len(lo):
-        if nearest is not None and evaluated >= DESCENT_AFTER:
-            found = descent_witness(pair, lower, upper, nearest.values, evaluated)
+        if evaluated >= DESCENT_AFTER * DESCENT_GROWTH**descents:
+            starts = nearest.values
+            found = descent_witness(pair, lower, upper, starts, evaluated, seed=descents + 1)
             if found is not None:
                 return found
-            nearest = None
+            descents += 1
         blo, bhi, lo, hi = lo[:BATCH], hi[:BATCH], lo[BATCH:], hi[BATCH:]
         centre, half = 0.5 * (blo + bhi), 0.5 * (bhi - blo)
         axes: dict = {}
@@ -190,8 +328,7 @@ def sweep_pair(
         bound = np.sum(half * w, axis=1) + pair.tolerance
         lowest = pair.distances(ta, tb, bound)
         evaluated += len(centre)
-        if nearest is not None:
-            nearest.add(lowest, centre)
+        nearest.add(lowest, centre)
         for e in np.argsort(lowest, kind="stable"):
             if lowest[e] > pair.tolerance or checks >= MAX_WITNESS_CHECKS:
                 break
@@ -213,7 +350,7 @@ def sweep_pair(
         unresolved |= bool(np.any(~splittable))
         new_lo, new_hi = halve_boxes(blo[splittable], bhi[splittable], w[splittable])
         lo, hi = np.concatenate([lo, new_lo]), np.concatenate([hi, new_hi])
-        if evaluated + len(lo) > MAX_BOXES:
+        if evaluated + len(lo) > MAX_BOXES or pair.work > allowance:
             return pair.outcome(SweepStatus.UNDECIDED, evaluated)
     if unresolved:
         return pair.outcome(SweepStatus.UNDECIDED, evaluated)
@@ -256,22 +393,24 @@ class NearestCentres:
         self.lowest, self.values = both[keep], rows[keep]
 
 
-def descent_witness(pair: LinkPair, lower, upper, starts, boxes: int) -> PairSweep | None:
+def descent_witness(
+    pair: LinkPair, lower, upper, starts, boxes: int, *, seed: int = 1
+) -> PairSweep | None:
     """A witness near the box centres where the links came nearest (``starts``): each is
     moved, ``DESCENT_STEPS`` times, to the nearest of ``DESCENT_TRIES`` perturbations of it
     (fixed seed; each joint's step in proportion to its range, halved when none comes nearer)
     by the coarse pieces' signed distance; the final poses whose pieces overlap are
     re-checked on the real meshes, nearest first. A pair colliding only in a narrow window
     of many joints is found in a few thousand poses instead of by splitting boxes down to it.
+    ``seed`` draws the perturbations: each later descent of a pair draws its own.
     """
     if starts is None or len(starts) == 0:
         return None
-    rng = np.random.default_rng(1)
-    a, b = pair.links[pair.a], pair.links[pair.b]
+    rng = np.random.default_rng(seed)
 
     def measure(values, reach: float):
         ta, tb, _ = pair.placements(values)
-        return piece_distances(a.pack, b.pack, ta, tb, np.full(len(values), reach), a.pad, b.pad)
+        return pair.piece_distances(ta, tb, reach)
 
     current = starts.copy()
     scores = measure(current, np.inf)

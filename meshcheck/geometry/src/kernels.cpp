@@ -18,6 +18,7 @@
 
 #include "epa.hpp"
 #include "lp.hpp"
+#include "placed.hpp"
 #include "topology.hpp"
 #include "triangles.hpp"
 
@@ -296,6 +297,109 @@ PyObject* query_pairs(PyObject*, PyObject* args) {
         }
     }
     Py_RETURN_NONE;
+}
+
+// placed_distances(a: points, starts, nbr_starts, nbrs, lower, upper; b: the same, local;
+//                  relative (E, 4, 4), pad_a (m_a,), pad_b (m_b,), reach (E,), settle,
+//                  lowest (E,) out) -> (GJK queries, piece boxes compared)
+PyObject* placed_distances_py(PyObject*, PyObject* args) {
+    PyObject* o[18];
+    int settle;
+    if (!PyArg_ParseTuple(args, "OOOOOOOOOOOOOOOOpO", &o[0], &o[1], &o[2], &o[3], &o[4], &o[5],
+                          &o[6], &o[7], &o[8], &o[9], &o[10], &o[11], &o[12], &o[13], &o[14],
+                          &o[15], &settle, &o[16]))
+        return nullptr;
+    Array pa, sa, nsa, na, la, ua, pb, sb, nsb, nb, lb, ub, rel, pad_a, pad_b, reach, lowest;
+    if (!as_array(o[0], NPY_DOUBLE, 2, 3, "a.points", pa) ||
+        !as_array(o[1], NPY_INT64, 1, 0, "a.starts", sa) ||
+        !as_array(o[2], NPY_INT64, 1, 0, "a.nbr_starts", nsa) ||
+        !as_array(o[3], NPY_INT64, 1, 0, "a.nbrs", na) ||
+        !as_array(o[4], NPY_DOUBLE, 2, 3, "a.lower", la) ||
+        !as_array(o[5], NPY_DOUBLE, 2, 3, "a.upper", ua) ||
+        !as_array(o[6], NPY_DOUBLE, 2, 3, "b.points", pb) ||
+        !as_array(o[7], NPY_INT64, 1, 0, "b.starts", sb) ||
+        !as_array(o[8], NPY_INT64, 1, 0, "b.nbr_starts", nsb) ||
+        !as_array(o[9], NPY_INT64, 1, 0, "b.nbrs", nb) ||
+        !as_array(o[10], NPY_DOUBLE, 2, 3, "b.lower", lb) ||
+        !as_array(o[11], NPY_DOUBLE, 2, 3, "b.upper", ub) ||
+        !as_array(o[12], NPY_DOUBLE, 3, 0, "relative", rel) ||
+        !as_array(o[13], NPY_DOUBLE, 1, 0, "pad_a", pad_a) ||
+        !as_array(o[14], NPY_DOUBLE, 1, 0, "pad_b", pad_b) ||
+        !as_array(o[15], NPY_DOUBLE, 1, 0, "reach", reach) ||
+        !as_array(o[16], NPY_DOUBLE, 1, 0, "lowest", lowest, true))
+        return nullptr;
+    if (!check_pack(pa, sa, nsa, na, la, ua) || !check_pack(pb, sb, nsb, nb, lb, ub))
+        return nullptr;
+    npy_intp count = reach.len();
+    if (rel.len(0) != count || rel.len(1) != 4 || rel.len(2) != 4 || lowest.len() != count ||
+        pad_a.len() != sa.len() - 1 || pad_b.len() != sb.len() - 1) {
+        PyErr_SetString(PyExc_ValueError, "placed_distances: array lengths do not match");
+        return nullptr;
+    }
+    PlacedBatch t{{pa.f8(), sa.i8(), nsa.i8(), na.i8(), la.f8(), ua.f8(), sa.len() - 1, pa.len()},
+                  {pb.f8(), sb.i8(), nsb.i8(), nb.i8(), lb.f8(), ub.f8(), sb.len() - 1, pb.len()},
+                  rel.f8(), pad_a.f8(), pad_b.f8(), reach.f8(), settle != 0, lowest.f8()};
+    PlacedWorkDone done;
+    {
+        const NoGil released;
+        done = placed_distances(t, count);
+    }
+    return Py_BuildValue("LL", static_cast<long long>(done.queries),
+                         static_cast<long long>(done.boxes));
+}
+
+// hull_levers(hull (k, 3), placed (E, 4, 4), points (E, T, 3), directions (E, T, 3)) -> (E, T)
+PyObject* hull_levers_py(PyObject*, PyObject* args) {
+    PyObject *ho, *po, *lo, *do_;
+    if (!PyArg_ParseTuple(args, "OOOO", &ho, &po, &lo, &do_)) return nullptr;
+    Array hull, placed, points, dirs, out;
+    if (!as_array(ho, NPY_DOUBLE, 2, 3, "hull", hull) ||
+        !as_array(po, NPY_DOUBLE, 3, 0, "placed", placed) ||
+        !as_array(lo, NPY_DOUBLE, 3, 0, "points", points) ||
+        !as_array(do_, NPY_DOUBLE, 3, 0, "directions", dirs))
+        return nullptr;
+    npy_intp count = placed.len(0), lines = points.len(1);
+    if (placed.len(1) != 4 || placed.len(2) != 4 || points.len(0) != count ||
+        points.len(2) != 3 || dirs.len(0) != count || dirs.len(1) != lines ||
+        dirs.len(2) != 3) {
+        PyErr_SetString(PyExc_ValueError, "hull_levers: array shapes do not match");
+        return nullptr;
+    }
+    npy_intp dims[2] = {count, lines};
+    out.a = reinterpret_cast<PyArrayObject*>(PyArray_SimpleNew(2, dims, NPY_DOUBLE));
+    if (out.a == nullptr) return nullptr;
+    {
+        const NoGil released;
+        hull_levers(hull.f8(), hull.len(), placed.f8(), points.f8(), dirs.f8(), count, lines,
+                    out.f8());
+    }
+    return out.release();
+}
+
+// placed_surface_distance(va, fa, vb, fb, relative (4, 4), reach, settle) -> (distance, pairs)
+PyObject* placed_surface_distance_py(PyObject*, PyObject* args) {
+    PyObject *vao, *fao, *vbo, *fbo, *to;
+    double reach;
+    int settle;
+    if (!PyArg_ParseTuple(args, "OOOOOdp", &vao, &fao, &vbo, &fbo, &to, &reach, &settle))
+        return nullptr;
+    Array va, fa, vb, fb, t;
+    if (!as_array(vao, NPY_DOUBLE, 2, 3, "va", va) || !faces_of(fao, va.len(), "fa", fa) ||
+        !as_array(vbo, NPY_DOUBLE, 2, 3, "vb", vb) || !faces_of(fbo, vb.len(), "fb", fb) ||
+        !as_array(to, NPY_DOUBLE, 2, 4, "relative", t))
+        return nullptr;
+    if (t.len() != 4) {
+        PyErr_SetString(PyExc_ValueError, "relative: expected a (4, 4) array");
+        return nullptr;
+    }
+    int64_t work = 0;
+    double d;
+    {
+        const NoGil released;
+        d = placed_surface_distance(va.f8(), fa.i8(), fa.len(), vb.f8(), vb.len(), fb.i8(),
+                                    fb.len(), t.f8(), reach, settle != 0, work);
+    }
+    return Py_BuildValue("dL", d, static_cast<long long>(work));
 }
 
 // ------------------------------------------------------------------------------- triangles
@@ -657,6 +761,9 @@ PyObject* shell_labels_py(PyObject*, PyObject* args) {
 PyMethodDef METHODS[] = {
     {"query_points", guarded<query_points>, METH_VARARGS, nullptr},
     {"query_pairs", guarded<query_pairs>, METH_VARARGS, nullptr},
+    {"placed_distances", guarded<placed_distances_py>, METH_VARARGS, nullptr},
+    {"hull_levers", guarded<hull_levers_py>, METH_VARARGS, nullptr},
+    {"placed_surface_distance", guarded<placed_surface_distance_py>, METH_VARARGS, nullptr},
     {"triangle_boxes", guarded<triangle_boxes_py>, METH_VARARGS, nullptr},
     {"box_pairs", guarded<box_pairs_py>, METH_VARARGS, nullptr},
     {"pair_distances", guarded<pair_distances_py>, METH_VARARGS, nullptr},

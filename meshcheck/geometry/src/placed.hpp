@@ -1,0 +1,281 @@
+// Distances between two packs of convex pieces at many rigid placements of the second in the
+// first's frame: the sweep's question (is a box of joint values clear?), asked of every box
+// centre of a batch in one call without building a pack per placement (see gjk.py,
+// placed_distances, for the bounds this returns).
+#pragma once
+
+#include <algorithm>
+#include <vector>
+
+#include "epa.hpp"
+#include "triangles.hpp"
+
+namespace meshcheck {
+
+// One pack of pieces: points (rows of 3), piece ranges `starts`, the hull adjacency (CSR) and,
+// for the fixed pack, each piece's box.
+struct Pieces {
+    const double* points;
+    const int64_t *starts, *nbr_starts, *nbrs;
+    const double *lower, *upper;
+    int64_t m;  // pieces
+    int64_t n;  // points
+};
+
+struct PlacedBatch {
+    Pieces a, b;
+    const double* relative;  // (E, 4, 4): b's frame into a's
+    const double *pad_a, *pad_b, *reach;
+    bool settle;
+    double* lowest;  // (E,)
+};
+
+// What a batch cost: GJK queries run and piece boxes compared.
+struct PlacedWorkDone {
+    int64_t queries = 0, boxes = 0;
+};
+
+// Work space of one placement: b's points placed, their pieces' boxes, candidate pairs.
+struct PlacedWork {
+    std::vector<double> points, lower, upper;
+    std::vector<int64_t> cand_i, cand_j;
+    std::vector<double> cand_key;
+    Simplex s;
+    Polytope P;
+};
+
+// Lower bound on the distance of piece i of a and piece j of b (b already placed in work),
+// less both pads: GJK stops once it is past reach + pad; an undecided answer counts as 0 or
+// its (negative) bound.
+inline double piece_gap(const PlacedBatch& t, PlacedWork& w, int64_t i, int64_t j,
+                        double reach, PlacedWorkDone& done) {
+    ++done.queries;
+    const Pieces &a = t.a, &b = t.b;
+    int64_t a0 = a.starts[i], a1 = a.starts[i + 1], b0 = b.starts[j], b1 = b.starts[j + 1];
+    Shape A{a.points, a.nbr_starts, a.nbrs, a0, a1, a.nbr_starts[a0 + 1] > a.nbr_starts[a0]};
+    Shape B{w.points.data(), b.nbr_starts, b.nbrs, b0, b1,
+            b.nbr_starts[b0 + 1] > b.nbr_starts[b0]};
+    Frame fr = make_frame(a.lower + 3 * i, a.upper + 3 * i, w.lower.data() + 3 * j,
+                          w.upper.data() + 3 * j, 0.0);
+    double pad = t.pad_a[i] + t.pad_b[j];
+    Answer out;
+    int k = gjk(A, B, fr, reach + pad, w.s, out);
+    if (k > 0) contact(Pair{A, B, fr, out}, w.s, k, false, w.P);
+    double d = out.v[1];
+    if (static_cast<int>(out.v[0]) == K.undecided) d = std::min(d, 0.0);
+    return d - pad;
+}
+
+// Place b's points by the placement's (4, 4) transform and bound each of its pieces; false
+// when the transform is not finite.
+inline bool place_pieces(const Pieces& b, const double* T, PlacedWork& w) {
+    for (int c = 0; c < 12; ++c)
+        if (!std::isfinite(T[c])) return false;
+    w.points.resize(3 * b.n);
+    w.lower.resize(3 * b.m);
+    w.upper.resize(3 * b.m);
+    for (int64_t p = 0; p < b.n; ++p) {
+        const double* q = b.points + 3 * p;
+        double* o = w.points.data() + 3 * p;
+        for (int r = 0; r < 3; ++r)
+            o[r] = q[0] * T[4 * r] + q[1] * T[4 * r + 1] + q[2] * T[4 * r + 2] + T[4 * r + 3];
+    }
+    for (int64_t s = 0; s < b.m; ++s) {
+        double* lo = w.lower.data() + 3 * s;
+        double* hi = w.upper.data() + 3 * s;
+        for (int c = 0; c < 3; ++c) lo[c] = INF, hi[c] = -INF;
+        for (int64_t p = b.starts[s]; p < b.starts[s + 1]; ++p) {
+            for (int c = 0; c < 3; ++c) {
+                double x = w.points[3 * p + c];
+                lo[c] = std::min(lo[c], x);
+                hi[c] = std::max(hi[c], x);
+            }
+        }
+    }
+    return true;
+}
+
+// Placement e: the least piece gap among the piece pairs whose boxes come within reach (plus
+// their pads), inf when none does. With settle, the pair of nearest boxes is measured first
+// and, when within reach, answers alone.
+inline double placed_distance(const PlacedBatch& t, int64_t e, PlacedWork& w,
+                              PlacedWorkDone& done) {
+    const double reach = t.reach[e];
+    if (!place_pieces(t.b, t.relative + 16 * e, w) || std::isnan(reach)) return -INF;
+    w.cand_i.clear(), w.cand_j.clear(), w.cand_key.clear();
+    done.boxes += t.a.m * t.b.m;
+    for (int64_t i = 0; i < t.a.m; ++i) {
+        const double* la = t.a.lower + 3 * i;
+        const double* ua = t.a.upper + 3 * i;
+        for (int64_t j = 0; j < t.b.m; ++j) {
+            const double* lb = w.lower.data() + 3 * j;
+            const double* ub = w.upper.data() + 3 * j;
+            double sq = 0.0;
+            for (int c = 0; c < 3; ++c) {
+                double g = std::max({la[c] - ub[c], lb[c] - ua[c], 0.0});
+                sq += g * g;
+            }
+            double key = std::sqrt(sq) - (t.pad_a[i] + t.pad_b[j]);
+            if (key <= reach) {
+                w.cand_i.push_back(i);
+                w.cand_j.push_back(j);
+                w.cand_key.push_back(key);
+            }
+        }
+    }
+    size_t count = w.cand_i.size();
+    if (count == 0) return INF;
+    double lowest = INF;
+    size_t first = count;
+    if (t.settle) {
+        first = static_cast<size_t>(
+            std::min_element(w.cand_key.begin(), w.cand_key.end()) - w.cand_key.begin());
+        lowest = piece_gap(t, w, w.cand_i[first], w.cand_j[first], reach, done);
+        if (lowest <= reach) return lowest;
+    }
+    for (size_t c = 0; c < count; ++c)
+        if (c != first)
+            lowest = std::min(lowest, piece_gap(t, w, w.cand_i[c], w.cand_j[c], reach, done));
+    return lowest;
+}
+
+inline PlacedWorkDone placed_distances(const PlacedBatch& t, int64_t count) {
+    PlacedWork w;
+    PlacedWorkDone done;
+    for (int64_t e = 0; e < count; ++e) t.lowest[e] = placed_distance(t, e, w, done);
+    return done;
+}
+
+}  // namespace meshcheck
+
+namespace meshcheck {
+
+// levers[e, t]: the largest distance of the hull points (k rows, a link's frame), placed by
+// placed[e] (4, 4), from the line through points[e, t] along the unit directions[e, t].
+inline void hull_levers(const double* hull, int64_t k, const double* placed, const double* points,
+                        const double* directions, int64_t count, int64_t lines, double* levers) {
+    std::vector<double> posed(3 * k);
+    for (int64_t e = 0; e < count; ++e) {
+        const double* T = placed + 16 * e;
+        for (int64_t p = 0; p < k; ++p) {
+            const double* q = hull + 3 * p;
+            for (int r = 0; r < 3; ++r)
+                posed[3 * p + r] =
+                    q[0] * T[4 * r] + q[1] * T[4 * r + 1] + q[2] * T[4 * r + 2] + T[4 * r + 3];
+        }
+        for (int64_t t = 0; t < lines; ++t) {
+            const double* o = points + 3 * (e * lines + t);
+            const double* u = directions + 3 * (e * lines + t);
+            double worst = 0.0;
+            for (int64_t p = 0; p < k; ++p) {
+                double d[3] = {posed[3 * p] - o[0], posed[3 * p + 1] - o[1],
+                               posed[3 * p + 2] - o[2]};
+                double along = d[0] * u[0] + d[1] * u[1] + d[2] * u[2];
+                double sq = 0.0;
+                for (int c = 0; c < 3; ++c) {
+                    double off = d[c] - along * u[c];
+                    sq += off * off;
+                }
+                if (std::isnan(sq)) worst = INF;  // never a lever too short
+                worst = std::max(worst, sq);
+            }
+            levers[e * lines + t] = std::sqrt(worst);
+        }
+    }
+}
+
+}  // namespace meshcheck
+
+namespace meshcheck {
+
+// The distance between two meshes, b placed in a's frame by T (4, 4), exact when at most
+// reach (else a value above it, inf when no triangle pair's boxes come within reach): only a's
+// triangles near b's box, and b's near theirs, are paired (a hierarchy over b's), and the pairs
+// are measured nearest boxes first. With settle, the first pair within reach answers. `work`
+// gets the triangle pairs measured.
+inline double placed_surface_distance(const double* va, const int64_t* fa, int64_t ma,
+                                      const double* vb, int64_t nb, const int64_t* fb,
+                                      int64_t mb, const double* T, double reach, bool settle,
+                                      int64_t& work) {
+    for (int c = 0; c < 12; ++c)
+        if (!std::isfinite(T[c])) return -INF;
+    if (std::isnan(reach)) return -INF;
+    std::vector<double> placed(3 * nb);
+    for (int64_t p = 0; p < nb; ++p) {
+        const double* q = vb + 3 * p;
+        for (int r = 0; r < 3; ++r)
+            placed[3 * p + r] =
+                q[0] * T[4 * r] + q[1] * T[4 * r + 1] + q[2] * T[4 * r + 2] + T[4 * r + 3];
+    }
+    std::vector<double> alo(3 * ma), ahi(3 * ma), blo(3 * mb), bhi(3 * mb);
+    triangle_boxes(va, fa, ma, alo.data(), ahi.data());
+    triangle_boxes(placed.data(), fb, mb, blo.data(), bhi.data());
+    auto span = [](const std::vector<double>& lo, const std::vector<double>& hi,
+                   const std::vector<int64_t>& rows, double* slo, double* shi) {
+        for (int c = 0; c < 3; ++c) slo[c] = INF, shi[c] = -INF;
+        for (int64_t k : rows)
+            for (int c = 0; c < 3; ++c) {
+                slo[c] = std::min(slo[c], lo[3 * k + c]);
+                shi[c] = std::max(shi[c], hi[3 * k + c]);
+            }
+    };
+    std::vector<int64_t> all_b(mb), near_a, near_b;
+    for (int64_t j = 0; j < mb; ++j) all_b[j] = j;
+    double slo[3], shi[3];
+    span(blo, bhi, all_b, slo, shi);
+    for (int64_t i = 0; i < ma; ++i)
+        if (boxes_near(&alo[3 * i], &ahi[3 * i], slo, shi, reach)) near_a.push_back(i);
+    span(alo, ahi, near_a, slo, shi);
+    for (int64_t j = 0; j < mb; ++j)
+        if (boxes_near(&blo[3 * j], &bhi[3 * j], slo, shi, reach)) near_b.push_back(j);
+    if (near_a.empty() || near_b.empty()) return INF;
+    std::vector<double> clo(3 * near_b.size()), chi(3 * near_b.size());
+    for (size_t k = 0; k < near_b.size(); ++k)
+        for (int c = 0; c < 3; ++c) {
+            clo[3 * k + c] = blo[3 * near_b[k] + c];
+            chi[3 * k + c] = bhi[3 * near_b[k] + c];
+        }
+    std::vector<int64_t> pairs;
+    std::vector<double> plo(3 * near_a.size()), phi(3 * near_a.size());
+    for (size_t k = 0; k < near_a.size(); ++k)
+        for (int c = 0; c < 3; ++c) {
+            plo[3 * k + c] = alo[3 * near_a[k] + c];
+            phi[3 * k + c] = ahi[3 * near_a[k] + c];
+        }
+    box_pairs(plo.data(), phi.data(), static_cast<int64_t>(near_a.size()), clo.data(),
+              chi.data(), static_cast<int64_t>(near_b.size()), reach, pairs);
+    size_t count = pairs.size() / 2;
+    if (count == 0) return INF;
+    std::vector<double> gap(count);
+    std::vector<size_t> order(count);
+    for (size_t q = 0; q < count; ++q) {
+        const double* l0 = &plo[3 * pairs[2 * q]];
+        const double* h0 = &phi[3 * pairs[2 * q]];
+        const double* l1 = &clo[3 * pairs[2 * q + 1]];
+        const double* h1 = &chi[3 * pairs[2 * q + 1]];
+        double sq = 0.0;
+        for (int c = 0; c < 3; ++c) {
+            double g = std::max({l0[c] - h1[c], l1[c] - h0[c], 0.0});
+            sq += g * g;
+        }
+        gap[q] = sq;
+        order[q] = q;
+    }
+    if (settle)
+        std::stable_sort(order.begin(), order.end(),
+                         [&](size_t x, size_t y) { return gap[x] < gap[y]; });
+    double best = INF;
+    for (size_t q : order) {
+        Tri ta = triangle(va, fa, near_a[pairs[2 * q]]);
+        Tri tb = triangle(placed.data(), fb, near_b[pairs[2 * q + 1]]);
+        V3 x, y;
+        bool crossing;
+        double d = triangle_distance(ta, tb, x, y, crossing);
+        ++work;
+        best = std::min(best, d);
+        if (settle && best <= reach) break;
+    }
+    return best;
+}
+
+}  // namespace meshcheck
