@@ -115,7 +115,8 @@ def _forward(shape):
 
 
 def _rebuilt(shape, tolerance: float):
-    """The solids of ``shape`` rebuilt face by face (None: a face or edge does not fit)."""
+    """The solids of ``shape`` rebuilt face by face (None: a face or edge does not fit, or
+    none is analytic)."""
     from OCP.BRep import BRep_Builder, BRep_Tool
     from OCP.ShapeFix import ShapeFix_Shape
     from OCP.TopAbs import TopAbs_COMPOUND, TopAbs_SOLID
@@ -130,6 +131,7 @@ def _rebuilt(shape, tolerance: float):
 
     builder = BRep_Builder()
     edges, faces = _Shapes(), _Shapes()
+    converted = 0
     if shape.ShapeType() == TopAbs_SOLID:
         solids = [shape]
     elif shape.ShapeType() == TopAbs_COMPOUND:
@@ -149,7 +151,8 @@ def _rebuilt(shape, tolerance: float):
                 made = faces.get(face)
                 if made is None:
                     forward = TopoDS.Face(_forward(face))
-                    surface, location, flip = _surface(forward, tolerance)
+                    surface, location, flip, changed = _surface(forward, tolerance)
+                    converted += changed
                     new_face = TopoDS_Face()
                     builder.MakeFace(new_face, surface, location, BRep_Tool.Tolerance_s(forward))
                     for wire in _children(forward):
@@ -176,6 +179,8 @@ def _rebuilt(shape, tolerance: float):
             new_shell.Closed(BRep_Tool.IsClosed_s(shell))
             builder.Add(new_solid, new_shell.Oriented(shell.Orientation()))
         rebuilt.append(new_solid.Oriented(solid.Orientation()))
+    if not converted:
+        return None
     if shape.ShapeType() == TopAbs_SOLID:
         result = rebuilt[0]
     else:
@@ -189,8 +194,9 @@ def _rebuilt(shape, tolerance: float):
 
 
 def _surface(face, tolerance: float):
-    """``face``'s surface, its location, and whether its normal is reversed: the analytic
-    surface it lies on, or its own when it is not a B-spline within ``tolerance`` of one."""
+    """``face``'s surface, its location, whether its normal is reversed and whether it is new:
+    the analytic surface it lies on, or its own when it is not a B-spline within ``tolerance``
+    of one."""
     from OCP.BRep import BRep_Tool
     from OCP.BRepAdaptor import BRepAdaptor_Surface
     from OCP.BRepTools import BRepTools
@@ -202,19 +208,19 @@ def _surface(face, tolerance: float):
     location = TopLoc_Location()
     surface = BRep_Tool.Surface_s(face, location)
     if BRepAdaptor_Surface(face, False).GetType().name not in _FREE_SURFACES:
-        return surface, location, False
+        return surface, location, False, False
     converted = GeomConvert_SurfToAnaSurf(surface).ConvertToAnalytical(tolerance)
     if converted is None:
-        return surface, location, False
+        return surface, location, False, False
     u0, u1, v0, v1 = BRepTools.UVBounds_s(face)
     old = GeomLProp_SLProps(surface, 0.5 * (u0 + u1), 0.5 * (v0 + v1), 1, 1e-12)
     projection = GeomAPI_ProjectPointOnSurf(old.Value(), converted)
     if not projection.NbPoints() or projection.LowerDistance() > tolerance:
-        return surface, location, False
+        return surface, location, False, False
     new = GeomLProp_SLProps(converted, *projection.LowerDistanceParameters(), 1, 1e-12)
     if not (old.IsNormalDefined() and new.IsNormalDefined()):
-        return surface, location, False
-    return converted, location, old.Normal().Dot(new.Normal()) < 0.0
+        return surface, location, False, False
+    return converted, location, old.Normal().Dot(new.Normal()) < 0.0, True
 
 
 def _edge(edge, tolerance: float, builder):
