@@ -47,8 +47,6 @@ def analytic(shape):
     """
     from OCP.Standard import Standard_Failure
 
-    from .solids import _diagonal
-
     if not _has_free_form(shape):
         return shape
     tolerance = RELATIVE_TOLERANCE * _diagonal(shape)
@@ -282,9 +280,7 @@ def _same_solid(original, rebuilt) -> bool:
     from OCP.GProp import GProp_GProps
     from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_SOLID, TopAbs_VERTEX
 
-    from .solids import is_closed_solid
-
-    if rebuilt.ShapeType() != original.ShapeType() or not is_closed_solid(rebuilt):
+    if rebuilt.ShapeType() != original.ShapeType() or not _closed(rebuilt):
         return False
     for kind in (TopAbs_SOLID, TopAbs_FACE, TopAbs_EDGE, TopAbs_VERTEX):
         if _count(original, kind) != _count(rebuilt, kind):
@@ -297,6 +293,24 @@ def _same_solid(original, rebuilt) -> bool:
         BRepGProp.VolumeProperties_s(solid, props, VOLUME_PRECISION)
         volumes.append(props.Mass())
     return abs(volumes[0] - volumes[1]) <= VOLUME_MATCH * max(abs(volumes[0]), abs(volumes[1]))
+
+
+def _closed(shape) -> bool:
+    """Whether every shell of ``shape`` is closed (each edge shared by two of its faces)."""
+    from OCP.BRep import BRep_Tool
+    from OCP.TopAbs import TopAbs_SHELL
+
+    return all(BRep_Tool.IsClosed_s(shell) for shell in _explore(shape, TopAbs_SHELL))
+
+
+def _diagonal(shape) -> float:
+    """Diagonal of a shape's bounding box."""
+    from OCP.Bnd import Bnd_Box
+    from OCP.BRepBndLib import BRepBndLib
+
+    box = Bnd_Box()
+    BRepBndLib.Add_s(shape, box, False)
+    return 0.0 if box.IsVoid() else float(box.CornerMin().Distance(box.CornerMax()))
 
 
 def _count(shape, kind) -> int:
