@@ -4,7 +4,8 @@
 - ``depth``: bounds on the thickness of a shared solid (touching against interference);
 - ``batch``: many pairs, the pair cache, and dispatch to the run's workers (``verify_pairs``);
 - ``brep``: the pairs of STEP solids, decided on their B-rep (``decide_on_brep``), by
-  ``solids`` (OpenCASCADE only, so a worker deciding solids loads nothing else);
+  ``solids`` (OpenCASCADE only, so a worker deciding solids loads nothing else), on solids whose
+  analytic B-spline faces ``analytic`` rebuilt as planes and cylinders;
 - ``shells``: shells of one mesh that share volume (the loader's warning).
 
 The names below are imported when first used: a worker importing ``verify.solids`` does not

@@ -50,16 +50,20 @@ def brep_task(store: dict, item: tuple) -> PairVerdict | str:
 
 
 def _shape(store: dict, product) -> object:
-    """The product's solid from its BRep text in ``store``, read once per process."""
+    """The product's solid from its BRep text in ``store``, read once per process, its
+    analytic B-spline faces and edges rebuilt on planes, cylinders, circles and lines
+    (``analytic.analytic``: the same solid, intersected at their speed)."""
     from OCP.BRep import BRep_Builder
     from OCP.BRepTools import BRepTools
     from OCP.TopoDS import TopoDS_Shape
+
+    from .analytic import analytic
 
     memo = store.setdefault(("brep", "shapes"), {})
     if product not in memo:
         shape = TopoDS_Shape()
         BRepTools.Read_s(shape, io.BytesIO(store[product]), BRep_Builder())
-        memo[product] = shape
+        memo[product] = analytic(shape)
     return memo[product]
 
 
