@@ -342,23 +342,29 @@ def _meets_within(section, tolerance: float) -> bool:
 
 
 def _volume(shape) -> float:
+    return float(_mass_properties(shape).Mass())
+
+
+def _mass_properties(shape):
+    """The solid's volume properties, integrated adaptively to ``analytic.VOLUME_PRECISION``:
+    OpenCASCADE's default Gauss rule misreads the volume of a common solid of B-spline faces
+    (0.58 mm³ for a pin-in-hole overlap of 0.377 mm³)."""
     from OCP.BRepGProp import BRepGProp
     from OCP.GProp import GProp_GProps
 
+    from .analytic import VOLUME_PRECISION
+
     props = GProp_GProps()
-    BRepGProp.VolumeProperties_s(shape, props)
-    return float(props.Mass())
+    BRepGProp.VolumeProperties_s(shape, props, VOLUME_PRECISION)
+    return props
 
 
 def _placement_of(shape) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Centre of mass and bounding box of a solid."""
     from OCP.Bnd import Bnd_Box
     from OCP.BRepBndLib import BRepBndLib
-    from OCP.BRepGProp import BRepGProp
-    from OCP.GProp import GProp_GProps
 
-    props = GProp_GProps()
-    BRepGProp.VolumeProperties_s(shape, props)
+    props = _mass_properties(shape)
     box = Bnd_Box()
     BRepBndLib.Add_s(shape, box, False)  # exact, not enlarged by the tessellation
     return (
