@@ -7,7 +7,8 @@
 - ``batch``: many pairs by class, the pair cache, and dispatch to the run's workers
   (``verify_classes``, ``verify_pairs``);
 - ``brep``: the pairs of STEP solids, decided on their B-rep (``decide_on_brep``), by
-  ``solids`` (OpenCASCADE only, so a worker deciding solids loads nothing else);
+  ``solids`` (OpenCASCADE only, so a worker deciding solids loads nothing else), on solids whose
+  analytic B-spline faces ``analytic`` rebuilt as planes and cylinders;
 - ``shells``: shells of one mesh that share volume (the loader's warning).
 
 The names below are imported when first used: a worker importing ``verify.solids`` does not

@@ -39,10 +39,10 @@ Once each
 A pair is decided in its first solid's frame: the first product as written, the second moved by
 their relative placement (``solids.decide_pair``). Its key (``pair_key``) is the two products'
 content (the file's digest and the product), that relative placement bit for bit, the
-tolerance, the clearance, whether the meshes come within the deflections, ``solids`` and
-OpenCASCADE's version. Pairs of one run with one key are decided once (a bolt in each of forty
-identical nuts), the verdict is kept in the run's pair cache (a warm run reads no STEP
-document), and each pair gets it moved to its own placement (``to_world``).
+tolerance, the clearance, whether the meshes come within the deflections, ``solids``,
+``analytic`` and OpenCASCADE's version. Pairs of one run with one key are decided once (a bolt
+in each of forty identical nuts), the verdict is kept in the run's pair cache (a warm run reads
+no STEP document), and each pair gets it moved to its own placement (``to_world``).
 
 The solids are decided in the run's worker processes when that pays (``_pays_in_workers``), one
 pair per task. OpenCASCADE shapes are not pickled: each product travels once per worker as
@@ -50,6 +50,12 @@ BRep text (``StepSolids.product_text``, a few milliseconds to read, where readin
 again costs a fraction of a second), and the solids are never modified (non-destructive
 booleans on copies), so a verdict does not depend on the pairs decided before it in the same
 process.
+
+A product whose faces are B-splines lying on planes, cylinders, cones, spheres or tori (as some
+CAD systems export every face) is decided on the same solid rebuilt on those surfaces
+(``analytic``), when OpenCASCADE's checker finds it valid and its volume is the original's:
+OpenCASCADE intersects such faces tens of times faster, and the shared solid's volume is
+integrated exactly where the B-spline's fixed quadrature can be far off.
 
 A pair that cannot be decided on the B-rep (OpenCASCADE's boolean or distance fails, a part was
 ``--split`` into shells or rescaled by ``--units FILE=UNIT``) is verified on its meshes; when
@@ -322,12 +328,12 @@ def pair_key(
 
 @functools.cache
 def _code_version() -> str:
-    """Digest of what computes a B-rep verdict: this file, ``solids`` and OpenCASCADE's
-    version."""
-    from . import solids
+    """Digest of what computes a B-rep verdict: this file, ``solids``, ``analytic`` and
+    OpenCASCADE's version."""
+    from . import analytic, solids
 
     sources = []
-    for module in (__file__, solids.__file__):
+    for module in (__file__, solids.__file__, analytic.__file__):
         with open(module, "rb") as f:
             sources.append(f.read())
     version = package_version("cadquery-ocp-novtk", missing="?").encode()

@@ -50,16 +50,20 @@ def brep_task(store: dict, item: tuple) -> PairVerdict | str:
 
 
 def _shape(store: dict, product) -> object:
-    """The product's solid from its BRep text in ``store``, read once per process."""
+    """The product's solid from its BRep text in ``store``, read once per process, its
+    analytic B-spline faces and edges rebuilt on planes, cylinders, circles and lines
+    (``analytic.analytic``: the same solid, intersected at their speed)."""
     from OCP.BRep import BRep_Builder
     from OCP.BRepTools import BRepTools
     from OCP.TopoDS import TopoDS_Shape
+
+    from .analytic import analytic
 
     memo = store.setdefault(("brep", "shapes"), {})
     if product not in memo:
         shape = TopoDS_Shape()
         BRepTools.Read_s(shape, io.BytesIO(store[product]), BRep_Builder())
-        memo[product] = shape
+        memo[product] = analytic(shape)
     return memo[product]
 
 
@@ -338,23 +342,29 @@ def _meets_within(section, tolerance: float) -> bool:
 
 
 def _volume(shape) -> float:
+    return float(_mass_properties(shape).Mass())
+
+
+def _mass_properties(shape):
+    """The solid's volume properties, integrated adaptively to ``analytic.VOLUME_PRECISION``:
+    OpenCASCADE's default Gauss rule misreads the volume of a common solid of B-spline faces
+    (0.58 mm³ for a pin-in-hole overlap of 0.377 mm³)."""
     from OCP.BRepGProp import BRepGProp
     from OCP.GProp import GProp_GProps
 
+    from .analytic import VOLUME_PRECISION
+
     props = GProp_GProps()
-    BRepGProp.VolumeProperties_s(shape, props)
-    return float(props.Mass())
+    BRepGProp.VolumeProperties_s(shape, props, VOLUME_PRECISION)
+    return props
 
 
 def _placement_of(shape) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Centre of mass and bounding box of a solid."""
     from OCP.Bnd import Bnd_Box
     from OCP.BRepBndLib import BRepBndLib
-    from OCP.BRepGProp import BRepGProp
-    from OCP.GProp import GProp_GProps
 
-    props = GProp_GProps()
-    BRepGProp.VolumeProperties_s(shape, props)
+    props = _mass_properties(shape)
     box = Bnd_Box()
     BRepBndLib.Add_s(shape, box, False)  # exact, not enlarged by the tessellation
     return (
