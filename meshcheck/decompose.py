@@ -31,6 +31,7 @@ import numpy as np
 
 from .cache import DecompositionCache, decomposition_key
 from .execute import Executor, LocalPool, Task, default_jobs
+from .geometry import support_points
 from .load import Body, is_closed, local_geometries
 from .progress import Progress
 from .settings import DEFAULT_THRESHOLD
@@ -473,6 +474,38 @@ def decompose_bodies(
     pieces : list of list of (n_i, 3) float64
         For each body, its convex pieces' vertices, world coordinates, model units.
     """
+    pieces_of, placed = decompose_shapes(
+        bodies,
+        threshold=threshold,
+        cache=cache,
+        cache_dir=cache_dir,
+        jobs=jobs,
+        options=options,
+        progress=progress,
+        time_limit=time_limit,
+        executor=executor,
+        geometry=geometry,
+    )
+    return [_world_pieces(pieces_of[p.digest], p) for p in placed]
+
+
+def decompose_shapes(
+    bodies: Sequence[Body],
+    *,
+    threshold: float = DEFAULT_THRESHOLD,
+    cache: DecompositionCache | None = None,
+    cache_dir: str | None = None,
+    jobs: int | None = None,
+    options: dict | None = None,
+    progress: Progress | None = None,
+    time_limit: float | dict[str, float] | None = DEFAULT_TIME_LIMIT,
+    executor: Executor | None = None,
+    geometry: dict | None = None,
+) -> tuple[dict[str, list[np.ndarray]], list[Placed]]:
+    """``decompose_bodies`` before the pieces are placed: the frame-local pieces of each
+    distinct geometry (by ``load.local_geometry`` digest), and each body's ``Placed`` (its
+    pieces in the world are ``(piece + corner)`` under its transform). The arguments are
+    ``decompose_bodies``'."""
     if cache is not None and cache_dir is not None:
         raise TypeError("give cache or cache_dir, not both")
     if cache_dir is not None:
@@ -483,7 +516,8 @@ def decompose_bodies(
     )
     keys, pieces_of = _cached_pieces(shapes, cache, settings)
     misses = [d for d in shapes if d not in pieces_of]
-    leaders = _near_copies(shapes, pieces_of, misses)
+    unpaid = {d for d, limit in _time_limits(time_limit, misses).items() if limit == 0.0}
+    leaders = _near_copies(shapes, pieces_of, misses, unpaid)
     limits = _time_limits(time_limit, [d for d in misses if d not in leaders])
     pieces_of.update(
         _decompose_misses(shapes, limits, settings, jobs, executor, progress, len(pieces_of))
@@ -496,7 +530,7 @@ def decompose_bodies(
     _show_done(progress, len(pieces_of))
     if cache is not None:
         _store_decomposed(cache, keys, pieces_of, misses, leaders, limits)
-    return [_world_pieces(pieces_of[p.digest], p) for p in placed]
+    return pieces_of, placed
 
 
 def _decompose_misses(shapes, limits, settings, jobs, executor, progress, done) -> dict:
@@ -504,7 +538,7 @@ def _decompose_misses(shapes, limits, settings, jobs, executor, progress, done) 
     where it stands in (``_hull_stands_in``), CoACD's covering pieces elsewhere."""
     _show_done(progress, done)
     stands_in = {d: _hull_stands_in(shapes[d], limit) for d, limit in limits.items()}
-    out = {d: [_hull_vertices(shapes[d].local)] for d in limits if stands_in[d]}
+    out = {d: [support_points(shapes[d].local)] for d in limits if stands_in[d]}
     _show_done(progress, done + len(out))
     concave = [d for d in limits if not stands_in[d]]
     out.update(
@@ -571,9 +605,13 @@ def _cached_pieces(
     return keys, pieces_of
 
 
-def _near_copies(shapes: dict[str, Shape], pieces_of: dict, misses: list[str]) -> dict[str, str]:
+def _near_copies(
+    shapes: dict[str, Shape], pieces_of: dict, misses: list[str], unpaid: set[str] = frozenset()
+) -> dict[str, str]:
     """Misses that are copies (within ``NEAR_COPY_TOLERANCE``) of a cached shape or of an
-    earlier miss: digest -> the digest whose pieces it reuses (re-covered)."""
+    earlier miss: digest -> the digest whose pieces it reuses (re-covered). A miss CoACD would
+    not run on (``unpaid``) follows no other such miss: both stand in with their own hulls,
+    cheaper than re-covering one with the other's (and, not cached, paid again every run)."""
     by_topology: dict[tuple, list[str]] = {}
     for digest in pieces_of:
         by_topology.setdefault(shapes[digest].topology, []).append(digest)
@@ -582,6 +620,8 @@ def _near_copies(shapes: dict[str, Shape], pieces_of: dict, misses: list[str]) -
         shape = shapes[digest]
         span = float(np.linalg.norm(np.ptp(shape.local, axis=0))) if len(shape.local) else 0.0
         for leader in by_topology.get(shape.topology, []):
+            if digest in unpaid and leader in unpaid:
+                continue
             gap = np.max(np.abs(shapes[leader].local - shape.local), initial=0.0)
             if gap <= NEAR_COPY_TOLERANCE * span:
                 leaders[digest] = leader

@@ -4,16 +4,21 @@ Each stage narrows the part pairs the next one looks at:
 
 1. ``candidate_pairs`` on the parts' boxes, grown by the reach (clearance + tolerance), then the
    groups rule;
-2. ``near_pairs``: GJK on whole-part convex hulls. A part's mesh lies inside its hull, so pairs
-   whose hulls stay beyond the reach are clear, and parts that meet nobody are never decomposed;
-3. ``decompose_parts`` then ``surfaces_near``: GJK on the convex pieces of the remaining parts.
-   The pieces cover every triangle of their part, so pairs whose pieces stay beyond the reach have
-   surfaces beyond the reach: they are clear unless one part is buried inside the other, which the
-   verify stage decides with one point per shell;
-4. ``decide_on_brep`` decides the pairs of STEP solids on their exact B-rep, once per pair of
+2. ``near_pairs``: GJK on whole-part convex hulls (one hull per distinct geometry, placed at
+   each part). A part's mesh lies inside its hull, so pairs whose hulls stay beyond the reach are
+   clear, and parts that meet nobody are never decomposed;
+3. ``pair_classes``: the remaining pairs grouped into classes, one per pair of geometries at one
+   placement in the pair's own frame (``verify.classes``); from here on the work is per class;
+4. ``decompose_parts`` then ``surfaces_near``: GJK on the convex pieces of each class's two
+   geometries, placed in the class's frame. The pieces cover every triangle of their part, so
+   classes whose pieces stay beyond the reach have surfaces beyond the reach: they are clear
+   unless one part is buried inside the other, which the verify stage decides with one point
+   per shell;
+5. ``decide_on_brep`` decides the pairs of STEP solids on their exact B-rep, once per pair of
    products and relative placement (the meshes only filter out pairs clear by a margin), and
-   ``verify_pairs`` decides the rest on the real meshes;
-5. ``approve`` marks approved findings, in one place.
+   ``verify_classes`` decides each class of the rest on the real meshes, once, and moves its
+   verdict to each of its pairs;
+6. ``approve`` marks approved findings, in one place.
 
 Every pair is decided with its own tolerance (``tolerances.pair_tolerances``) unless the user
 gave one. A run of clash tests (``Settings.tests``) runs the stages once for all its tests, each
@@ -32,10 +37,10 @@ import numpy as np
 
 from .cache import Caches, DecompositionCache, open_caches
 from .config import Approval, approval_reason
-from .decompose import coacd_budgets, decompose_bodies
+from .decompose import coacd_budgets, decompose_shapes
 from .errors import MeshcheckWarning
 from .execute import Executor, executor_for
-from .geometry import ConvexPack, Status, pack_convex, query_pairs
+from .geometry import ConvexPack, Status, pack_convex, place_packs, query_pairs, support_points
 from .geometry.broadphase import candidate_pairs, group_pairs
 from .load import Body, Limits, load_assembly, local_geometries
 from .load.limits import check_candidate_pairs
@@ -47,7 +52,7 @@ from .settings import Settings
 from .sweep import audit_srdf, mechanism_pieces, sweep_bodies, with_adjacent_approvals
 from .tolerances import part_sizes
 from .units import DEFAULT_UNIT
-from .verify import verify_pairs
+from .verify import verify_classes
 from .verify.brep import decide_on_brep, largest_reach_margin, reach_margin, warn_unconfirmed
 from .verify.clash_tests import (
     held_by_any,
@@ -58,7 +63,8 @@ from .verify.clash_tests import (
     verify_plans,
     widest_tolerances,
 )
-from .verify.duplicates import duplicate_findings, duplicate_sets, without_duplicate_pairs
+from .verify.classes import PairClasses, pair_classes
+from .verify.duplicates import duplicate_findings, duplicate_sets
 from .verify.elements import with_elements
 from .verify.shells import warn_nothing_to_compare, warn_overlapping_shells
 
@@ -177,22 +183,42 @@ def check_bodies(
 
     geometry = local_geometries(bodies)
     with Progress("comparing hulls", 0):
-        hulls = pack_convex(_world_hulls(bodies, geometry), is_hull=True)
+        hulls = _world_hulls(bodies, geometry)
         diagonal, magnitude = part_sizes(hulls.lower, hulls.upper, [b.is_float32 for b in bodies])
         deflection = np.array([b.deflection for b in bodies], dtype=np.float64)
-        pairs = select_pairs(
-            hulls, settings, names, diagonal, magnitude, deflection, largest_reach_margin(bodies)
-        )
         copies = duplicate_sets(bodies, geometry, tolerance=settings.tolerance)
-        pairs = without_duplicate_pairs(pairs, copies, len(bodies))
+        pairs = select_pairs(
+            hulls,
+            settings,
+            names,
+            diagonal,
+            magnitude,
+            deflection,
+            largest_reach_margin(bodies),
+            copies=copies,
+        )
         check_candidate_pairs(len(pairs), len(bodies))  # budgeted, like triangles
         # Triangles of a part read from CAD lie up to its deflection from the true surface:
         # overlaps and gaps within the two deflections cannot be told apart, so they touch.
         tolerance = widest_tolerances(diagonal, magnitude, pairs, settings, deflection=deflection)
-        reach = tolerance + pair_clearances(settings, names, pairs) + reach_margin(bodies, pairs)
+        margin = reach_margin(bodies, pairs)  # pairs of STEP solids: the B-rep's reach
+        reach = tolerance + pair_clearances(settings, names, pairs) + margin
         hull_query = query_pairs(hulls, pairs, tolerance=tolerance, depth=False, max_distance=reach)
         near = may_come_within(hull_query, reach)
-    pairs_near, tol_near, reach_near = pairs[near], tolerance[near], reach[near]
+    pairs_near, tol_near, margin_near = pairs[near], tolerance[near], margin[near]
+    penetrate = hull_query.status[near] == Status.PENETRATING
+    plans = verify_plans(settings, names, pairs_near, diagonal, magnitude, deflection=deflection)
+    # The pairs that remain, grouped into classes (one geometry pair at one placement in the
+    # pair's frame): from here on the work is per class, each decided once in its frame. The
+    # convex pieces are found for the classes at the widest tolerance; each verification (one
+    # without clash tests) groups its own pairs at its own tolerance.
+    classes = pair_classes(bodies, pairs_near, tol_near, None, geometry=geometry)
+    plan_classes = [
+        classes
+        if plan.mask.all() and np.array_equal(plan.tolerance, tol_near)
+        else pair_classes(bodies, pairs_near[plan.mask], plan.tolerance, None, geometry=geometry)
+        for plan in plans
+    ]
     with (
         contextlib.nullcontext(executor)
         if executor is not None
@@ -201,31 +227,37 @@ def check_bodies(
         swept = mechanism_pieces(
             bodies, mechanisms, settings, executor=executor, cache=caches.decompositions
         )
-        pieces, owner, piece_count = decompose_parts(
+        packs, piece_count = decompose_parts(
             bodies,
-            pairs_near,
+            classes,
             settings,
             executor=executor,
             geometry=geometry,
             cache=caches.decompositions,
             known=swept,
         )
-        near_surfaces = surfaces_near(pieces, owner, pairs_near, tol_near, reach_near)
-        penetrate = hull_query.status[near] == Status.PENETRATING
-        plans = verify_plans(
-            settings, names, pairs_near, diagonal, magnitude, deflection=deflection
-        )
         verified = []
-        for plan in plans:  # one without clash tests; else one per tolerance among the tests
-            planned, surfaces = pairs_near[plan.mask], near_surfaces[plan.mask]
+        for plan, found in zip(plans, plan_classes, strict=True):
+            class_margin = np.zeros(len(found))
+            np.maximum.at(class_margin, found.label, margin_near[plan.mask])
+            apart = ~surfaces_near(packs, found, plan.settings.clearance, class_margin)
+            planned, surfaces = pairs_near[plan.mask], ~apart[found.label]
             solid_findings, on_meshes, unconfirmed = decide_on_brep(
                 bodies, planned, surfaces, plan.settings, executor=executor, cache=caches.verdicts
             )
-            findings = verify_pairs(
+            if on_meshes.all():
+                found = dataclasses.replace(found, surfaces_apart=apart)
+            else:  # the pairs of STEP solids decided on the B-rep leave their classes
+                found = pair_classes(
+                    bodies,
+                    planned[on_meshes],
+                    plan.tolerance[on_meshes],
+                    ~surfaces[on_meshes],
+                    geometry=geometry,
+                )
+            findings = verify_classes(
                 bodies,
-                planned[on_meshes],
-                plan.tolerance[on_meshes],
-                surfaces[on_meshes],
+                found,
                 plan.settings,
                 executor=executor,
                 cache=caches.verdicts,
@@ -250,9 +282,12 @@ def _result(
 ) -> CheckResult:
     """The run's ``CheckResult``: findings, parts, the candidate pairs, the bodies, the sweeps,
     the pairs each clash test holds, each robot's pose and the SRDF audit."""
+    shape: dict[int, tuple[int, bool]] = {}  # triangles and closedness, once per mesh
+    for b in bodies:
+        if id(b.mesh) not in shape:
+            shape[id(b.mesh)] = (len(b.mesh.faces), b.is_closed)
     parts = [
-        Part(b.name, b.path, len(b.mesh.faces), b.is_closed, int(piece_count[k]))
-        for k, b in enumerate(bodies)
+        Part(b.name, b.path, *shape[id(b.mesh)], int(piece_count[k])) for k, b in enumerate(bodies)
     ]
     named = [tuple(sorted((bodies[i].name, bodies[j].name))) for i, j in pairs]
     test_pairs = {
@@ -285,22 +320,59 @@ def select_pairs(
     magnitude: np.ndarray,
     deflection: np.ndarray | None = None,
     margin: float = 0.0,
+    *,
+    copies: Sequence[Sequence[int]] = (),
 ) -> np.ndarray:
     """Part pairs whose boxes come within reach, restricted by the groups rule or the clash
     tests' sides; ``(k, 2)``.
 
     The boxes grow by the largest tolerance any pair can get (``tolerances``; of any test), the
     largest clearance and ``margin`` (for STEP solids: ``verify.brep.largest_reach_margin``), so
-    no pair within its own reach is pruned.
+    no pair within its own reach is pruned. ``copies`` are the duplicate sets
+    (``verify.duplicates``): their pairs are left out (a set is one finding), and the boxes of a
+    set's copies, one box, take part in the broad phase once (2,000 coincident copies are one
+    box, not two million pairs).
     """
     largest = largest_tolerance(diagonal, magnitude, settings, deflection=deflection)
     reach = largest + (largest_clearance(settings) or 0.0) + margin
-    pairs = candidate_pairs(hulls.lower, hulls.upper, margin=reach)
+    lower, upper = hulls.lower, hulls.upper
+    n = len(lower)
+    first = np.arange(n, dtype=np.int64)  # each part's set's first copy (itself when alone)
+    for members in copies:
+        first[members] = members[0]
+    stands = np.flatnonzero(first == np.arange(n))
+    if not copies:
+        pairs = candidate_pairs(lower, upper, margin=reach)
+    else:  # a set stands in with the box around its copies' boxes, then each copy's own decides
+        low, high = lower.copy(), upper.copy()
+        np.minimum.at(low, first, lower)
+        np.maximum.at(high, first, upper)
+        pairs = stands[candidate_pairs(low[stands], high[stands], margin=reach)]
+        pairs = _every_copy(pairs, first)
+        lo, hi = lower - 0.5 * reach, upper + 0.5 * reach  # candidate_pairs' own comparison
+        i, j = pairs[:, 0], pairs[:, 1]
+        pairs = pairs[np.all((lo[j] <= hi[i]) & (lo[i] <= hi[j]), axis=1)]
     if settings.groups is not None:
         pairs = pairs[settings.groups.pair_mask(names, pairs)]
     if settings.tests:
         pairs = pairs[held_by_any(settings.tests, names, pairs)]
     return pairs
+
+
+def _every_copy(pairs: np.ndarray, first: np.ndarray) -> np.ndarray:
+    """``pairs`` of first copies (``first[i] == i``), each repeated for every copy of either
+    part: ``(k, 2)``, ``i < j``, sorted as ``candidate_pairs`` sorts."""
+    order = np.argsort(first, kind="stable")
+    starts = np.searchsorted(first[order], np.arange(len(first) + 1))
+    count = starts[1:] - starts[:-1]  # copies of each first copy (0 for other parts)
+    a, b = pairs[:, 0], pairs[:, 1]
+    per_pair = count[a] * count[b]
+    row = np.repeat(np.arange(len(pairs)), per_pair)
+    offset = np.arange(len(row)) - np.repeat(np.cumsum(per_pair) - per_pair, per_pair)
+    i = order[starts[a[row]] + offset // count[b[row]]]
+    j = order[starts[b[row]] + offset % count[b[row]]]
+    out = np.stack([np.minimum(i, j), np.maximum(i, j)], axis=1).astype(np.int64)
+    return out[np.lexsort((out[:, 1], out[:, 0]))]
 
 
 def may_come_within(result, reach: np.ndarray) -> np.ndarray:
@@ -317,45 +389,55 @@ BUDGET_VARIABLE = "MESHCHECK_COACD_BUDGET"
 
 def decompose_parts(
     bodies: Sequence[Body],
-    pairs: np.ndarray,
+    classes: PairClasses,
     settings: Settings,
     *,
     executor: Executor | None = None,
     geometry: dict | None = None,
     cache: DecompositionCache | None = None,
     known: dict[int, list[np.ndarray]] | None = None,
-) -> tuple[ConvexPack, np.ndarray, np.ndarray]:
-    """Convex pieces of the parts of the hull-near ``pairs`` (``(k, 2)``, indices into
-    ``bodies``): CoACD's where the cost model says they pay (``decompose.coacd_budgets``), the
-    hull elsewhere. CoACD runs on ``executor`` (default: ``settings.jobs`` local processes);
-    pieces are kept in ``cache``, the run's decompositions (``decompose.decompose_bodies``).
-    Parts in ``known`` (body index -> world pieces: the sweep's, ``sweep.mechanism_pieces``)
-    keep those.
+) -> tuple[list[ConvexPack], np.ndarray]:
+    """Convex pieces of each geometry of the pair ``classes`` (``verify.classes``): CoACD's
+    where the cost model says they pay (``decompose.coacd_budgets``, counting the verify work of
+    one pair per class), the hull elsewhere. CoACD runs on ``executor`` (default:
+    ``settings.jobs`` local processes); pieces are kept in ``cache``, the run's decompositions
+    (``decompose.decompose_shapes``). A geometry of a part in ``known`` (body index -> world
+    pieces: the sweep's, ``sweep.mechanism_pieces``) keeps those.
 
     Returns
     -------
-    pieces : ConvexPack
-        The pieces of all needed parts, world coordinates, grouped by part.
-    owner : (p,) int64
-        The part index of each piece.
+    packs : list of ConvexPack
+        The pieces of each of ``classes.shapes``, in the geometry's own frame (its local
+        vertices'), packed once (an empty pack for a geometry no class needs).
     count : (n,) int64
-        Pieces per part; 0 for parts not needed.
+        Pieces of each part's geometry; 0 for parts in no class.
     """
-    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
-    needed = np.unique(pairs)
+    geometry = local_geometries(bodies) if geometry is None else geometry
+    reps = classes.pairs[classes.first]
+    needed = np.unique(reps)
     chosen = [bodies[i] for i in needed]
-    geometry = local_geometries(chosen) if geometry is None else geometry
     rank = np.full(len(bodies), -1, dtype=np.int64)
     rank[needed] = np.arange(len(needed))
     forced = os.environ.get(BUDGET_VARIABLE)
     budgets = coacd_budgets(
-        chosen, rank[pairs], geometry=geometry, forced=float(forced) if forced else None
+        chosen, rank[reps], geometry=geometry, forced=float(forced) if forced else None
     )
     known = known or {}
-    fresh = [bodies[i] for i in needed if i not in known]
-    with Progress("decomposing", len({geometry[id(b.mesh)].digest for b in fresh})) as bar:
-        fresh_lists = decompose_bodies(
-            fresh,
+    shape_of = {g.digest: s for s, g in enumerate(classes.shapes)}
+    local_known: dict[int, list[np.ndarray]] = {}
+    for i in sorted(known):  # the sweep's pieces, back in their geometry's frame
+        g = geometry[id(bodies[i].mesh)]
+        s = shape_of.get(g.digest)
+        if s is not None and s not in local_known:
+            local_known[s] = _local_pieces(known[i], bodies[i].transform, g.corner)
+    fresh: dict[int, Body] = {}  # one body per geometry to decompose
+    for i in needed:
+        s = shape_of[geometry[id(bodies[i].mesh)].digest]
+        if s not in local_known:
+            fresh.setdefault(s, bodies[i])
+    with Progress("decomposing", len(fresh)) as bar:
+        pieces_of, _ = decompose_shapes(
+            list(fresh.values()),
             threshold=settings.threshold,
             cache=cache,
             jobs=settings.jobs,
@@ -364,45 +446,66 @@ def decompose_parts(
             executor=executor,
             geometry=geometry,
         )
-    fresh_pieces = iter(fresh_lists)
-    piece_lists = [known[i] if i in known else next(fresh_pieces) for i in needed]
-    count = np.zeros(len(bodies), dtype=np.int64)
-    count[needed] = [len(p) for p in piece_lists]
-    owner = np.repeat(needed, count[needed]).astype(np.int64)
     # Pieces may carry extra interior points (triangle cover); a support scan over a superset of
     # the hull's vertices is still exact, so Qhull need not run again.
-    pieces = pack_convex([p for plist in piece_lists for p in plist], is_hull=True)
-    return pieces, owner, count
+    packs = [pack_convex([np.zeros(3)], is_hull=True)] * len(classes.shapes)
+    for s, piece_list in local_known.items():
+        packs[s] = pack_convex(piece_list, is_hull=True)
+    for s in fresh:
+        packs[s] = pack_convex(pieces_of[classes.shapes[s].digest], is_hull=True)
+    count = np.zeros(len(bodies), dtype=np.int64)
+    used = np.unique(classes.pairs)
+    pieces_per_shape = np.array([len(p.starts) - 1 for p in packs], dtype=np.int64)
+    if len(used):
+        count[used] = pieces_per_shape[classes.body_shape[used]]
+    return packs, count
+
+
+def _local_pieces(pieces: list[np.ndarray], transform: np.ndarray, corner: np.ndarray) -> list:
+    """World pieces of a part moved back to its geometry's frame (its local vertices')."""
+    transform = np.asarray(transform, dtype=np.float64)
+    if np.array_equal(transform, np.eye(4)):
+        return [p - corner for p in pieces]
+    inverse = np.linalg.inv(transform[:3, :3])
+    return [(p - transform[:3, 3]) @ inverse.T - corner for p in pieces]
 
 
 def surfaces_near(
-    pieces: ConvexPack,
-    owner: np.ndarray,
-    pairs: np.ndarray,
-    tolerance: np.ndarray,
-    reach: np.ndarray,
+    packs: Sequence[ConvexPack],
+    classes: PairClasses,
+    clearance,
+    margin: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Which part ``pairs`` have a piece pair within their ``reach`` (or undecided), ``(k,)`` bool.
-
-    A part pair without one has surfaces beyond its reach.
+    """Which ``classes`` have a piece pair within their reach (tolerance + clearance + margin,
+    or undecided), ``(c,)`` bool, each in its own frame: the pieces of its two geometries placed
+    as the verify stage places their meshes (``PairClasses.placed``), so what the pieces prove
+    holds for the very triangles verified. A class without one has surfaces beyond its reach.
+    ``margin`` ``(c,)`` is what the B-rep adds to a class of STEP solids' reach
+    (``verify.brep.reach_margin``); default none.
     """
-    if len(pairs) == 0:
+    c = len(classes)
+    if c == 0:
         return np.zeros(0, dtype=bool)
-    # Pieces are grouped by part (``decompose_parts``): test each pair's pieces against each
-    # other, rather than sweeping every piece of the assembly.
-    parts = int(max(owner.max(initial=-1), pairs.max())) + 1
-    count = np.bincount(owner, minlength=parts)
-    first = np.searchsorted(owner, np.arange(parts), side="left")
-    if np.any(owner[1:] < owner[:-1]):
-        raise ValueError("pieces must be grouped by part, in part order")
-    piece_pairs, row = group_pairs(
-        pieces.lower, pieces.upper, first, count, pairs, np.asarray(reach, dtype=np.float64)
-    )
+    which = np.empty(2 * c, dtype=np.int64)
+    transforms = np.broadcast_to(np.eye(4), (2 * c, 4, 4)).copy()
+    for k, placed in enumerate(classes.placed):
+        for side, p in enumerate(placed):
+            which[2 * k + side] = p.shape
+            transforms[2 * k + side, :3, :3] = p.linear
+            transforms[2 * k + side, :3, 3] = p.shift
+    pieces = place_packs(packs, which, transforms)
+    count = np.array([len(packs[s].starts) - 1 for s in which], dtype=np.int64)
+    first = np.concatenate([[0], np.cumsum(count)[:-1]]).astype(np.int64)
+    reach = classes.tolerance + (clearance or 0.0)
+    if margin is not None:
+        reach = reach + margin
+    groups = np.arange(2 * c, dtype=np.int64).reshape(c, 2)
+    piece_pairs, row = group_pairs(pieces.lower, pieces.upper, first, count, groups, reach)
     query = query_pairs(
-        pieces, piece_pairs, tolerance=tolerance[row], depth=False, max_distance=reach[row]
+        pieces, piece_pairs, tolerance=classes.tolerance[row], depth=False, max_distance=reach[row]
     )
     hit = may_come_within(query, reach[row])
-    out = np.zeros(len(pairs), dtype=bool)
+    out = np.zeros(c, dtype=bool)
     out[row[hit]] = True
     return out
 
@@ -416,6 +519,10 @@ def approve(
 
     ``names`` maps each part's name to all its names (full and relative) for pattern matching.
     """
+    if not approvals:  # nothing to approve: the findings as they are
+        return [
+            dataclasses.replace(f, approval_reason=None) if f.is_approved else f for f in findings
+        ]
     return [
         dataclasses.replace(
             f, approval_reason=approval_reason(approvals, names[f.a], names[f.b], f.id)
@@ -494,30 +601,34 @@ def _check_patterns(settings: Settings, names: Sequence[tuple[str, ...]]) -> Non
                 break
 
 
-def _world_hulls(bodies: Sequence[Body], geometry: dict) -> list[np.ndarray]:
-    """Hull vertices of each body, world coordinates; qhull runs once per distinct geometry.
+def _world_hulls(bodies: Sequence[Body], geometry: dict) -> ConvexPack:
+    """The convex hull of each body, world coordinates, packed: its support points
+    (``geometry.support_points``) found once per distinct geometry and moved to each body that
+    has it (``geometry.place_packs``).
 
     Geometry is compared up to translation (``load.local_geometry``), so instances of one
     mesh and copies of one part at other places share a hull.
     """
-    from scipy.spatial import ConvexHull, QhullError
+    index: dict[str, int] = {}
+    local: list[np.ndarray] = []
+    which = np.empty(len(bodies), dtype=np.int64)
+    by_mesh: dict[int, int] = {}
+    for k, body in enumerate(bodies):
+        g = by_mesh.get(id(body.mesh))
+        if g is None:
+            points, _, _, digest = geometry[id(body.mesh)]
+            if digest not in index:
+                index[digest] = len(local)
+                local.append(support_points(points))
+            g = by_mesh[id(body.mesh)] = index[digest]
+        which[k] = g
+    packs = [pack_convex([hull], is_hull=True) for hull in local]
+    return place_packs(packs, which, *_placements(bodies, geometry))
 
-    by_mesh: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # id(mesh) -> (local hull, corner)
-    by_digest: dict[str, np.ndarray] = {}
-    out = []
-    for body in bodies:
-        if id(body.mesh) not in by_mesh:
-            local, _, corner, digest = geometry[id(body.mesh)]
-            if digest not in by_digest:
-                try:
-                    by_digest[digest] = local[np.sort(ConvexHull(local).vertices)]
-                except (QhullError, ValueError):  # flat or degenerate: every vertex
-                    by_digest[digest] = local
-            by_mesh[id(body.mesh)] = (by_digest[digest], corner)
-        hull, corner = by_mesh[id(body.mesh)]
-        hull = hull + corner
-        transform = np.asarray(body.transform, dtype=np.float64)
-        if not np.array_equal(transform, np.eye(4)):
-            hull = hull @ transform[:3, :3].T + transform[:3, 3]
-        out.append(hull)
-    return out
+
+def _placements(bodies: Sequence[Body], geometry: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Each body's transform ``(n, 4, 4)`` and its local geometry's corner ``(n, 3)``: where
+    ``place_packs`` puts what was built once per geometry."""
+    transforms = np.array([b.transform for b in bodies], dtype=np.float64).reshape(-1, 4, 4)
+    corners = np.array([geometry[id(b.mesh)].corner for b in bodies]).reshape(-1, 3)
+    return transforms, corners

@@ -4,11 +4,15 @@ Overlaps and gaps below a pair's tolerance count as touching. When the user give
 each pair gets its own, from the two parts alone, never from other parts (a far, large part must
 not loosen the verdict on a small pair):
 
-``max(TOLERANCE_FRACTION * smaller diagonal, FLOAT32_ULPS * FLOAT32_EPS * largest magnitude)``
+``max(TOLERANCE_FRACTION * smaller diagonal, FLOAT32_ULPS * float32_spacing(largest magnitude))``
 
 where the magnitude term (the float32 floor) only counts for parts whose coordinates went through
 float32. Whatever the rule gives, a pair's tolerance is never below the sum of its two parts'
 tessellation deflections (STEP parts: their triangles lie up to the deflection from the solid).
+
+The float32 spacing (a unit in the last place) is a power of two, the same for every magnitude
+between two powers of two: copies of one pair placed anywhere in that range get one tolerance,
+so the verify stage decides them as one class (``verify.classes``).
 
 Every stage that needs a tolerance (broad phase, verify, duplicates, patterns, B-rep, sweep) asks
 this module; the kernels' own numerical thresholds are in ``geometry.constants``.
@@ -28,10 +32,11 @@ TOLERANCE_FRACTION = 1e-5
 FLOAT32_EPS = float(np.finfo(np.float32).eps)
 
 #: ... and, for parts whose coordinates went through float32 (``Body.is_float32``: binary STL,
-#: float PLY, glTF, STEP), never below ``FLOAT32_ULPS * 2^-23 * |x|`` at the largest such
-#: coordinate x of the pair (at least 8 float32 units in the last place at x): a float32 face at
-#: x is only known to 2^-24 |x|, and two coincident faces of two files can be that far apart for
-#: each vertex. Coordinates read in double (ASCII STL, OBJ, 3MF...) get no such floor.
+#: float PLY, glTF, STEP), never below ``FLOAT32_ULPS`` float32 units in the last place at the
+#: largest such coordinate x of the pair (``float32_spacing``): a float32 coordinate at x is only
+#: known to half a unit, so two coincident faces of two files can be a unit apart for each
+#: vertex, and eight leave a margin of eight. Coordinates read in double (ASCII STL, OBJ, 3MF...)
+#: get no such floor.
 FLOAT32_ULPS = 8.0
 
 #: Two closed shells of one part whose overlap is no thicker than this fraction of their size
@@ -69,10 +74,24 @@ def part_sizes(
     return diagonal, magnitude
 
 
+def float32_spacing(magnitude):
+    """The distance between adjacent float32 numbers at ``magnitude`` (a unit in the last
+    place): ``2^(k - 23)`` for ``magnitude`` in ``[2^k, 2^(k+1))``, 0 at 0. Floats and arrays.
+
+    Examples
+    --------
+    >>> [float(float32_spacing(x)) * 2**23 for x in (1.0, 1.999, 2.0, 0.0)]
+    [1.0, 1.0, 2.0, 0.0]
+    """
+    magnitude = np.abs(np.asarray(magnitude, dtype=np.float64))
+    _, exponent = np.frexp(magnitude)  # magnitude = m 2^exponent with 0.5 <= m < 1
+    return np.where(magnitude > 0.0, np.ldexp(1.0, exponent - 24), 0.0)
+
+
 def default_tolerance(size, magnitude):
     """The default tolerance for a part (or pair) of this ``size`` and float32 ``magnitude``.
 
-    ``max(TOLERANCE_FRACTION * size, FLOAT32_ULPS * FLOAT32_EPS * magnitude)``, and
+    ``max(TOLERANCE_FRACTION * size, FLOAT32_ULPS * float32_spacing(magnitude))``, and
     ``TOLERANCE_FRACTION`` units where both are 0 (a point at the origin). Works on floats and
     arrays alike.
 
@@ -82,10 +101,12 @@ def default_tolerance(size, magnitude):
     0.0001
     >>> float(default_tolerance(10.0, 2.0**20)) == 8.0 * 2.0**-23 * 2.0**20
     True
+    >>> float(default_tolerance(10.0, 2.0**21 - 1)) == float(default_tolerance(10.0, 2.0**20))
+    True
     """
     tol = np.maximum(
         TOLERANCE_FRACTION * np.asarray(size, dtype=np.float64),
-        FLOAT32_ULPS * FLOAT32_EPS * np.asarray(magnitude, dtype=np.float64),
+        FLOAT32_ULPS * float32_spacing(magnitude),
     )
     return np.where(tol > 0.0, tol, TOLERANCE_FRACTION)
 
@@ -186,6 +207,7 @@ __all__ = [
     "SHELL_TOUCH_FRACTION",
     "TOLERANCE_FRACTION",
     "default_tolerance",
+    "float32_spacing",
     "largest_pair_tolerance",
     "mesh_tolerance",
     "pair_tolerances",

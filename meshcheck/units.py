@@ -261,7 +261,9 @@ def given_units(paths: Sequence[str], rules: Sequence[UnitRule]) -> dict[str, st
     dict
         Path -> canonical unit, for the paths some rule names.
     """
-    out = {}
+    out: dict[str, str] = {}
+    if not rules:  # nothing to match (resolving every path's real name costs a system call)
+        return out
     for path in paths:
         names = file_names(path)
         for rule in rules:
@@ -272,5 +274,7 @@ def given_units(paths: Sequence[str], rules: Sequence[UnitRule]) -> dict[str, st
 
 def unmatched_rules(paths: Sequence[str], rules: Sequence[UnitRule]) -> list[UnitRule]:
     """The rules that name none of ``paths``, in order."""
+    if not rules:
+        return []
     names = [file_names(path) for path in paths]
     return [r for r in rules if not any(r.matches(p, n) for p, n in zip(paths, names, strict=True))]

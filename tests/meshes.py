@@ -119,6 +119,56 @@ def winding_inside(mesh: trimesh.Trimesh, points) -> np.ndarray:
     return np.abs(brute_winding_numbers(mesh, points)) > 0.5
 
 
+def gltf_document(meshes: dict, nodes: list[dict], roots: list[int] | None = None) -> dict:
+    """A glTF document of ``meshes`` (name -> trimesh.Trimesh, float32 positions, data embedded
+    as a base64 URI) placed by ``nodes``: each node's ``"mesh"`` names a mesh; its other keys
+    (``name``, ``translation``, ``rotation``, ``scale``, ``matrix``, ``children``) are glTF's.
+    ``roots`` default: every node no other node lists as a child."""
+    import base64
+
+    names = list(meshes)
+    data, views, accessors, gltf_meshes = b"", [], [], []
+    for k, name in enumerate(names):
+        v = np.asarray(meshes[name].vertices, dtype=np.float32)
+        f = np.asarray(meshes[name].faces, dtype=np.uint32)
+        for array in (v, f.ravel()):
+            views.append({"buffer": 0, "byteOffset": len(data), "byteLength": array.nbytes})
+            data += array.tobytes()
+        accessors.append({
+            "bufferView": 2 * k, "componentType": 5126, "count": len(v), "type": "VEC3",
+            "min": v.min(axis=0).tolist(), "max": v.max(axis=0).tolist(),
+        })  # fmt: skip
+        accessors.append(
+            {"bufferView": 2 * k + 1, "componentType": 5125, "count": f.size, "type": "SCALAR"}
+        )
+        primitive = {"attributes": {"POSITION": 2 * k}, "indices": 2 * k + 1}
+        gltf_meshes.append({"name": name, "primitives": [primitive]})
+    out_nodes = [
+        {**{k: v for k, v in node.items() if k != "mesh"},
+         **({"mesh": names.index(node["mesh"])} if "mesh" in node else {})}
+        for node in nodes
+    ]  # fmt: skip
+    if roots is None:
+        children = {c for n in nodes for c in n.get("children", [])}
+        roots = [k for k in range(len(nodes)) if k not in children]
+    uri = "data:application/octet-stream;base64," + base64.b64encode(data).decode()
+    return {
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": roots}],
+        "nodes": out_nodes,
+        "meshes": gltf_meshes,
+        "buffers": [{"byteLength": len(data), "uri": uri}],
+        "bufferViews": views,
+        "accessors": accessors,
+    }
+
+
+def matrix_node(transform, **node) -> dict:
+    """A glTF node placed by a 4 x 4 ``transform`` (column-major ``matrix``)."""
+    return {**node, "matrix": np.asarray(transform, dtype=np.float64).T.ravel().tolist()}
+
+
 def chain_urdf(count: int, *, box: str = "0.06 0.02 0.02", limit: float = 0.5) -> str:
     """A URDF of ``count`` links in a row, each a box centred 0.05 m along its frame's x axis,
     joined by revolute joints about z every 0.1 m with the range ``-limit..limit`` (radians)."""

@@ -185,24 +185,41 @@ def test_baseline_states_are_per_test(tmp_path, result):
 
 @pytest.fixture
 def verify_calls(monkeypatch):
-    """Every call of the verify stage's ``verify_pair`` (run in this process: jobs=1), by the
-    names of its two meshes; the clearance of each call in ``clearances``."""
+    """Every call of the verify stage's ``verify_pair`` (run in this process: jobs=1), as the
+    pairs (names of their two parts) of the pair class it decides, each pair once per call; the
+    clearance of each pair's call in ``clearances``."""
+    import numpy as np
+
+    import meshcheck.pipeline as pipeline
     import meshcheck.verify.batch as batch
 
-    real = batch.verify_pair
+    real_pair, real_classes = batch.verify_pair, pipeline.verify_classes
     calls = []
-    names = {}
+    current = []  # (bodies, classes) of the verify_classes call under way
 
-    def counted(a, b, **options):
-        pair = frozenset((names[id(a)], names[id(b)]))
-        calls.append(pair)
-        clearances[pair] = options["clearance"]
-        return real(a, b, **options)
+    def decided(a, b, **options):
+        bodies, classes = current[-1]
+        placed = [[classes.arrays(p)[0] for p in classes.placed[c]] for c in range(len(classes))]
+        (c,) = [
+            c
+            for c, (va, vb) in enumerate(placed)
+            if np.array_equal(va, a.vertices) and np.array_equal(vb, b.vertices)
+        ]
+        for k in classes.members()[c]:
+            i, j = classes.pairs[k]
+            pair = frozenset((bodies[i].name, bodies[j].name))
+            calls.append(pair)
+            clearances[pair] = options["clearance"]
+        return real_pair(a, b, **options)
 
-    monkeypatch.setattr(batch, "verify_pair", counted)
+    def verify_classes(bodies, classes, *args, **kw):
+        current.append((bodies, classes))
+        return real_classes(bodies, classes, *args, **kw)
+
+    monkeypatch.setattr(batch, "verify_pair", decided)
+    monkeypatch.setattr(pipeline, "verify_classes", verify_classes)
 
     def run(parts, settings):
-        names.update({id(b.world): b.name for b in parts})
         calls.clear()
         clearances.clear()
         out = check_bodies(parts, settings)

@@ -191,7 +191,7 @@ def test_default_tolerance_comes_from_the_pair():
     diagonal, magnitude = part_sizes(lower, upper)
     tol = pair_tolerances(diagonal, magnitude, np.array([[0, 1], [1, 2]]))
     assert tol[0] == pytest.approx(5e-3)  # the smaller part's diagonal, not the assembly's
-    assert tol[1] == pytest.approx(8 * np.finfo(np.float32).eps * 70e3)  # float32 rounding
+    assert tol[1] == 8 * np.spacing(np.float32(70e3))  # eight float32 steps at x = 70,000
     point = np.zeros((1, 3))
     assert pair_tolerances(*part_sizes(point, point), np.array([[0, 0]]))[0] > 0
 

@@ -35,11 +35,12 @@ def free_port() -> int:
 
 def assembly(directory, boxes: int = 12) -> list[str]:
     """The concave bracket on the plate (decomposed on the cluster), and a row of boxes, each
-    overlapping or touching the next, so there are pairs to verify."""
+    overlapping the next, so there are pairs to verify: each box a little taller than the one
+    before, so each pair is a pair class of its own (``verify.classes``), decided on its own."""
     os.makedirs(directory, exist_ok=True)
     paths = [os.path.join(SAMPLES, "plate.stl"), os.path.join(SAMPLES, "bracket.stl")]
     for k in range(boxes):
-        box = trimesh.creation.box(extents=[10, 10, 10])
+        box = trimesh.creation.box(extents=[10, 10, 10 + 0.01 * k])
         box.apply_translation([200.0 + 9.5 * k, 0.0, 0.0])
         path = os.path.join(directory, f"box{k:02d}.stl")
         box.export(path)
@@ -118,6 +119,32 @@ def test_a_local_cluster_gives_the_local_report(tmp_path, monkeypatch):
     entries = [n for _, _, files in os.walk(tmp_path / "cluster-cache") for n in files]
     assert any(n.endswith(".bin") for n in entries) and any(n.endswith(".json") for n in entries)
     assert not any(n.startswith(".tmp-") for n in entries)
+
+
+@pytest.mark.slow
+def test_an_instanced_plant_on_a_cluster_gives_the_local_report(tmp_path):
+    distributed = pytest.importorskip("distributed")
+    from test_pair_classes import plant_gltf
+
+    path = plant_gltf(tmp_path / "plant.gltf")
+    options = {"config": None, "file_units": {path: "mm"}}
+    expected = render(pipeline.check([path], cache_dir=None, jobs=1, **options), "json")
+    cluster = distributed.LocalCluster(
+        n_workers=2,
+        threads_per_worker=1,
+        processes=True,
+        host="127.0.0.1",
+        dashboard_address=None,
+        env={"OMP_NUM_THREADS": "1"},
+    )
+    try:
+        for _ in range(2):  # cold, then with the verdicts the first run cached, by class
+            result = pipeline.check(
+                [path], cache_dir=tmp_path / "cache", scheduler=cluster.scheduler_address, **options
+            )
+            assert render(result, "json") == expected
+    finally:
+        cluster.close(timeout=20)
 
 
 class _Processes:

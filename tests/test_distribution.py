@@ -344,7 +344,7 @@ def test_every_test_that_needs_a_platform_carries_its_marker():
         for module, name, _ in SUITE.tests()
         if "browser_page" in {a.arg for a in SUITE.definitions[module, name].args.args}
     ]
-    assert sorted(browser) == sorted(uses_browser) and len(browser) == 12, browser
+    assert sorted(browser) == sorted(uses_browser) and len(browser) == 13, browser
 
 
 def test_collecting_the_tests_needs_no_platform():
@@ -431,4 +431,4 @@ def test_each_wheel_platform_collects_no_test_it_cannot_run():
         cannot = {t for t, needs in needing.items() if needs & DESELECTED[platform]}
         assert tests & cannot == set(), platform
     browser = {t for t, needs in needing.items() if "browser" in needs}
-    assert collected("browser") == browser and len(browser) == 12, browser
+    assert collected("browser") == browser and len(browser) == 13, browser

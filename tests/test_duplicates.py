@@ -12,6 +12,8 @@ import numpy as np
 import pytest
 import trimesh
 from click.testing import CliRunner
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from meshcheck.cli import main
 from meshcheck.load import Body
@@ -120,3 +122,46 @@ def test_a_duplicate_fails_in_the_machine_formats(tmp_path, fmt):
         lines = text.splitlines()
         first_row = lines[next(k for k, line in enumerate(lines) if line.startswith("|---")) + 1]
         assert "| duplicate |" in first_row
+
+
+@settings(derandomize=True, deadline=None, max_examples=40)
+@given(
+    boxes=st.lists(
+        st.tuples(st.integers(0, 6), st.integers(0, 6), st.integers(1, 3)), min_size=2, max_size=12
+    ),
+    sets=st.lists(st.lists(st.integers(0, 11), min_size=2, max_size=4, unique=True), max_size=3),
+    jitter=st.floats(0.0, 1e-3),
+)
+def test_the_broad_phase_of_copies_pairs_each_copy_as_itself(boxes, sets, jitter):
+    # Oracle: every box against every other, the pairs inside a set left out.
+    from meshcheck.geometry import pack_convex
+    from meshcheck.pipeline import select_pairs
+
+    n = len(boxes)
+    taken: set[int] = set()
+    copies = []
+    for members in sets:  # disjoint sets of existing parts, each copy jittered off the first
+        members = sorted(m for m in members if m < n and m not in taken)
+        if len(members) > 1:
+            taken.update(members)
+            copies.append(members)
+    lower = np.array([[x, y, 0.0] for x, y, _ in boxes])
+    upper = lower + np.array([[s, s, 1.0] for _, _, s in boxes])
+    for members in copies:
+        for k, m in enumerate(members):
+            lower[m], upper[m] = lower[members[0]] + k * jitter, upper[members[0]] + k * jitter
+    hulls = pack_convex([np.vstack([lo, hi]) for lo, hi in zip(lower, upper, strict=True)])
+    settings_ = Settings(cache_dir=None, tolerance=0.25)
+    got = select_pairs(hulls, settings_, [("x",)] * n, np.ones(n), np.zeros(n), copies=copies)
+    label = {m: s for s, members in enumerate(copies) for m in members}
+
+    def near(i, j) -> bool:
+        return bool(np.all(lower[j] - upper[i] <= 0.25) and np.all(lower[i] - upper[j] <= 0.25))
+
+    expected = [
+        (i, j)
+        for i in range(n)
+        for j in range(i + 1, n)
+        if near(i, j) and not (i in label and label.get(j) == label[i])
+    ]
+    assert [tuple(p) for p in got.tolist()] == expected

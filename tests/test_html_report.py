@@ -648,6 +648,52 @@ def test_pattern_group_names_both_parts_of_each_copy(browser_page, tmp_path):
     assert errors == []
 
 
+@pytest.mark.browser
+@pytest.mark.slow
+def test_a_mesh_placed_many_times_is_drawn_as_instances(browser_page, tmp_path):
+    """Twenty plates and their sunk pegs: two instanced meshes, not forty objects; selecting a
+    finding draws its two parts as tinted meshes of their own and hides their instances."""
+    page, errors = browser_page
+    plate = trimesh.creation.box(extents=(10.0, 10.0, 2.0)).apply_translation((5, 5, 1))
+    peg = trimesh.creation.box(extents=(2.0, 2.0, 3.5)).apply_translation((3, 3, 3.25))
+    bodies = []
+    for k in range(20):
+        at = np.eye(4)
+        at[:3, 3] = (20.0 * (k % 5), 20.0 * (k // 5), 0.0)
+        bodies += [Body(f"plate{k:02d}.stl", "", plate, at), Body(f"peg{k:02d}.stl", "", peg, at)]
+    result = check_bodies(bodies, jobs=1)
+    assert len(result.findings) == 20
+    path = tmp_path / "instances.html"
+    path.write_text(render_html(result, bodies, version="0.1.0"), encoding="utf-8")
+    open_report(page, path)
+    seen = """() => {
+        const scene = window.meshcheckView.scene;
+        const sets = scene.children.filter((o) => o.isInstancedMesh);
+        const hidden = sets.map((s) => [...Array(s.count).keys()].filter(
+            (i) => s.instanceMatrix.array[16 * i] === 0).length);
+        const tinted = scene.children.filter(
+            (o) => o.isMesh && !o.isInstancedMesh && sets.some((s) => s.geometry === o.geometry));
+        return { sets: sets.map((s) => s.count), hidden,
+                 tinted: tinted.map((o) => o.matrix.elements.slice(12, 14)) };
+    }"""
+
+    def selected_module() -> np.ndarray:
+        row = page.locator("#findings tbody tr.selected").get_attribute("data-id")
+        finding = next(f for f in result.findings if f.id == row)
+        return next(b for b in bodies if b.name == finding.a).transform[:2, 3]
+
+    on_load, first = page.evaluate(seen), selected_module()
+    assert sorted(on_load["sets"]) == [20, 20]  # forty parts, two objects
+    assert on_load["hidden"] == [1, 1] and len(on_load["tinted"]) == 2  # the worst finding's
+    page.locator("#findings tbody tr").nth(7).click()
+    after, second = page.evaluate(seen), selected_module()
+    assert not np.allclose(first, second)
+    assert after["hidden"] == [1, 1] and len(after["tinted"]) == 2  # the first back in its set
+    for before, now in zip(on_load["tinted"], after["tinted"], strict=True):
+        np.testing.assert_allclose(np.subtract(now, before), second - first, atol=1e-6)
+    assert errors == []
+
+
 # Runs in its own process: one process drives one Playwright at a time, and the module's
 # browser (with WebGL) is open while these tests run.
 WITHOUT_WEBGL_PROBE = """

@@ -1,6 +1,6 @@
-"""Pair verdicts: cached and reused only for the same meshes, placement and settings; the output
-does not depend on where a verdict came from (cache, this process, -j workers); a forged entry
-cannot turn a failing check into a pass."""
+"""Pair verdicts: cached and reused only for the same pair class (meshes, placement in the pair's
+frame, settings); the output does not depend on where a verdict came from (cache, this process,
+-j workers); a forged entry cannot turn a failing check into a pass."""
 
 from __future__ import annotations
 
@@ -19,9 +19,11 @@ from meshcheck import pipeline
 from meshcheck.cache import PairCache, pair_key, pair_secret
 from meshcheck.cache import verdicts as verdicts_module
 from meshcheck.errors import MeshcheckWarning
+from meshcheck.load import local_geometries
 from meshcheck.reports import render
 from meshcheck.results import PairVerdict, Solid, Verdict
 from meshcheck.verify import batch, verify_pair
+from meshcheck.verify.classes import class_identity, pair_classes
 
 
 def write_row(directory, moved: float = 0.0) -> list[str]:
@@ -67,7 +69,8 @@ def test_unchanged_rerun_verifies_nothing_and_output_is_identical(tmp_path, coun
     paths = write_row(tmp_path / "row")
     cold, cold_json = run(paths, tmp_path / "c", jobs=1)
     verified = len(counted)
-    assert verified == len(cold.checked_pairs) > 0
+    # boxes 1-2 and 8-9 touch alike: one class, verified once
+    assert verified == len(cold.checked_pairs) - 1 == 3
     warm, warm_json = run(paths, tmp_path / "c", jobs=1)
     assert len(counted) == verified  # nothing verified again
     assert warm_json == cold_json
@@ -119,21 +122,15 @@ def test_parallel_verify_is_byte_identical_to_serial(tmp_path, monkeypatch, coun
 
 
 def _interfering_pair_key(paths, cache_dir):
-    """Key of the box0-box1 pair as the pipeline computes it."""
+    """Key of the box0-box1 pair's class as the pipeline computes it."""
     result, _ = run(paths, cache_dir, jobs=1)
     (finding,) = [f for f in result.findings if str(f.status) == "interference"]
-    bodies = {b.name: b for b in result.bodies}
-    a, b = bodies[finding.a], bodies[finding.b]
-    index = {b_.name: k for k, b_ in enumerate(result.bodies)}
-    ((i, j),) = batch._oriented(result.bodies, np.array([[index[a.name], index[b.name]]]))
-    a, b = result.bodies[i], result.bodies[j]
-    return pair_key(
-        (a.digest, a.transform),
-        (b.digest, b.transform),
-        tolerance=finding.tolerance,
-        clearance=0.5,
-        surfaces_apart=False,
-    )
+    index = {b.name: k for k, b in enumerate(result.bodies)}
+    pair = np.array([[index[finding.a], index[finding.b]]])
+    geometry = local_geometries(result.bodies)
+    classes = pair_classes(result.bodies, pair, [finding.tolerance], [False], geometry=geometry)
+    a, b, tol, apart = class_identity(classes, 0)
+    return pair_key(a, b, tolerance=tol, clearance=0.5, surfaces_apart=apart)
 
 
 CLEAR = PairVerdict(Verdict.CLEAR, float("inf"))
@@ -324,6 +321,7 @@ def test_the_key_covers_placement_tolerance_and_clearance():
     moved = np.eye(4)
     moved[0, 3] = np.nextafter(0.0, 1.0)
     assert pair_key(a, ("e" * 64, moved), **base) != key
+    assert pair_key(("d" * 63 + "e", np.eye(4)), b, **base) != key
     assert pair_key(a, b, **{**base, "tolerance": np.nextafter(1e-4, 1.0)}) != key
     assert pair_key(a, b, **{**base, "clearance": 0.0}) != key
     assert pair_key(a, b, **{**base, "surfaces_apart": True}) != key

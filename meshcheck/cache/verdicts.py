@@ -1,4 +1,4 @@
-"""Pair verdicts: a signed ``.json`` per part pair, placement and setting (``verify``'s verdicts).
+"""Pair verdicts: a signed ``.json`` per pair class and setting (``verify``'s verdicts).
 
 A verdict cannot be checked without computing it again, and a forged ``clear`` for an
 interfering pair would turn a failing CI gate green: an entry is used only with a valid signature
@@ -21,7 +21,7 @@ from ..results import Location, PairVerdict, Solid, Verdict
 from .store import Store, checksum, package_version
 
 # Bump when the layout of an entry or the meaning of a verdict changes.
-PAIR_FORMAT_VERSION = 3
+PAIR_FORMAT_VERSION = 4
 # A pair entry's verdict is a few hundred bytes, not counting the shared solid it may carry.
 MAX_PAIR_ENTRY_BYTES = 4096
 # The shared solid of an interference (vertices as float64, faces as uint32, before compression)
@@ -42,14 +42,15 @@ def pair_key(
 ) -> str:
     """Key of a pair verdict: hex SHA-256 of everything the verdict depends on.
 
+    A verdict is computed in its pair's own frame (``verify.classes``), from the two geometries
+    placed there, so the key is the pair class's: every pair of the class, wherever it is in
+    the assembly and in whichever run, finds the one verdict, and moves it to its own frame.
+
     Parameters
     ----------
     a, b : (str, (4, 4) float64)
-        Each part's mesh digest (frame-local geometry) and its transform to world coordinates.
-        Both transforms go in bit for bit, which fixes b in a's frame exactly, and also where
-        the pair is: a verdict is not reused for a pair moved as a whole, because rounding at
-        other coordinates can change a verdict at the edge of the tolerance, and the verdict's
-        location is in world coordinates.
+        Each geometry's digest (``load.local_geometry``) and its placement in the pair's frame
+        (``verify.classes.class_identity``: rounded, as given to ``verify_pair``), bit for bit.
     tolerance, clearance : float
         The pair's touching tolerance and the clearance, model units (bit for bit).
     surfaces_apart : bool
@@ -82,8 +83,9 @@ def pair_key(
 
 @functools.cache
 def verify_code_version() -> str:
-    """Digest of what computes a verdict: meshcheck's version, the source of its verify and depth
-    stages, the compiled kernels' binary, and the versions of numpy, trimesh and manifold3d."""
+    """Digest of what computes a verdict: meshcheck's version, the source of its pair classes,
+    verify and depth stages, the compiled kernels' binary, and the versions of numpy, trimesh
+    and manifold3d."""
     from .. import DISTRIBUTION
     from ..geometry import _kernels
 
@@ -93,6 +95,7 @@ def verify_code_version() -> str:
     ]
     here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))  # the package
     names = (
+        os.path.join("verify", "classes.py"),
         os.path.join("verify", "pair.py"),
         os.path.join("verify", "depth.py"),
         "mesh.py",

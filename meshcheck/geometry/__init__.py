@@ -29,7 +29,15 @@ from .gjk import (
     query_pairs,
     signed_distance,
 )
-from .support import ConvexPack, concat_packs, farthest_from_lines, pack_convex, repeat_pack
+from .support import (
+    ConvexPack,
+    concat_packs,
+    farthest_from_lines,
+    pack_convex,
+    place_packs,
+    repeat_pack,
+    support_points,
+)
 
 __all__ = [
     "Contact",
@@ -40,9 +48,11 @@ __all__ = [
     "farthest_from_lines",
     "intersects",
     "pack_convex",
+    "place_packs",
     "placed_distances",
     "query",
     "query_pairs",
     "repeat_pack",
     "signed_distance",
+    "support_points",
 ]

@@ -56,16 +56,21 @@ def candidate_pairs(
     # In sorted order, box i overlaps on the sweep axis exactly the boxes i+1 .. end[i]-1.
     end = np.searchsorted(lo[:, axis], hi[:, axis], side="right")
     counts = np.maximum(end - np.arange(1, m + 1), 0)
-    first = np.repeat(np.arange(m), counts)
-    offsets = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
-    second = first + 1 + offsets
-
-    keep = np.ones(len(first), dtype=bool)
-    for d in range(3):  # one axis at a time: contiguous columns, no (k, 3) temporaries
-        lo_d, hi_d = np.ascontiguousarray(lo[:, d]), np.ascontiguousarray(hi[:, d])
-        keep &= lo_d[second] <= hi_d[first]
-        keep &= lo_d[first] <= hi_d[second]
-    i, j = order[first[keep]], order[second[keep]]
+    if counts.sum() > SWEEP_PAIRS_PER_BOX * m:
+        # Boxes spread over a plane or a volume (a plant's modules on a floor) overlap many
+        # others along any one axis: a hierarchy pairs them in n log n instead.
+        i, j = _hierarchy_pairs(lo, hi)
+        i, j = order[i], order[j]
+    else:
+        first = np.repeat(np.arange(m), counts)
+        offsets = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
+        second = first + 1 + offsets
+        keep = np.ones(len(first), dtype=bool)
+        for d in range(3):  # one axis at a time: contiguous columns, no (k, 3) temporaries
+            lo_d, hi_d = np.ascontiguousarray(lo[:, d]), np.ascontiguousarray(hi[:, d])
+            keep &= lo_d[second] <= hi_d[first]
+            keep &= lo_d[first] <= hi_d[second]
+        i, j = order[first[keep]], order[second[keep]]
     if owner is not None:
         owner = np.asarray(owner)
         distinct = owner[i] != owner[j]
@@ -76,6 +81,24 @@ def candidate_pairs(
     pairs = np.empty((len(key), 2), dtype=np.int64)
     np.divmod(key, m, out=(pairs[:, 0], pairs[:, 1]))
     return pairs
+
+
+#: Boxes a box may overlap on the sweep axis, on average, before ``candidate_pairs`` leaves the
+#: one-axis sweep (which tests each of those pairs) for a bounding-volume hierarchy.
+SWEEP_PAIRS_PER_BOX = 64
+
+
+def _hierarchy_pairs(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The pairs ``i < j`` of boxes that overlap (``lo``/``hi`` already grown), from the verify
+    stage's box hierarchy (``box_pairs``), tested again with the sweep's own comparison so the
+    answer is the sweep's to the bit."""
+    from .triangles import box_pairs
+
+    pairs = box_pairs(lo, hi, lo, hi, 0.0)
+    i, j = pairs[:, 0], pairs[:, 1]
+    i, j = i[i < j], j[i < j]
+    keep = np.all((lo[j] <= hi[i]) & (lo[i] <= hi[j]), axis=1)
+    return i[keep], j[keep]
 
 
 def group_pairs(

@@ -239,6 +239,106 @@ def repeat_pack(
     )
 
 
+def support_points(points: np.ndarray) -> np.ndarray:
+    """Points whose convex hull is the convex hull of ``points``, as cheaply as a support map
+    allows: all of them when a scan would read them anyway (``HILL_CLIMB_MIN_VERTICES`` or
+    fewer), else the hull's vertices (Qhull; every point when the hull is flat), in index order.
+
+    Parameters
+    ----------
+    points : (n, 3) float64
+
+    Returns
+    -------
+    (k, 3) float64
+    """
+    points = np.asarray(points, dtype=np.float64)
+    if len(points) <= HILL_CLIMB_MIN_VERTICES:
+        return points
+    try:
+        return points[np.sort(ConvexHull(points).vertices)]
+    except (QhullError, ValueError):
+        return points
+
+
+def place_packs(
+    packs: Sequence[ConvexPack],
+    which: np.ndarray,
+    transforms: np.ndarray,
+    shifts: np.ndarray | None = None,
+) -> ConvexPack:
+    """Copies of frame-local packs, each placed in the world: ``packs`` built once per distinct
+    geometry, moved to every part that has it (a placement keeps a hull's adjacency).
+
+    Parameters
+    ----------
+    packs : sequence of ConvexPack
+        Shapes in their own frames.
+    which : (n,) int64
+        The pack of each copy.
+    transforms : (n, 4, 4) float64
+        Frame -> world of each copy.
+    shifts : (n, 3) float64, optional
+        Added to a copy's points before its transform (a mesh's corner); default 0.
+
+    Returns
+    -------
+    ConvexPack
+        The shapes of copy 0, then copy 1..., each copy's points ``(p + shift) @ R.T + t``
+        (``p + shift`` for an identity transform).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> up = np.eye(4)
+    >>> up[2, 3] = 5.0
+    >>> pack = pack_convex([np.eye(3)])
+    >>> placed = place_packs([pack], np.array([0, 0]), np.stack([np.eye(4), up]))
+    >>> placed.starts.tolist(), placed.lower.tolist()
+    ([0, 3, 6], [[0.0, 0.0, 0.0], [0.0, 0.0, 5.0]])
+    """
+    which = np.asarray(which, dtype=np.int64).reshape(-1)
+    transforms = np.asarray(transforms, dtype=np.float64).reshape(-1, 4, 4)
+    n = len(which)
+    shifts = np.zeros((n, 3)) if shifts is None else np.asarray(shifts, dtype=np.float64)
+    n_points = np.array([len(p.points) for p in packs], dtype=np.int64)[which]
+    n_shapes = np.array([len(p.starts) - 1 for p in packs], dtype=np.int64)[which]
+    n_edges = np.array([len(p.nbrs) for p in packs], dtype=np.int64)[which]
+    point_at = np.concatenate([[0], np.cumsum(n_points)]).astype(np.int64)
+    shape_at = np.concatenate([[0], np.cumsum(n_shapes)]).astype(np.int64)
+    edge_at = np.concatenate([[0], np.cumsum(n_edges)]).astype(np.int64)
+    points = np.empty((point_at[-1], 3))
+    starts = np.empty(shape_at[-1] + 1, dtype=np.int64)
+    nbr_starts = np.empty(point_at[-1] + 1, dtype=np.int64)
+    nbrs = np.empty(edge_at[-1], dtype=np.int64)
+    order = np.argsort(which, kind="stable")
+    bounds = np.searchsorted(which[order], np.arange(len(packs) + 1))
+    for g, pack in enumerate(packs):
+        copies = order[bounds[g] : bounds[g + 1]]
+        if not len(copies):
+            continue
+        local = pack.points[None, :, :] + shifts[copies][:, None, :]
+        moved = local @ np.transpose(transforms[copies, :3, :3], (0, 2, 1))
+        moved += transforms[copies, None, :3, 3]
+        still = np.all(transforms[copies] == np.eye(4), axis=(1, 2))
+        moved[still] = local[still]
+        rows = point_at[copies][:, None] + np.arange(len(pack.points))
+        points[rows] = moved
+        nbr_starts[rows] = edge_at[copies][:, None] + pack.nbr_starts[None, :-1]
+        shape_rows = shape_at[copies][:, None] + np.arange(len(pack.starts) - 1)
+        starts[shape_rows] = point_at[copies][:, None] + pack.starts[None, :-1]
+        edge_rows = edge_at[copies][:, None] + np.arange(len(pack.nbrs))
+        nbrs[edge_rows] = point_at[copies][:, None] + pack.nbrs[None, :]
+    starts[-1] = point_at[-1]
+    nbr_starts[-1] = edge_at[-1]
+    if shape_at[-1]:
+        lower = np.minimum.reduceat(points, starts[:-1], axis=0)
+        upper = np.maximum.reduceat(points, starts[:-1], axis=0)
+    else:
+        lower = upper = np.empty((0, 3), dtype=np.float64)
+    return ConvexPack(points, starts, nbr_starts, nbrs, lower, upper)
+
+
 def farthest_from_lines(
     points: np.ndarray, placed: np.ndarray, origins: np.ndarray, directions: np.ndarray
 ) -> np.ndarray:

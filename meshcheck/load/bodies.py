@@ -12,7 +12,7 @@ import numpy as np
 from .. import units as units_
 from ..errors import ConfigError, InputError
 from ..mesh import split_shells, warn
-from .body import Assembly, Body
+from .body import Assembly, Body, mesh_digest
 from .files import (
     FileRead,
     StepOptions,
@@ -21,7 +21,14 @@ from .files import (
     read_files,
 )
 from .joints import pose_parts
-from .limits import IDENTITY, Budget, Limits, box_corners, check_placement
+from .limits import (
+    IDENTITY,
+    Budget,
+    Limits,
+    box_corners,
+    check_placement,
+    doubtful_placements,
+)
 from .paths import named_files
 from .sizes import warn_sizes
 from .srdf import with_srdf
@@ -222,17 +229,25 @@ def _place(
     to_report = np.diag([factor, factor, factor, 1.0])
     multi = is_multi(path, file_read.items)
     meshes = file_read.meshes()
-    bounds = [(v.min(axis=0), v.max(axis=0)) for v, _, _ in file_read.geometries]
-    bodies, corners = [], []
-    for node, g, placement in file_read.items:
-        name = f"{path}#{node}" if multi else path
-        transform = placement if factor == 1.0 else to_report @ placement
-        check_placement(name, file_read.geometries[g][0], transform, limits, bounds=bounds[g])
-        if np.array_equal(transform, IDENTITY):
-            corners.extend(bounds[g])
-        else:
-            corners.append(box_corners(*bounds[g]) @ transform[:3, :3].T + transform[:3, 3])
-        body = Body(
+    digests = [mesh_digest(m) for m in meshes]  # each geometry hashed once, however placed
+    lower = np.array([v.min(axis=0) for v, _, _ in file_read.geometries]).reshape(-1, 3)
+    upper = np.array([v.max(axis=0) for v, _, _ in file_read.geometries]).reshape(-1, 3)
+    which = np.array([g for _, g, _ in file_read.items], dtype=np.int64)
+    transforms = np.array([placement for _, _, placement in file_read.items]).reshape(-1, 4, 4)
+    if factor != 1.0:
+        transforms = to_report @ transforms
+    names = [f"{path}#{node}" if multi else path for node, _, _ in file_read.items]
+    if len(which) == 1:  # one part (a mesh file); stored where it sits, it was checked as read
+        doubtful = np.array([not np.array_equal(transforms[0], IDENTITY)])
+    else:  # many placements (instances): screened at once, the doubtful checked one by one
+        doubtful = doubtful_placements(transforms, lower[which], upper[which], limits)
+    for k in np.flatnonzero(doubtful):
+        g = which[k]
+        check_placement(
+            names[k], file_read.geometries[g][0], transforms[k], limits, bounds=(lower[g], upper[g])
+        )
+    bodies = [
+        Body(
             name,
             path,
             meshes[g],
@@ -244,10 +259,23 @@ def _place(
             is_rescaled=is_rescaled,
             brep=file_read.solids,
             elements=file_read.elements.get(node, ()),
+            known_digest=digests[g],
         )
-        bodies.append(body)
-    corners = np.vstack(corners)
-    return bodies, float(np.linalg.norm(corners.max(axis=0) - corners.min(axis=0)))
+        for name, (node, g, _), transform in zip(names, file_read.items, transforms, strict=True)
+    ]
+    return bodies, _diagonal(transforms, lower[which], upper[which])
+
+
+def _diagonal(transforms: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> float:
+    """Diagonal of the box around ``n`` boxes placed by ``transforms`` ``(n, 4, 4)``."""
+    if len(transforms) == 1 and np.array_equal(transforms[0], IDENTITY):
+        return float(np.linalg.norm(upper[0] - lower[0]))
+    corners = box_corners(lower[:, None, :], upper[:, None, :])  # (n, 8, 3)
+    placed = np.einsum("nij,nkj->nki", transforms[:, :3, :3], corners) + transforms[:, None, :3, 3]
+    still = np.all(transforms == IDENTITY, axis=(1, 2))
+    placed[still] = corners[still]  # a part stored where it sits: its own box, unmoved
+    placed = placed.reshape(-1, 3)
+    return float(np.linalg.norm(placed.max(axis=0) - placed.min(axis=0)))
 
 
 def split_body(body: Body) -> list[Body]:

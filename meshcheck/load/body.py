@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
-from dataclasses import dataclass, field
+from dataclasses import InitVar, dataclass, field
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
@@ -77,6 +77,10 @@ class Body:
     elements : tuple of PartElement
         The collision elements a URDF link of several is made of (its mesh is their union):
         a finding names the ones it involves (``verify.elements``). Empty otherwise.
+    known_digest : str, optional
+        ``mesh_digest(mesh)`` when the caller has it (a reader hashes a mesh once, however many
+        instances place it); not kept as a field, so ``dataclasses.replace`` never carries it
+        to another mesh. Default: computed on first use of ``digest``.
     """
 
     name: str
@@ -90,10 +94,13 @@ class Body:
     is_rescaled: bool = False
     brep: StepSolids | None = field(default=None, repr=False)
     elements: tuple[PartElement, ...] = field(default=(), repr=False)
+    known_digest: InitVar[str | None] = None
 
-    def __post_init__(self):
+    def __post_init__(self, known_digest: str | None):
         if not self.relative_name:
             object.__setattr__(self, "relative_name", self.name)
+        if known_digest is not None:
+            self.__dict__["digest"] = known_digest  # the cached value of ``digest``
 
     @functools.cached_property
     def world(self) -> trimesh.Trimesh:

@@ -9,8 +9,10 @@ depend on trimesh's scene graph.
 
 from __future__ import annotations
 
+import functools
 import io
 import json
+import math
 import os
 import struct
 
@@ -293,25 +295,35 @@ def _local_matrix(node: dict) -> np.ndarray:
         t[:3, 3] = _numbers(node["translation"], 3, "translation")
         out = out @ t
     if "rotation" in node:
-        x, y, z, w = _numbers(node["rotation"], 4, "rotation")
-        if abs(np.linalg.norm([x, y, z, w]) - 1.0) > UNIT_QUATERNION_SLACK:
-            raise _Malformed("rotation is not a unit quaternion")
-        out = out @ trimesh.transformations.quaternion_matrix([w, x, y, z])
+        out = out @ _rotation_matrix(*(float(c) for c in _numbers(node["rotation"], 4, "rotation")))
     if "scale" in node:
         out = out @ np.diag([*_numbers(node["scale"], 3, "scale"), 1.0])
     return out
 
 
+@functools.lru_cache(maxsize=4096)
+def _rotation_matrix(x: float, y: float, z: float, w: float) -> np.ndarray:
+    """The rotation of a unit quaternion ``(x, y, z, w)`` (glTF's order), 4 x 4; computed once
+    per distinct rotation (instances repeat a few). Read-only: callers multiply, never write."""
+    if abs(np.linalg.norm([x, y, z, w]) - 1.0) > UNIT_QUATERNION_SLACK:
+        raise _Malformed("rotation is not a unit quaternion")
+    out = trimesh.transformations.quaternion_matrix([w, x, y, z])
+    out.setflags(write=False)
+    return out
+
+
 def _numbers(value, n: int, what: str) -> np.ndarray:
+    """``n`` JSON numbers as float64 (JSON numbers are ints and floats; true is not one)."""
     if not isinstance(value, list) or len(value) != n:
         raise _Malformed(f"node {what} is not {n} numbers")
+    for x in value:
+        if type(x) is not float and type(x) is not int:
+            raise _Malformed(f"node {what} is not {n} numbers")
     try:
         out = np.array(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise _Malformed(f"node {what} is not {n} numbers") from None
-    if any(isinstance(x, bool | str) for x in value):
-        raise _Malformed(f"node {what} is not {n} numbers")
-    if not np.isfinite(out).all():
+    except OverflowError:  # an integer beyond the float range
+        raise _Malformed(f"node {what} holds NaN or infinite values") from None
+    if not all(map(math.isfinite, out.tolist())):
         raise _Malformed(f"node {what} holds NaN or infinite values")
     return out
 

@@ -248,6 +248,40 @@ def check_placement(
             )
 
 
+def doubtful_placements(
+    transforms: np.ndarray, lower: np.ndarray, upper: np.ndarray, limits: Limits
+) -> np.ndarray:
+    """Which of many placements ``check_placement`` might refuse, in one pass: those not finite,
+    whose box corners reach beyond ``limits.max_coordinate``, or that are singular. The rest
+    pass it for sure; the caller asks ``check_placement`` about these, in order, for its verdict
+    and its message.
+
+    Parameters
+    ----------
+    transforms : (n, 4, 4) float64
+        Frame -> world, report units.
+    lower, upper : (n, 3) float64
+        Each placed mesh's box in its own frame.
+
+    Returns
+    -------
+    (n,) bool
+    """
+    transforms = np.asarray(transforms, dtype=np.float64).reshape(-1, 4, 4)
+    with np.errstate(all="ignore"):
+        finite = np.all(np.isfinite(transforms), axis=(1, 2))
+        linear, shift = transforms[:, :3, :3], transforms[:, :3, 3]
+        boxes = box_corners(np.asarray(lower)[:, None, :], np.asarray(upper)[:, None, :])
+        corners = np.einsum("nij,nkj->nki", linear, boxes) + shift[:, None]
+        largest = np.abs(corners).max(axis=(1, 2), initial=0.0)
+        doubtful = ~finite | ~(largest <= limits.max_coordinate)
+        moved = np.flatnonzero(~doubtful & ~np.all(transforms == IDENTITY, axis=(1, 2)))
+        if len(moved):
+            singular = np.linalg.svd(linear[moved], compute_uv=False)
+            doubtful[moved] = ~(singular[:, -1] > SINGULAR_RATIO * singular[:, 0])
+    return doubtful
+
+
 #: A placement whose smallest singular value is below this fraction of its largest flattens the
 #: part: float64 keeps ~16 digits, and a real scale never spans 12 orders of magnitude.
 SINGULAR_RATIO = 1e-12

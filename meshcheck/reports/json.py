@@ -36,15 +36,16 @@ from .common import View, ordered, sections, summary
 
 def document(result: CheckResult) -> dict:
     """The report as a JSON-ready dict."""
+    findings = ordered(result)
     results = []
-    for f in ordered(result):
+    for f in findings:
         entry = f.to_dict()
         entry["baseline"] = result.baseline_state(f)
         entry["failed"] = result.is_failing(f)
         results.append(entry)
     doc = {
         "results": results,
-        "groups": [g.to_dict() for g in clash_groups(ordered(result))],
+        "groups": [g.to_dict() for g in clash_groups(findings)],
         "parts": [p.to_dict() for p in result.parts],
         "summary": summary(result),
     }

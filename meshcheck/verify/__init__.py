@@ -2,7 +2,10 @@
 
 - ``pair``: one pair's verdict (``verify_pair``, giving a ``results.PairVerdict``);
 - ``depth``: bounds on the thickness of a shared solid (touching against interference);
-- ``batch``: many pairs, the pair cache, and dispatch to the run's workers (``verify_pairs``);
+- ``classes``: pairs that are one situation (two geometries at one placement in the pair's
+  frame), decided once and moved to each (``pair_classes``);
+- ``batch``: many pairs by class, the pair cache, and dispatch to the run's workers
+  (``verify_classes``, ``verify_pairs``);
 - ``brep``: the pairs of STEP solids, decided on their B-rep (``decide_on_brep``), by
   ``solids`` (OpenCASCADE only, so a worker deciding solids loads nothing else), on solids whose
   analytic B-spline faces ``analytic`` rebuilt as planes and cylinders;
@@ -19,12 +22,17 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from ..results import PairVerdict
-    from .batch import verify_pairs
+    from .batch import verify_classes, verify_pairs
     from .pair import verify_pair
 
-_LAZY = {"PairVerdict": "..results", "verify_pairs": ".batch", "verify_pair": ".pair"}
+_LAZY = {
+    "PairVerdict": "..results",
+    "verify_classes": ".batch",
+    "verify_pairs": ".batch",
+    "verify_pair": ".pair",
+}
 
-__all__ = ["PairVerdict", "verify_pair", "verify_pairs"]
+__all__ = ["PairVerdict", "verify_classes", "verify_pair", "verify_pairs"]
 
 
 def __getattr__(name: str):

@@ -1,8 +1,10 @@
-"""Pairs -> verdicts, many at a time: the pair cache, and dispatch to the run's workers.
+"""Pairs -> verdicts, many at a time: pair classes, the pair cache, and dispatch to the run's
+workers.
 
-``verify_pairs`` looks each pair up in the signed pair cache (``cache.PairCache``), verifies the
-misses with ``pair.verify_pair`` (here, or in tasks on the run's executor when there are enough of
-them), stores the new verdicts and turns every verdict that is not clear into a ``Finding``.
+``verify_pairs`` groups the pairs into classes (``classes.pair_classes``), looks each class up in
+the signed pair cache (``cache.PairCache``), verifies the misses with ``pair.verify_pair`` (here,
+or in tasks on the run's executor when there are enough of them), stores the new verdicts and
+turns every verdict that is not clear into a ``Finding`` for each pair of its class.
 """
 
 from __future__ import annotations
@@ -13,10 +15,19 @@ import numpy as np
 
 from ..cache import PairCache, pair_key
 from ..execute import Executor, Task
-from ..load import Body
+from ..load import Body, local_geometries
+from ..mesh import as_mesh
 from ..progress import Progress
 from ..results import Finding, PairVerdict, Verdict, finding_id
 from ..settings import Settings
+from .classes import (
+    PairClasses,
+    class_identity,
+    class_meshes,
+    pair_classes,
+    placed_verdicts,
+    shared_key,
+)
 from .pair import verify_pair
 
 # Where verifying in workers pays is decided from the expected serial seconds of the pairs, a
@@ -58,105 +69,109 @@ def verify_pairs(
     executor: Executor | None = None,
     cache: PairCache | None = None,
     hulls_penetrate: np.ndarray | None = None,
+    geometry: dict | None = None,
 ) -> list[Finding]:
     """Decide each pair on the real meshes; a finding for each pair that is not clear, sorted.
 
-    With ``cache`` (the run's pair verdicts, ``cache.PairCache``), verdicts cached from an
-    earlier run (same meshes, placement, tolerance and clearance) are reused; the rest are
-    verified, on ``executor``'s processes when their expected serial time (``expected_seconds``;
-    ``hulls_penetrate``, ``(k,)`` bool, marks pairs whose hulls overlap) repays the workers, and
-    then cached. The findings do not depend on where a verdict came from.
+    ``verify_classes`` of the pairs' classes (``classes.pair_classes``); ``near_surfaces``,
+    ``(k,)`` bool, marks the pairs whose convex pieces may come within reach, and ``geometry``
+    is ``load.local_geometries(bodies)`` when the caller has it.
     """
     pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    near_surfaces = np.asarray(near_surfaces, dtype=bool).reshape(-1)
+    if geometry is None:
+        geometry = local_geometries(bodies)
+    classes = pair_classes(bodies, pairs, tolerance, ~near_surfaces, geometry=geometry)
+    return verify_classes(
+        bodies, classes, settings, executor=executor, cache=cache, hulls_penetrate=hulls_penetrate
+    )
+
+
+def verify_classes(
+    bodies: Sequence[Body],
+    classes: PairClasses,
+    settings: Settings,
+    *,
+    executor: Executor | None = None,
+    cache: PairCache | None = None,
+    hulls_penetrate: np.ndarray | None = None,
+) -> list[Finding]:
+    """Decide each pair class once, in its frame; a finding for each of its pairs when the
+    verdict is not clear, the verdict moved to the pair (``classes.placed_verdicts``), sorted.
+
+    With ``cache`` (the run's pair verdicts, ``cache.PairCache``), verdicts cached by an
+    earlier run for the same class are reused; the rest are verified, on ``executor``'s
+    processes when their expected serial time (``expected_seconds``; ``hulls_penetrate``,
+    ``(k,)`` bool per pair, marks pairs whose hulls overlap) repays the workers, and then
+    cached. The findings do not depend on where a verdict came from.
+    """
+    pairs = classes.pairs
     if hulls_penetrate is None:
         hulls_penetrate = np.zeros(len(pairs), dtype=bool)
-    cost = expected_seconds(bodies, pairs, near_surfaces, hulls_penetrate)
-    pairs = _oriented(bodies, pairs)
-    keys, verdicts = _cached(bodies, pairs, tolerance, near_surfaces, settings.clearance, cache)
-    todo = np.array([k for k, v in enumerate(verdicts) if v is None], dtype=np.int64)
-    hits = len(pairs) - len(todo)
-    with Progress("checking", len(pairs)) as bar:
+    first = classes.first
+    cost = expected_seconds(
+        bodies, pairs[first], ~classes.surfaces_apart, np.asarray(hulls_penetrate)[first]
+    )
+    keys, verdicts = _cached(classes, settings.clearance, cache)
+    todo = np.array([c for c, v in enumerate(verdicts) if v is None], dtype=np.int64)
+    hits = len(classes) - len(todo)
+    with Progress("checking", len(classes)) as bar:
         bar.update(hits)
         computed = _verify(
             bodies,
-            pairs[todo],
-            np.asarray(tolerance)[todo],
-            np.asarray(near_surfaces)[todo],
+            classes,
+            todo,
             settings.clearance,
             executor,
             lambda done: bar.update(hits + done),
             cost=cost[todo],
             bar=bar,
         )
-    for k, verdict in zip(todo, computed, strict=True):
-        verdicts[k] = verdict
+    for c, verdict in zip(todo, computed, strict=True):
+        verdicts[c] = verdict
         if cache is not None:
-            cache.put(keys[k], verdict)
+            cache.put(keys[c], verdict)
     if cache is not None and len(todo):
         cache.remove_stale_temporaries()
-    return _findings(bodies, pairs, tolerance, verdicts)
+    return _findings(bodies, classes, verdicts)
 
 
-def _cached(bodies, pairs, tolerance, near_surfaces, clearance, cache) -> tuple[list, list]:
-    """Each pair's cache key (none without a cache), and its cached verdict or None."""
-    verdicts: list[PairVerdict | None] = [None] * len(pairs)
+def _cached(classes: PairClasses, clearance, cache) -> tuple[list, list]:
+    """Each class's cache key (none without a cache), and its cached verdict or None."""
+    verdicts: list[PairVerdict | None] = [None] * len(classes)
     keys: list[str] = []
     if cache is None:
         return keys, verdicts
-    for k, ((i, j), tol, is_near) in enumerate(zip(pairs, tolerance, near_surfaces, strict=True)):
-        keys.append(
-            pair_key(
-                (bodies[i].digest, bodies[i].transform),
-                (bodies[j].digest, bodies[j].transform),
-                tolerance=float(tol),
-                clearance=clearance,
-                surfaces_apart=not is_near,
-            )
-        )
-        hit = cache.get(keys[k])
-        if hit is not None:
-            verdicts[k] = hit
+    for c in range(len(classes)):
+        a, b, tol, apart = class_identity(classes, c)
+        keys.append(pair_key(a, b, tolerance=tol, clearance=clearance, surfaces_apart=apart))
+        verdicts[c] = cache.get(keys[c])
     return keys, verdicts
 
 
-def _findings(bodies, pairs, tolerance, verdicts) -> list[Finding]:
-    """A finding for each verdict that is not clear, sorted by part names."""
-    findings = [
-        _finding(bodies[i], bodies[j], verdict, float(tol))
-        for (i, j), tol, verdict in zip(pairs, tolerance, verdicts, strict=True)
-        if verdict.status != Verdict.CLEAR
-    ]
+def _findings(bodies, classes: PairClasses, verdicts) -> list[Finding]:
+    """A finding for each pair whose class's verdict is not clear, the verdict moved to the
+    pair's frame; sorted by part names."""
+    findings = []
+    for c, (rows, verdict) in enumerate(zip(classes.members(), verdicts, strict=True)):
+        if verdict.status == Verdict.CLEAR:
+            continue
+        moved = placed_verdicts(verdict, *classes.frames(rows))
+        for k, v in zip(rows, moved, strict=True):
+            i, j = classes.pairs[k]
+            findings.append(_finding(bodies[i], bodies[j], v, float(classes.tolerance[c])))
     findings.sort(key=lambda f: (f.a, f.b))
     return findings
 
 
-def _oriented(bodies: Sequence[Body], pairs: np.ndarray) -> np.ndarray:
-    """``pairs`` with each pair's parts ordered by geometry and placement, not by where their
-    files came in the arguments: a verdict, bit for bit, and its cache key do not depend on the
-    order the files were given in."""
-    if not len(pairs):
-        return pairs
-    used = np.unique(pairs)
-    placed = sorted(used, key=lambda i: (bodies[i].digest, _placement_bytes(bodies[i])))
-    rank = np.empty(int(used.max()) + 1, dtype=np.int64)
-    rank[placed] = np.arange(len(placed))
-    swap = rank[pairs[:, 0]] > rank[pairs[:, 1]]
-    return np.where(swap[:, None], pairs[:, ::-1], pairs)
-
-
-def _placement_bytes(body: Body) -> bytes:
-    return np.ascontiguousarray(body.transform, dtype=np.float64).tobytes()
-
-
 def verify_task(store: dict, items: list, clearance: float | None) -> list[PairVerdict]:
-    """Verify a chunk of pairs in a worker: ``items`` are ``(key_a, key_b, tolerance,
-    surfaces_apart)``, the keys naming ``(vertices, faces)`` of world meshes in ``store``.
+    """Verify a chunk of classes in a worker: ``items`` are ``(key_a, key_b, tolerance,
+    surfaces_apart)``, the keys naming ``(vertices, faces, closed)`` of the placed geometries
+    in ``store`` (``classes.shared_key``).
 
-    The meshes are rebuilt once per process (kept in ``store``), bit for bit the arrays the main
+    The meshes are built once per process (kept in ``store``), bit for bit the arrays the main
     process holds, so each verdict is the one ``verify_pair`` gives there.
     """
-    import trimesh
-
     memo = store.setdefault(("verify", "memo"), {})
     out = []
     for key_a, key_b, tol, apart in items:
@@ -164,8 +179,8 @@ def verify_task(store: dict, items: list, clearance: float | None) -> list[PairV
         for key in (key_a, key_b):
             mesh = store.get(("verify", "mesh", key))
             if mesh is None:
-                vertices, faces = store[key]
-                mesh = trimesh.Trimesh(vertices, faces, process=False, validate=False)
+                vertices, faces, closed = store[key]
+                mesh = as_mesh(vertices, faces, closed=closed)
                 store[("verify", "mesh", key)] = mesh
             meshes.append(mesh)
         out.append(
@@ -186,8 +201,14 @@ def expected_seconds(
     only): ``PAIR_SECONDS`` where the surfaces may come near, plus ``SOLID_SECONDS`` where
     the pair may interfere (both meshes closed, hulls penetrating); a pair whose surfaces are
     proven apart only has its shells tested, a fraction of that."""
-    closed = np.array([b.is_closed for b in bodies], dtype=bool)
     pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    closed = np.zeros(len(bodies), dtype=bool)
+    by_mesh: dict[int, bool] = {}  # closedness is the mesh's: decided once per mesh
+    for i in np.unique(pairs):
+        mesh = bodies[i].mesh
+        if id(mesh) not in by_mesh:
+            by_mesh[id(mesh)] = bodies[i].is_closed
+        closed[i] = by_mesh[id(mesh)]
     near = np.asarray(near_surfaces, dtype=bool)
     solid = (
         near & np.asarray(hulls_penetrate, dtype=bool) & closed[pairs[:, 0]] & closed[pairs[:, 1]]
@@ -210,36 +231,38 @@ def pays_in_workers(executor: Executor | None, cost: np.ndarray) -> bool:
 
 
 def _verify(
-    bodies, pairs, tolerance, near_surfaces, clearance, executor, progress, *, cost=None, bar=None
+    bodies, classes: PairClasses, todo, clearance, executor, progress, *, cost=None, bar=None
 ) -> list:
-    """Verdicts of ``pairs`` in order: here, or as tasks on ``executor`` when that pays."""
+    """Verdicts of the classes ``todo`` in order: here, or as tasks on ``executor`` when that
+    pays."""
     if cost is None:
-        cost = np.full(len(pairs), PAIR_SECONDS)
+        cost = np.full(len(todo), PAIR_SECONDS)
     if not pays_in_workers(executor, cost):
-        return _verify_here(bodies, pairs, tolerance, near_surfaces, clearance, progress, bar)
-    return _verify_in_workers(
-        bodies, pairs, tolerance, near_surfaces, clearance, executor, progress, cost, bar
-    )
+        return _verify_here(bodies, classes, todo, clearance, progress, bar)
+    return _verify_in_workers(bodies, classes, todo, clearance, executor, progress, cost, bar)
 
 
-def _verify_here(bodies, pairs, tolerance, near_surfaces, clearance, progress, bar) -> list:
-    """Verdicts of ``pairs`` in this process, one after another."""
-    memo: dict = {}  # per-mesh data verify reuses across pairs; the bodies outlive the loop
+def _names(bodies, classes: PairClasses, c: int) -> str:
+    i, j = classes.pairs[classes.first[c]]
+    return f"{bodies[i].name} x {bodies[j].name}"
+
+
+def _verify_here(bodies, classes: PairClasses, todo, clearance, progress, bar) -> list:
+    """Verdicts of the classes ``todo`` in this process, one after another."""
+    memo: dict = {}  # per-mesh data verify reuses across pairs; the meshes outlive the loop
+    meshes: dict = {}
     out = []
     current = [""]
     if bar is not None:
         bar.detail = lambda: current[0]
-    for count, ((i, j), tol, is_near) in enumerate(
-        zip(pairs, tolerance, near_surfaces, strict=True), start=1
-    ):
-        current[0] = f"{bodies[i].name} x {bodies[j].name}"
+    for count, c in enumerate(todo, start=1):
+        current[0] = _names(bodies, classes, c)
         out.append(
             verify_pair(
-                bodies[i].world,
-                bodies[j].world,
-                tolerance=float(tol),
+                *class_meshes(classes, c, meshes),
+                tolerance=float(classes.tolerance[c]),
                 clearance=clearance,
-                surfaces_apart=not is_near,
+                surfaces_apart=bool(classes.surfaces_apart[c]),
                 memo=memo,
             )
         )
@@ -264,24 +287,20 @@ def _chunks(cost: np.ndarray) -> list[slice]:
 
 
 def _verify_in_workers(
-    bodies, pairs, tolerance, near_surfaces, clearance, executor, progress, cost, bar
+    bodies, classes: PairClasses, todo, clearance, executor, progress, cost, bar
 ) -> list:
-    """Verdicts of ``pairs`` as tasks on ``executor``, in order; each distinct world mesh is
-    shared once, named by the first body that has it."""
-    key_of: dict[int, int] = {}
+    """Verdicts of the classes ``todo`` as tasks on ``executor``, in order; each placed
+    geometry is shared once, under its content key (``classes.shared_key``)."""
     shared: dict = {}
-    for i in np.unique(pairs):
-        world = bodies[i].world
-        if id(world) not in key_of:
-            key_of[id(world)] = int(i)
-            shared[int(i)] = (
-                np.asarray(world.vertices, dtype=np.float64),
-                np.asarray(world.faces, dtype=np.int64),
-            )
-    items = [
-        (key_of[id(bodies[i].world)], key_of[id(bodies[j].world)], float(tol), not bool(near))
-        for (i, j), tol, near in zip(pairs, tolerance, near_surfaces, strict=True)
-    ]
+    items = []
+    for c in todo:
+        keys = []
+        for placed in classes.placed[c]:
+            key = shared_key(classes, placed)
+            if key not in shared:
+                shared[key] = classes.arrays(placed)
+            keys.append(key)
+        items.append((*keys, float(classes.tolerance[c]), bool(classes.surfaces_apart[c])))
     chunks = _chunks(cost)
     tasks = [
         Task(
@@ -294,8 +313,7 @@ def _verify_in_workers(
     ends = np.cumsum([c.stop - c.start for c in chunks])
     if bar is not None:
         bar.detail = lambda: ", ".join(
-            f"{bodies[pairs[chunks[t].start][0]].name} x {bodies[pairs[chunks[t].start][1]].name}"
-            for t in executor.running
+            _names(bodies, classes, todo[chunks[t].start]) for t in executor.running
         )
     try:
         results = executor.map(

@@ -48,17 +48,19 @@ def duplicate_sets(bodies: Sequence, geometry: dict, *, tolerance: float | None)
         tol = tolerance
         if tol is None:
             tol = mesh_tolerance(local, corner, is_float32=first.is_float32)
-        features = np.array([_placement(bodies[k], geometry, diagonal) for k in members])
+        features = _placements([bodies[k] for k in members], geometry, diagonal)
         sets += [[members[i] for i in group] for group in clusters(features, tol)]
     return sorted(sets)
 
 
-def _placement(body, geometry: dict, diagonal: float) -> np.ndarray:
-    """The body's local-to-world map as 12 numbers: rotation x diagonal, then the origin."""
-    corner = geometry[id(body.mesh)].corner
-    transform = np.asarray(body.transform, dtype=np.float64)
-    rotation, shift = transform[:3, :3], transform[:3, 3]
-    return np.concatenate([(rotation * diagonal).ravel(), rotation @ corner + shift])
+def _placements(bodies: Sequence, geometry: dict, diagonal: float) -> np.ndarray:
+    """Each body's local-to-world map as 12 numbers, ``(n, 12)``: rotation x diagonal, then
+    the origin (where its local geometry's corner lands)."""
+    transforms = np.array([b.transform for b in bodies], dtype=np.float64).reshape(-1, 4, 4)
+    corners = np.array([geometry[id(b.mesh)].corner for b in bodies]).reshape(-1, 3, 1)
+    rotation, shift = transforms[:, :3, :3], transforms[:, :3, 3]
+    origin = (rotation @ corners)[:, :, 0] + shift
+    return np.concatenate([(rotation * diagonal).reshape(-1, 9), origin], axis=1)
 
 
 def clusters(features: np.ndarray, tol: float) -> list[list[int]]:
@@ -120,14 +122,3 @@ def duplicate_id(names: Sequence[str], digest: str, placements: Sequence[np.ndar
     for placement in sorted((np.asarray(p, dtype=np.float64) + 0.0).tobytes() for p in placements):
         h.update(b"\0@" + placement)
     return h.hexdigest()[:12]
-
-
-def without_duplicate_pairs(pairs: np.ndarray, sets: list[list[int]], count: int) -> np.ndarray:
-    """``pairs`` without those inside one duplicate set (their finding is the set's)."""
-    label = np.full(count, -1, dtype=np.int64)
-    for s, members in enumerate(sets):
-        label[members] = s
-    if len(pairs) == 0 or not sets:
-        return pairs
-    same = (label[pairs[:, 0]] == label[pairs[:, 1]]) & (label[pairs[:, 0]] >= 0)
-    return pairs[~same]

@@ -22,6 +22,7 @@
   const WITNESS_COLOR = 0xd000d0;
   const CONTACT_COLOR = 0x0050ff;
   const STATUS_ORDER = ["duplicate", "interference", "clearance", "touching"];
+  const HIDDEN = new T.Matrix4().makeScale(0, 0, 0); // an instance drawn elsewhere for now
 
   // Control characters, bidirectional overrides and the like would hide or reorder text: show
   // them as escapes so a hostile name reads as what it is.
@@ -265,25 +266,47 @@
     return { renderer, camera, scene, overlay };
   }
 
+  // A mesh placed this many times or more is drawn as one instanced mesh (one draw call for a
+  // plant's thousand modules), without edge lines; fewer copies are drawn one by one, with them.
+  const INSTANCED_FROM = 16;
+
   function addParts(data, geometries, mats, scene) {
     const edges = [];
     const edgesOf = (k) => (edges[k] ||= new T.EdgesGeometry(geometries[k], 35));
     const partObjects = new Map();
     const sceneBox = new T.Box3();
+    const byMesh = new Map();
     for (const part of data.parts) {
       if (part.mesh === null) continue;
-      const m = matrixOf(part.matrix);
-      const mesh = new T.Mesh(geometries[part.mesh], mats.part);
-      const lines = new T.LineSegments(edgesOf(part.mesh), mats.edge);
-      for (const [o, order] of [[mesh, 1], [lines, 2]]) {
-        o.matrixAutoUpdate = false;
-        o.matrix.copy(m);
-        o.renderOrder = order;
-        scene.add(o);
+      if (!byMesh.has(part.mesh)) byMesh.set(part.mesh, []);
+      byMesh.get(part.mesh).push(part);
+    }
+    for (const [k, parts] of byMesh) {
+      const instances = parts.length >= INSTANCED_FROM ? new T.InstancedMesh(geometries[k], mats.part, parts.length) : null;
+      parts.forEach((part, i) => {
+        const m = matrixOf(part.matrix);
+        const box = geometries[k].boundingBox.clone().applyMatrix4(m);
+        sceneBox.union(box);
+        if (instances) {
+          instances.setMatrixAt(i, m);
+          partObjects.set(part.name, { mesh: null, instances, index: i, matrix: m, box });
+          return;
+        }
+        const mesh = new T.Mesh(geometries[k], mats.part);
+        const lines = new T.LineSegments(edgesOf(k), mats.edge);
+        for (const [o, order] of [[mesh, 1], [lines, 2]]) {
+          o.matrixAutoUpdate = false;
+          o.matrix.copy(m);
+          o.renderOrder = order;
+          scene.add(o);
+        }
+        partObjects.set(part.name, { mesh, box });
+      });
+      if (instances) {
+        instances.renderOrder = 1;
+        instances.computeBoundingSphere();
+        scene.add(instances);
       }
-      const box = geometries[part.mesh].boundingBox.clone().applyMatrix4(m);
-      sceneBox.union(box);
-      partObjects.set(part.name, { mesh, box });
     }
     if (sceneBox.isEmpty()) sceneBox.set(new T.Vector3(-1, -1, -1), new T.Vector3(1, 1, 1));
     return { partObjects, sceneBox };
@@ -398,6 +421,7 @@
     controls.screenSpacePanning = true;
     const hidden = new Set(); // findings filtered out of the table and the view
     const state = { renderer, camera, scene, overlay, controls, container, label, radius, hidden };
+    const tinted = []; // instances drawn as tinted meshes of their own while selected
 
     const { render, requestRender } = renderLoop(state);
 
@@ -407,7 +431,7 @@
     };
     const home = () => look(sceneSphere.center, 0.8 * radius, new T.Vector3(1, -1.2, 0.9));
     const select = (findings, names, text) => {
-      highlight({ mats, overlay, markers, partObjects }, findings, names);
+      highlight({ mats, overlay, markers, partObjects, tinted }, findings, names);
       const region = new T.Box3();
       for (const f of findings) region.union(regionOf(markers.get(f.id), f, partObjects));
       label.anchor = null;
@@ -466,10 +490,30 @@
   // Parts muted, the selection's parts tinted, and only its clashing region strong: its solid
   // copied into the overlay scene (drawn after the depth is cleared, so no part hides it), its
   // witness segment in the strong colour, a contact's location box outlined.
-  function highlight({ mats, overlay, markers, partObjects }, findings, names) {
-    for (const { mesh } of partObjects.values()) mesh.material = mats.part;
+  function highlight({ mats, overlay, markers, partObjects, tinted }, findings, names) {
+    for (const { mesh } of partObjects.values()) if (mesh) mesh.material = mats.part;
+    for (const t of tinted.splice(0)) {  // instances shown as tinted copies: back in their mesh
+      t.copy.removeFromParent();
+      t.instances.setMatrixAt(t.index, t.matrix);
+      t.instances.instanceMatrix.needsUpdate = true;
+    }
     names.forEach((n, k) => {
-      if (partObjects.has(n)) partObjects.get(n).mesh.material = k === 0 ? mats.partA : mats.partB;
+      const part = partObjects.get(n);
+      if (!part) return;
+      const material = k === 0 ? mats.partA : mats.partB;
+      if (part.mesh) {
+        part.mesh.material = material;
+        return;
+      }
+      // An instance is tinted as a mesh of its own, and hidden (scaled to nothing) in its set.
+      const copy = new T.Mesh(part.instances.geometry, material);
+      copy.matrixAutoUpdate = false;
+      copy.matrix.copy(part.matrix);
+      copy.renderOrder = 1;
+      part.instances.parent.add(copy);
+      part.instances.setMatrixAt(part.index, HIDDEN);
+      part.instances.instanceMatrix.needsUpdate = true;
+      tinted.push({ ...part, copy });
     });
     for (const m of markers.values()) {
       if (m.witness.length) [m.witness[0].material, m.witness[1].material] = [mats.witness, mats.witnessPoints];
