@@ -21,6 +21,7 @@ import time
 
 import pytest
 from meshes import box
+from test_urdf import outside_layout
 
 from meshcheck.errors import ExitStatus
 
@@ -127,16 +128,17 @@ def robot_with_mesh(filename: str) -> str:
 
 
 def workspace(tmp_path) -> tuple[str, str]:
-    """``ws/src/pkg`` (its package.xml naming ``pkg``), a URDF in its ``urdf/``, and a secret
-    mesh beside the workspace, in ``secret/key.stl``: (package folder, secret)."""
-    pkg = tmp_path / "ws" / "src" / "pkg"
-    (pkg / "urdf").mkdir(parents=True)
-    (pkg / "meshes").mkdir()
-    (pkg / "package.xml").write_text("<package><name>pkg</name></package>")
-    box().export(pkg / "meshes" / "b.stl")
-    (tmp_path / "secret").mkdir()
-    box().export(tmp_path / "secret" / "key.stl")
-    return str(pkg), str(tmp_path / "secret" / "key.stl")
+    """``test_urdf.outside_layout``: (package folder, secret mesh outside the workspace)."""
+    where = outside_layout(tmp_path)
+    return where["pkg"], where["secret"]
+
+
+def write_robot(folder: str, filename: str) -> str:
+    """``folder/r.urdf``, a robot whose arm is the mesh ``filename``; its path."""
+    urdf = os.path.join(folder, "r.urdf")
+    with open(urdf, "w") as fh:
+        fh.write(robot_with_mesh(filename))
+    return urdf
 
 
 # ------------------------------------------------------------------------------------------
@@ -157,12 +159,8 @@ def workspace(tmp_path) -> tuple[str, str]:
     ],
 )
 def test_a_mesh_outside_the_robots_folders_is_refused(tmp_path, filename, reason):
-    # 0.3: package://pkg/../../../../etc/hostname and file:///etc/passwd were resolved and opened
-    # (refused only by their type); an .stl anywhere on the runner was read and reported on
     pkg, secret = workspace(tmp_path)
-    urdf = os.path.join(pkg, "urdf", "r.urdf")
-    with open(urdf, "w") as fh:
-        fh.write(robot_with_mesh(filename.replace("SECRET", secret)))
+    urdf = write_robot(os.path.join(pkg, "urdf"), filename.replace("SECRET", secret))
     status, lines = watched(tmp_path, [urdf], allowed={os.path.realpath(urdf)})
     one_error(lines, status, ExitStatus.INPUT, urdf, reason, "--allow-outside-paths")
     assert len(lines) == 1, lines
@@ -173,9 +171,7 @@ def test_a_mesh_outside_the_robots_folders_is_refused(tmp_path, filename, reason
 def test_a_symbolic_link_out_of_the_package_is_refused(tmp_path):
     pkg, secret = workspace(tmp_path)
     os.symlink(secret, os.path.join(pkg, "meshes", "link.stl"))
-    urdf = os.path.join(pkg, "urdf", "r.urdf")
-    with open(urdf, "w") as fh:
-        fh.write(robot_with_mesh("package://pkg/meshes/link.stl"))
+    urdf = write_robot(os.path.join(pkg, "urdf"), "package://pkg/meshes/link.stl")
     status, lines = watched(tmp_path, [urdf])
     one_error(lines, status, ExitStatus.INPUT, urdf, "leads outside package 'pkg'")
 
@@ -188,9 +184,7 @@ def test_a_folder_above_named_like_the_package_is_not_searched(tmp_path):
     robot = tmp_path / "home" / "repo"
     robot.mkdir(parents=True)
     box().export(tmp_path / "home" / "key.stl")
-    urdf = str(robot / "r.urdf")
-    with open(urdf, "w") as fh:
-        fh.write(robot_with_mesh("package://home/key.stl"))
+    urdf = write_robot(str(robot), "package://home/key.stl")
     status, lines = watched(tmp_path, [urdf])
     one_error(lines, status, ExitStatus.INPUT, urdf, "not found in package 'home'")
 
@@ -199,9 +193,7 @@ def test_a_folder_above_named_like_the_package_is_not_searched(tmp_path):
 @pytest.mark.posix_only
 def test_allow_outside_paths_reads_what_the_user_allows(tmp_path):
     pkg, secret = workspace(tmp_path)
-    urdf = os.path.join(pkg, "urdf", "r.urdf")
-    with open(urdf, "w") as fh:
-        fh.write(robot_with_mesh(secret))
+    urdf = write_robot(os.path.join(pkg, "urdf"), secret)
     status, lines = watched(tmp_path, [urdf, "--allow-outside-paths"])
     assert status == ExitStatus.OK, lines
     status, lines = watched(tmp_path, [urdf, "--package-path", os.path.dirname(secret)])
