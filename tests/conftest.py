@@ -1,6 +1,6 @@
 """Test-wide isolation (the pair cache's signing key lives in a throwaway state directory, never
-in the user's own, and no Dask scheduler from the environment applies), and the browser the HTML
-report's tests open."""
+in the user's own, and no Dask scheduler from the environment applies), the count of pairs the
+verify stage runs, and the browser the HTML report's tests open."""
 
 from __future__ import annotations
 
@@ -14,6 +14,22 @@ def _isolated_state(tmp_path_factory, monkeypatch):
     monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path_factory.getbasetemp() / "state"))
     monkeypatch.delenv("MESHCHECK_CACHE_SECRET", raising=False)
     monkeypatch.delenv("MESHCHECK_SCHEDULER", raising=False)
+
+
+@pytest.fixture
+def counted(monkeypatch):
+    """Count the verify_pair calls of this process (the real verify runs)."""
+    from meshcheck.verify import batch
+
+    calls = []
+    real = batch.verify_pair
+
+    def spy(a, b, **kw):
+        calls.append(1)
+        return real(a, b, **kw)
+
+    monkeypatch.setattr(batch, "verify_pair", spy)
+    return calls
 
 
 @pytest.fixture(scope="module")

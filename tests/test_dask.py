@@ -89,6 +89,19 @@ def test_a_malformed_scheduler_address_is_a_usage_error():
     assert result.stderr.startswith("error: scheduler must be a scheduler address")
 
 
+def loopback_cluster(distributed):
+    """Two single-threaded worker processes and their scheduler on 127.0.0.1 (the caller
+    closes it)."""
+    return distributed.LocalCluster(
+        n_workers=2,
+        threads_per_worker=1,
+        processes=True,
+        host="127.0.0.1",
+        dashboard_address=None,
+        env={"OMP_NUM_THREADS": "1"},
+    )
+
+
 @pytest.mark.slow
 def test_a_local_cluster_gives_the_local_report(tmp_path, monkeypatch):
     distributed = pytest.importorskip("distributed")
@@ -97,14 +110,7 @@ def test_a_local_cluster_gives_the_local_report(tmp_path, monkeypatch):
     monkeypatch.setenv("MESHCHECK_COACD_BUDGET", "300")
     paths = assembly(tmp_path / "parts")
     expected = local_report(paths, tmp_path)
-    cluster = distributed.LocalCluster(
-        n_workers=2,
-        threads_per_worker=1,
-        processes=True,
-        host="127.0.0.1",
-        dashboard_address=None,
-        env={"OMP_NUM_THREADS": "1"},
-    )
+    cluster = loopback_cluster(distributed)
     try:
         settings = pipeline.Settings.from_options(
             cache_dir=tmp_path / "cluster-cache", scheduler=cluster.scheduler_address
@@ -129,14 +135,7 @@ def test_an_instanced_plant_on_a_cluster_gives_the_local_report(tmp_path):
     path = plant_gltf(tmp_path / "plant.gltf")
     options = {"config": None, "file_units": {path: "mm"}}
     expected = render(pipeline.check([path], cache_dir=None, jobs=1, **options), "json")
-    cluster = distributed.LocalCluster(
-        n_workers=2,
-        threads_per_worker=1,
-        processes=True,
-        host="127.0.0.1",
-        dashboard_address=None,
-        env={"OMP_NUM_THREADS": "1"},
-    )
+    cluster = loopback_cluster(distributed)
     try:
         for _ in range(2):  # cold, then with the verdicts the first run cached, by class
             result = pipeline.check(

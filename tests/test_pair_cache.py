@@ -45,20 +45,6 @@ def write_row(directory, moved: float = 0.0) -> list[str]:
     return paths
 
 
-@pytest.fixture
-def counted(monkeypatch):
-    """Count the pairs verified in this process (the real verify_pair runs)."""
-    calls = []
-    real = batch.verify_pair
-
-    def spy(a, b, **kw):
-        calls.append(1)
-        return real(a, b, **kw)
-
-    monkeypatch.setattr(batch, "verify_pair", spy)
-    return calls
-
-
 def run(paths, cache_dir, **options):
     options.setdefault("config", None)
     result = pipeline.check(paths, cache_dir=cache_dir, clearance=0.5, **options)

@@ -86,20 +86,6 @@ def plant() -> list[Body]:
     return [b for k, f in enumerate(frames) for b in module(k, f, planted=k in (1, 4))]
 
 
-@pytest.fixture
-def counted(monkeypatch):
-    """Count the verify_pair calls of this process (the real verify runs)."""
-    calls = []
-    real = batch.verify_pair
-
-    def spy(a, b, **kw):
-        calls.append(1)
-        return real(a, b, **kw)
-
-    monkeypatch.setattr(batch, "verify_pair", spy)
-    return calls
-
-
 def each_pair_alone(monkeypatch) -> None:
     """Make every pair its own class, its placement computed from that pair alone."""
     real = classes.pair_classes
