@@ -13,6 +13,7 @@ import pytest
 from click.testing import CliRunner
 from meshes import box, box_between
 from test_hostile_inputs import measured
+from test_sweep import door
 
 from meshcheck.cli import main
 from meshcheck.errors import ConfigError, ExitStatus
@@ -323,3 +324,19 @@ def test_parts_no_joint_moves_cost_little_of_the_budget_so_the_door_is_still_swe
     pairs = {(p["a"].rsplit("/", 1)[-1], p["b"].rsplit("/", 1)[-1]): p for p in robot["pairs"]}
     assert pairs["door.stl", "stop.stl"]["status"] == "sometimes"
     assert sum(p["status"] == "never" for p in robot["pairs"]) >= 60  # the door and each bolt
+
+
+def test_a_pose_of_a_robot_and_a_joint_table_together_is_swept(tmp_path):
+    """Each mechanism of the run takes the pose values of its own joints: the URDF's joint is
+    no joint of the [[joint]] tables' mechanism, nor theirs of the robot's."""
+    files = door_files(tmp_path)
+    urdf = tmp_path / "door.urdf"
+    urdf.write_text(door(1.0).replace('joint name="hinge"', 'joint name="arm_hinge"'))
+    pose = ["--pose", "hinge=10deg,arm_hinge=0.1", "--format", "json"]
+    result = run(tmp_path, [*files, str(urdf)], [hinge()], *pose, "--sweep")
+    assert result.exit_code == ExitStatus.FAILED, result.stderr  # the door meets its stop
+    doc = json.loads(result.stdout)
+    assert doc["summary"]["pose"] == {
+        str(urdf): {"arm_hinge": 0.1},
+        str(tmp_path / "meshcheck.toml"): {"hinge": pytest.approx(math.radians(10))},
+    }

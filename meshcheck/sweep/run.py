@@ -10,7 +10,7 @@ import numpy as np
 
 from ..decompose import decompose_bodies
 from ..load import Body
-from ..load.robot import Mechanism, joint_values
+from ..load.robot import Mechanism
 from ..progress import Progress
 from ..results import PairSweep, RobotSweep
 from ..tolerances import pair_tolerances, part_sizes
@@ -75,7 +75,7 @@ def sweep_mechanism(
             return ()
     robot = mech.robot
     budget = WorkBudget(motion.budget) if budget is None else budget
-    base = joint_values(robot, motion.pose)
+    base = mech.pose  # every movable joint's value at the run's pose, this mechanism's own
     swept = swept_joints(robot, motion.sweep)
     scale = unit_scale(mech.units, bodies[mech.parts[next(iter(mech.parts))][0]].units)
     order = links_within(mech, budget.pairs_within(least_work(mech)), pairs)
