@@ -28,9 +28,6 @@ import numpy as np
 #: engineer specifies (1 um on a 100 mm part).
 TOLERANCE_FRACTION = 1e-5
 
-#: The float32 machine epsilon, 2^-23: the one definition the package uses.
-FLOAT32_EPS = float(np.finfo(np.float32).eps)
-
 #: ... and, for parts whose coordinates went through float32 (``Body.is_float32``: binary STL,
 #: float PLY, glTF, STEP), never below ``FLOAT32_ULPS`` float32 units in the last place at the
 #: largest such coordinate x of the pair (``float32_spacing``): a float32 coordinate at x is only
@@ -202,7 +199,6 @@ def largest_pair_tolerance(
 
 
 __all__ = [
-    "FLOAT32_EPS",
     "FLOAT32_ULPS",
     "SHELL_TOUCH_FRACTION",
     "TOLERANCE_FRACTION",

@@ -376,11 +376,6 @@ def ordered(result: CheckResult) -> list[Finding]:
     return sorted(result.findings, key=lambda f: severity(result, f))
 
 
-def finding_title(finding: Finding) -> str:
-    """``a and b``, names made printable."""
-    return f"{printable(finding.a)} and {printable(finding.b)}"
-
-
 def sweep_rows(result: CheckResult) -> list[tuple[str, object, bool]]:
     """(robot path, pair, whether it fails the run) of every swept link pair that is not
     proven ``never``: those that fail first (``CheckResult.is_failing_sweep``), then robot by

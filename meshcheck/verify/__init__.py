@@ -5,7 +5,7 @@
 - ``classes``: pairs that are one situation (two geometries at one placement in the pair's
   frame), decided once and moved to each (``pair_classes``);
 - ``batch``: many pairs by class, the pair cache, and dispatch to the run's workers
-  (``verify_classes``, ``verify_pairs``);
+  (``verify_classes``);
 - ``brep``: the pairs of STEP solids, decided on their B-rep (``decide_on_brep``), by
   ``solids`` (OpenCASCADE only, so a worker deciding solids loads nothing else), on solids whose
   analytic B-spline faces ``analytic`` rebuilt as planes and cylinders;
@@ -22,17 +22,16 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from ..results import PairVerdict
-    from .batch import verify_classes, verify_pairs
+    from .batch import verify_classes
     from .pair import verify_pair
 
 _LAZY = {
     "PairVerdict": "..results",
     "verify_classes": ".batch",
-    "verify_pairs": ".batch",
     "verify_pair": ".pair",
 }
 
-__all__ = ["PairVerdict", "verify_classes", "verify_pair", "verify_pairs"]
+__all__ = ["PairVerdict", "verify_classes", "verify_pair"]
 
 
 def __getattr__(name: str):

@@ -1,7 +1,7 @@
 """Pairs -> verdicts, many at a time: pair classes, the pair cache, and dispatch to the run's
 workers.
 
-``verify_pairs`` groups the pairs into classes (``classes.pair_classes``), looks each class up in
+``verify_classes`` takes the pairs' classes (``classes.pair_classes``), looks each class up in
 the signed pair cache (``cache.PairCache``), verifies the misses with ``pair.verify_pair`` (here,
 or in tasks on the run's executor when there are enough of them), stores the new verdicts and
 turns every verdict that is not clear into a ``Finding`` for each pair of its class.
@@ -15,7 +15,7 @@ import numpy as np
 
 from ..cache import PairCache, pair_key
 from ..execute import Executor, Task
-from ..load import Body, local_geometries
+from ..load import Body
 from ..mesh import as_mesh
 from ..progress import Progress
 from ..results import Finding, PairVerdict, Verdict, finding_id
@@ -24,7 +24,6 @@ from .classes import (
     PairClasses,
     class_identity,
     class_meshes,
-    pair_classes,
     placed_verdicts,
     shared_key,
 )
@@ -57,34 +56,6 @@ VERIFY_HERE_TOO = True
 PAIRS_PER_TASK = 16
 #: Expected seconds per task at most: expensive pairs travel alone, so two workers stay busy.
 TASK_SECONDS = 0.1
-
-
-def verify_pairs(
-    bodies: Sequence[Body],
-    pairs: np.ndarray,
-    tolerance: np.ndarray,
-    near_surfaces: np.ndarray,
-    settings: Settings,
-    *,
-    executor: Executor | None = None,
-    cache: PairCache | None = None,
-    hulls_penetrate: np.ndarray | None = None,
-    geometry: dict | None = None,
-) -> list[Finding]:
-    """Decide each pair on the real meshes; a finding for each pair that is not clear, sorted.
-
-    ``verify_classes`` of the pairs' classes (``classes.pair_classes``); ``near_surfaces``,
-    ``(k,)`` bool, marks the pairs whose convex pieces may come within reach, and ``geometry``
-    is ``load.local_geometries(bodies)`` when the caller has it.
-    """
-    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
-    near_surfaces = np.asarray(near_surfaces, dtype=bool).reshape(-1)
-    if geometry is None:
-        geometry = local_geometries(bodies)
-    classes = pair_classes(bodies, pairs, tolerance, ~near_surfaces, geometry=geometry)
-    return verify_classes(
-        bodies, classes, settings, executor=executor, cache=cache, hulls_penetrate=hulls_penetrate
-    )
 
 
 def verify_classes(

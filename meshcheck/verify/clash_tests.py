@@ -50,7 +50,7 @@ class VerifyPlan:
         The touching tolerance of each pair of the plan (``m = mask.sum()``), model units.
     settings : Settings
         The run's settings with this plan's ``tolerance`` (the tests', None: each pair's own)
-        and ``clearance`` (the largest of its tests'): what ``verify_pairs`` and
+        and ``clearance`` (the largest of its tests'): what ``verify_classes`` and
         ``decide_on_brep`` are given.
     tests : tuple of str
         The clash tests of the plan's tolerance, which judge the verdicts of the pairs they hold;
@@ -217,7 +217,7 @@ def judged(
     plans : sequence of VerifyPlan
         ``verify_plans``.
     verified : sequence of list of Finding
-        The findings of each plan (``decide_on_brep`` and ``verify_pairs``), in plan order.
+        The findings of each plan (``decide_on_brep`` and ``verify_classes``), in plan order.
     duplicates : sequence of Finding
         The duplicate sets' findings (``verify.duplicates``).
     geometry : dict
