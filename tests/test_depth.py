@@ -17,8 +17,9 @@ from scipy.optimize import linprog
 from scipy.spatial.transform import Rotation
 
 from meshcheck import results
+from meshcheck.mesh import outward_faces
 from meshcheck.verify.depth import REL_GAP, depth_bounds
-from meshcheck.verify.pair import outward_faces, shared_solid, verify_pair
+from meshcheck.verify.pair import shared_solid, verify_pair
 
 SCALES = [1e-3, 1.0, 1e3]
 

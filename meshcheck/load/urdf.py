@@ -45,7 +45,7 @@ import numpy as np
 
 from ..errors import ConfigError, InputError
 from ..geometry import topology
-from ..mesh import clean_arrays, manifold_solid, warn
+from ..mesh import check_boolean_room, clean_arrays, manifold_solid, outward_faces, warn
 from ..results import CollisionElement
 from .limits import Budget, read_file
 from .robot import (
@@ -214,7 +214,7 @@ def join_elements(path: str, link: str, elements: Sequence[Collision], geometry)
         parts.append(PartElement(element, v, f, bool(topology.is_closed(f))))
     closed = [p for p in parts if p.is_closed]
     pieces = [(p.vertices, p.faces) for p in parts if not p.is_closed]
-    union = _union([(p.vertices, _outward(p.vertices, p.faces)) for p in closed])
+    union = _union([(p.vertices, outward_faces(p.vertices, p.faces)) for p in closed])
     if union is None:
         pieces = [(p.vertices, p.faces) for p in closed] + pieces
         if len(closed) > 1:
@@ -230,13 +230,6 @@ def join_elements(path: str, link: str, elements: Sequence[Collision], geometry)
     return Joined(np.vstack(vertices), np.vstack(faces), tuple(parts))
 
 
-#: Address space a manifold3d union needs beyond its inputs, as the verify stage's booleans
-#: (``verify.pair.BOOLEAN_BASE_BYTES``): manifold3d crashes instead of raising when it cannot
-#: allocate.
-UNION_BASE_BYTES = 32 << 20
-UNION_TRIANGLE_BYTES = 256
-
-
 def _union(solids: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray] | None:
     """The union of closed, outward meshes (manifold3d); None when there are none or it refuses
     one."""
@@ -244,14 +237,7 @@ def _union(solids: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.
         return None
     import manifold3d
 
-    from ..execute import address_space_left
-
-    triangles = sum(len(f) for _, f in solids)
-    left = address_space_left()
-    if left is not None and left < UNION_BASE_BYTES + 2 * UNION_TRIANGLE_BYTES * triangles:
-        raise MemoryError(
-            f"{left} bytes of address space left for a union of {triangles} triangles"
-        )
+    check_boolean_room(sum(len(f) for _, f in solids), "union", inputs=2)
     made = [manifold_solid(v, f) for v, f in solids]
     if any(solid is None for solid in made):
         return None
@@ -259,13 +245,6 @@ def _union(solids: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.
     v = np.asarray(out.vert_properties, dtype=np.float64)[:, :3].reshape(-1, 3)
     f = np.asarray(out.tri_verts, dtype=np.int64).reshape(-1, 3)
     return (v, f) if len(f) else None
-
-
-def _outward(v: np.ndarray, f: np.ndarray) -> np.ndarray:
-    """Faces of a closed mesh wound outward (flipped when its signed volume is negative)."""
-    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
-    signed = np.einsum("ij,ij->", a - a.mean(axis=0), np.cross(b - a, c - a))
-    return f[:, ::-1].copy() if signed < 0 else f
 
 
 def parse_robot(path: str, data: bytes) -> Robot:

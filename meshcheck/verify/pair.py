@@ -25,14 +25,13 @@ import numpy as np
 import trimesh
 
 from .. import results
-from ..execute import address_space_left
 from ..geometry.triangles import (
     box_pairs,
     pair_distances,
     triangle_boxes,
     winding_numbers,
 )
-from ..mesh import is_closed, manifold_solid
+from ..mesh import check_boolean_room, is_closed, manifold_solid, outward_faces
 from ..results import PairVerdict, Solid, Verdict
 from .depth import depth_bounds, evenly_strided
 
@@ -222,13 +221,6 @@ def _is_inward(mesh: trimesh.Trimesh, memo: dict) -> bool:
     return inward
 
 
-def outward_faces(v: np.ndarray, f: np.ndarray) -> np.ndarray:
-    """Faces of a closed mesh wound outward (flipped when its signed volume is negative)."""
-    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
-    signed = np.einsum("ij,ij->", a - a.mean(axis=0), np.cross(b - a, c - a))
-    return f[:, ::-1].copy() if signed < 0 else f
-
-
 def _common_origin(va: np.ndarray, vb: np.ndarray) -> np.ndarray:
     """A point between the two meshes: the centre of their boxes' overlap (or of the gap)."""
     lo = np.maximum(va.min(axis=0), vb.min(axis=0))
@@ -286,20 +278,8 @@ def _is_buried(m: _CentredPair) -> bool:
     return False
 
 
-#: Address space a manifold3d boolean needs beyond its inputs, with a margin of 2.5: a boolean of
-#: a 327,680-triangle sphere and a box crashed with 40 MB left and ran with 46 MB (about 140 bytes
-#: a triangle), its thread pool aside.
-BOOLEAN_BASE_BYTES = 32 << 20
-BOOLEAN_TRIANGLE_BYTES = 256
-
-
 def _manifold(v: np.ndarray, f: np.ndarray):
-    # manifold3d crashes (SIGSEGV) when an allocation fails under an address-space limit
-    # instead of raising: refuse the boolean first when the room left cannot hold it.
-    left = address_space_left()
-    if left is not None and left < BOOLEAN_BASE_BYTES + BOOLEAN_TRIANGLE_BYTES * len(f):
-        raise MemoryError(f"{left} bytes of address space left for a boolean of {len(f)} triangles")
-
+    check_boolean_room(len(f), "boolean")  # before manifold3d, which crashes when it runs out
     return manifold_solid(v, f)
 
 
