@@ -364,19 +364,14 @@ def parse_xml(
         raise InputError(path, f"is not well-formed XML ({one_line(exc)})") from None
 
 
+#: A start tag from its ``<`` to its ``>``, quoted attribute values skipped (possessive: linear).
+_TAG = re.compile(rb"""(?:[^>"']++|"[^"]*+"|'[^']*+')*+>""")
+
+
 def _tag_end(data: bytes, start: int) -> int:
     """The byte after the ``>`` closing the tag that starts at ``start`` (quotes skipped)."""
-    quote = None
-    for k in range(start, len(data)):
-        ch = data[k : k + 1]
-        if quote is not None:
-            if ch == quote:
-                quote = None
-        elif ch in (b'"', b"'"):
-            quote = ch
-        elif ch == b">":
-            return k + 1
-    return len(data)
+    found = _TAG.match(data, start)
+    return found.end() if found else len(data)
 
 
 def _attr(path: str, el: ElementTree.Element, key: str) -> str:
