@@ -10,6 +10,7 @@ the run is ``outcome.CheckResult``'s to say.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 
 import numpy as np
@@ -69,16 +70,7 @@ def audit_srdf(
             sweep = PairSweep(entry.a, entry.b, SweepStatus.UNDECIDED)
         elif sweep is None:  # a link without collision geometry: nothing of it can collide
             sweep = PairSweep(entry.a, entry.b, SweepStatus.NEVER)
-        sweep = PairSweep(
-            sweep.a,
-            sweep.b,
-            sweep.status,
-            sweep.joints,
-            sweep.witness,
-            sweep.verdict,
-            sweep.boxes,
-            key in mech.adjacent,
-        )
+        sweep = dataclasses.replace(sweep, is_adjacent=key in mech.adjacent)
         audited.append(AuditedPair(entry.a, entry.b, entry.reason, sweep, entry.line, entry.span))
     return SrdfAudit(
         srdf.path,
