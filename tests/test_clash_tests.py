@@ -343,6 +343,8 @@ def test_every_format_groups_findings_by_test(result):
     ids = {r["id"]: r["test"] for r in doc["results"]}
     for entry in doc["tests"]:
         assert {ids[i] for i in entry["findings"]} <= {entry["name"]}
+        # every finding of the test listed, none missing (an empty list would pass the line above)
+        assert sorted(entry["findings"]) == sorted(i for i, t in ids.items() if t == entry["name"])
         assert entry["summary"]["passed"] == entry["passed"]
     assert doc["summary"]["failed_tests"] == [CLEARANCE, FASTENERS]
 
