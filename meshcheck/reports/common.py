@@ -267,10 +267,10 @@ def describe(finding: Finding, tolerance: float | None = None) -> str:
     detail = f"distance {shown['distance']}"
     if finding.status == Verdict.DUPLICATE:
         names = [printable(n) for n in finding.members]
-        shown = ", ".join(names[:_MEMBERS_SHOWN])
+        copies = ", ".join(names[:_MEMBERS_SHOWN])
         if len(names) > _MEMBERS_SHOWN:
-            shown += f" and {len(names) - _MEMBERS_SHOWN} more"
-        detail = f"{len(names)} copies at the same spot: {shown}"
+            copies += f" and {len(names) - _MEMBERS_SHOWN} more"
+        detail = f"{len(names)} copies at the same spot: {copies}"
     if finding.depth is not None:
         detail = f"depth {shown['depth']}"
     if finding.volume is not None:
