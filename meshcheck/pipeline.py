@@ -347,32 +347,19 @@ def select_pairs(
         low, high = lower.copy(), upper.copy()
         np.minimum.at(low, first, lower)
         np.maximum.at(high, first, upper)
-        pairs = stands[candidate_pairs(low[stands], high[stands], margin=reach)]
-        pairs = _every_copy(pairs, first)
+        sets = stands[candidate_pairs(low[stands], high[stands], margin=reach)]
+        order = np.argsort(first, kind="stable")  # the copies of each set together
+        starts = np.searchsorted(first[order], np.arange(n + 1))
         lo, hi = lower - 0.5 * reach, upper + 0.5 * reach  # candidate_pairs' own comparison
-        i, j = pairs[:, 0], pairs[:, 1]
-        pairs = pairs[np.all((lo[j] <= hi[i]) & (lo[i] <= hi[j]), axis=1)]
+        box, _ = group_pairs(lo[order], hi[order], starts[:-1], np.diff(starts), sets, 0.0)
+        i, j = order[box[:, 0]], order[box[:, 1]]
+        pairs = np.stack([np.minimum(i, j), np.maximum(i, j)], axis=1).astype(np.int64)
+        pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]  # as candidate_pairs sorts
     if settings.groups is not None:
         pairs = pairs[settings.groups.pair_mask(names, pairs)]
     if settings.tests:
         pairs = pairs[held_by_any(settings.tests, names, pairs)]
     return pairs
-
-
-def _every_copy(pairs: np.ndarray, first: np.ndarray) -> np.ndarray:
-    """``pairs`` of first copies (``first[i] == i``), each repeated for every copy of either
-    part: ``(k, 2)``, ``i < j``, sorted as ``candidate_pairs`` sorts."""
-    order = np.argsort(first, kind="stable")
-    starts = np.searchsorted(first[order], np.arange(len(first) + 1))
-    count = starts[1:] - starts[:-1]  # copies of each first copy (0 for other parts)
-    a, b = pairs[:, 0], pairs[:, 1]
-    per_pair = count[a] * count[b]
-    row = np.repeat(np.arange(len(pairs)), per_pair)
-    offset = np.arange(len(row)) - np.repeat(np.cumsum(per_pair) - per_pair, per_pair)
-    i = order[starts[a[row]] + offset // count[b[row]]]
-    j = order[starts[b[row]] + offset % count[b[row]]]
-    out = np.stack([np.minimum(i, j), np.maximum(i, j)], axis=1).astype(np.int64)
-    return out[np.lexsort((out[:, 1], out[:, 0]))]
 
 
 def may_come_within(result, reach: np.ndarray) -> np.ndarray:
