@@ -130,7 +130,7 @@ def _findings(bodies, classes: PairClasses, verdicts) -> list[Finding]:
         moved = placed_verdicts(verdict, *classes.frames(rows))
         for k, v in zip(rows, moved, strict=True):
             i, j = classes.pairs[k]
-            findings.append(_finding(bodies[i], bodies[j], v, float(classes.tolerance[c])))
+            findings.append(pair_finding(bodies[i], bodies[j], v, float(classes.tolerance[c])))
     findings.sort(key=lambda f: (f.a, f.b))
     return findings
 
@@ -306,7 +306,7 @@ def _verify_in_workers(
     return out
 
 
-def _finding(a: Body, b: Body, verdict: PairVerdict, tolerance: float) -> Finding:
+def pair_finding(a: Body, b: Body, verdict: PairVerdict, tolerance: float) -> Finding:
     """The finding of a pair that is not clear, its parts (and the verdict's) in name order."""
     if (a.name, a.digest) > (b.name, b.digest):
         a, b, verdict = b, a, verdict.swapped()

@@ -81,7 +81,7 @@ from ..execute import Executor, Task
 from ..load import Body
 from ..load.files import STEP_EXTENSIONS
 from ..progress import Progress
-from ..results import Finding, Location, PairVerdict, Solid, Verdict, finding_id
+from ..results import Finding, Location, PairVerdict, Solid, Verdict
 from ..settings import Settings
 from ..tolerances import default_tolerance
 from ..units import METRES
@@ -371,14 +371,10 @@ def _node(body: Body) -> str | None:
 def _finding(bodies: Sequence[Body], job: _PairJob, verdict: PairVerdict) -> Finding:
     """The finding of a pair the B-rep found not clear, in the world and the report unit, its
     parts (and the verdict's) in name order."""
+    from .batch import pair_finding
+
     a, b = bodies[job.first], bodies[job.second]
-    verdict = to_world(verdict, a)
-    if (a.name, a.digest) > (b.name, b.digest):
-        a, b, verdict = b, a, verdict.swapped()
-    pair_id = finding_id(
-        a.name, a.digest, b.name, b.digest, placement_a=a.transform, placement_b=b.transform
-    )
-    return Finding(a.name, b.name, verdict, id=pair_id, tolerance=job.tolerance_report)
+    return pair_finding(a, b, to_world(verdict, a), job.tolerance_report)
 
 
 def to_world(verdict: PairVerdict, first: Body) -> PairVerdict:
