@@ -491,21 +491,18 @@ def _refuse_robot_options(files, motion, given: dict[str, bool]) -> None:
 
 
 def _robot_files(files) -> list[str]:
-    """The URDF files among the inputs, as the loader finds them (hidden entries of a directory
-    skipped), without reading any."""
+    """The URDF files among the inputs, as the loader finds them (``load.paths.walk_meshes``:
+    hidden entries of a directory skipped), without reading any."""
+    from .load.files import URDF_EXTENSIONS
+    from .load.paths import walk_meshes
+
     out = []
     for path in files:
-        if not os.path.isdir(path):
-            if path.lower().endswith(".urdf"):
-                out.append(path)
-            continue
-        for folder, dirs, names in os.walk(path):
-            dirs[:] = sorted(d for d in dirs if not d.startswith("."))
-            out.extend(
-                os.path.join(folder, n)
-                for n in sorted(names)
-                if n.lower().endswith(".urdf") and not n.startswith(".")
-            )
+        if os.path.isdir(path):
+            found = sorted(walk_meshes(path))
+            out += [os.path.join(path, r) for r in found if r.lower().endswith(URDF_EXTENSIONS)]
+        elif path.lower().endswith(URDF_EXTENSIONS):
+            out.append(path)
     return out
 
 

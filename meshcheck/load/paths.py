@@ -35,7 +35,7 @@ def named_files(paths: Iterable[str]) -> list[tuple[str, str]]:
     files: list[tuple[str, str]] = []
     for path in paths:
         if os.path.isdir(path):
-            found = sorted(_walk_meshes(path))
+            found = sorted(walk_meshes(path))
             if not found:
                 exts = ", ".join(SUPPORTED_EXTENSIONS)
                 raise InputError(path, f"directory holds no mesh files ({exts})")
@@ -47,7 +47,7 @@ def named_files(paths: Iterable[str]) -> list[tuple[str, str]]:
     return files
 
 
-def _walk_meshes(root: str) -> list[str]:
+def walk_meshes(root: str) -> list[str]:
     """Relative paths of supported mesh files below ``root``, skipping hidden entries."""
     out = []
     for dirpath, dirnames, filenames in os.walk(root):
