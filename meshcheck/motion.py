@@ -156,6 +156,14 @@ class Motion:
         checked_budget(self.budget)
 
 
+def is_within(folder: str, path: str) -> bool:
+    """Whether absolute ``path`` is ``folder`` or below it (False on another drive)."""
+    try:
+        return os.path.commonpath([path, folder]) == folder
+    except ValueError:
+        return False
+
+
 def checked_budget(value, *, path: str | None = None) -> int:
     """A sweep budget: a whole number from 1 to ``MAX_SWEEP_BUDGET``.
 
@@ -256,12 +264,7 @@ def checked_motion(table: Mapping, *, path: str | None = None) -> dict:
         base = os.path.dirname(os.path.abspath(path)) if path else ""
         root = os.path.abspath(base)
         for p in paths:
-            inside = os.path.abspath(os.path.join(base, p))
-            try:
-                is_inside = os.path.commonpath([inside, root]) == root
-            except ValueError:  # another drive
-                is_inside = False
-            if not is_inside:
+            if not is_within(root, os.path.abspath(os.path.join(base, p))):
                 raise ConfigError(
                     path,
                     f"package_paths: {p!r} is outside the configuration's folder (give folders "
@@ -468,6 +471,7 @@ __all__ = [
     "checked_budget",
     "checked_joints",
     "checked_motion",
+    "is_within",
     "motion_from_options",
     "parse_pose",
     "parse_reasons",

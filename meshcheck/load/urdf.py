@@ -46,6 +46,7 @@ import numpy as np
 from ..errors import ConfigError, InputError
 from ..geometry import topology
 from ..mesh import check_boolean_room, clean_arrays, manifold_solid, outward_faces, warn
+from ..motion import is_within
 from ..results import CollisionElement
 from .limits import Budget, read_file
 from .robot import (
@@ -632,19 +633,11 @@ def is_inside(path: str, roots: Sequence[str]) -> bool:
     lexical, real = os.path.abspath(path), os.path.realpath(path)
 
     def within(p: str, folders) -> bool:
-        return any(_contains(r, p) for r in folders)
+        return any(is_within(r, p) for r in folders)
 
     return within(lexical, [os.path.abspath(r) for r in roots]) and within(
         real, [os.path.realpath(r) for r in roots]
     )
-
-
-def _contains(folder: str, path: str) -> bool:
-    """Whether absolute ``path`` is ``folder`` or below it (False on another drive)."""
-    try:
-        return os.path.commonpath([path, folder]) == folder
-    except ValueError:
-        return False
 
 
 def resolve_mesh(
