@@ -313,17 +313,6 @@ def adjacent_links(robot: Robot) -> set[frozenset[str]]:
 # Many poses at once (the sweep's)
 
 
-def joint_poses(robot: Robot, base: dict, names: list[str], values: np.ndarray) -> dict:
-    """Every movable joint's values for the rows of ``values``, ``{name: (E,) float64}``: the
-    free joints ``names`` from ``values``, the other leading joints at ``base``, mimic joints
-    following their leaders."""
-    count = len(values)
-    out = {j.name: np.full(count, base[j.name]) for j in robot.movable}
-    for k, name in enumerate(names):
-        out[name] = values[:, k]
-    return with_mimics(robot, out)  # elementwise on the (E,) arrays
-
-
 def joint_motions(joint: Joint, values: np.ndarray) -> np.ndarray:
     """(E, 4, 4) motions of one joint at E values (Rodrigues, vectorised)."""
     out = np.zeros((len(values), 4, 4))
@@ -345,7 +334,8 @@ def chain_transforms(
     chain: list[Joint], poses: dict, scale: float, count: int, axes: dict | None = None
 ) -> np.ndarray:
     """(E, 4, 4) placements of a chain's last link (``Robot.chain``) in the root frame for
-    ``count`` poses (``joint_poses``), lengths times ``scale``; with ``axes``, each movable
+    ``count`` poses (``{joint: (E,) values}``, ``sweep.search.chain_poses``), lengths times
+    ``scale``; with ``axes``, each movable
     joint's axis line at each pose goes there, ``{name: ((E, 3) point on it, lengths times
     scale, (E, 3) unit direction)}``."""
     placed = np.broadcast_to(np.eye(4), (count, 4, 4))
@@ -377,7 +367,6 @@ __all__ = [
     "cross_matrix",
     "default_value",
     "joint_motions",
-    "joint_poses",
     "joint_values",
     "link_transforms",
     "rotation",

@@ -256,8 +256,8 @@ def chain_poses(
 ) -> dict[str, np.ndarray]:
     """The values, ``{name: (E,) float64}``, of the free joints ``names`` (the rows of
     ``values``) and of every movable joint of ``chains``: free ones from ``values``, mimic
-    joints following their leaders, the others at ``base`` (as ``load.robot.joint_poses``,
-    for only the joints that place the pair's links)."""
+    joints following their leaders, the others at ``base``: only the joints that place the
+    pair's links."""
     count = len(values)
     out = {name: values[:, k] for k, name in enumerate(names)}
 
