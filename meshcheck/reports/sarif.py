@@ -62,10 +62,12 @@ def _level(result: CheckResult, finding: Finding) -> str:
     return "note" if finding.is_approved or finding.status == Verdict.TOUCHING else "warning"
 
 
-def _rule_ids(result: CheckResult) -> list[str]:
-    """Every rule's ID in order: the four statuses, then ``TEST/STATUS`` for each clash test."""
+def _rule_ids(result: CheckResult) -> dict[str, int]:
+    """Every rule's index by its ID: the four statuses, then ``TEST/STATUS`` for each clash
+    test."""
     ids = [str(status) for status in FINDING_STATUSES]
-    return ids + [f"{t.name}/{status}" for t in result.tests for status in FINDING_STATUSES]
+    ids += [f"{t.name}/{status}" for t in result.tests for status in FINDING_STATUSES]
+    return {rule: index for index, rule in enumerate(ids)}
 
 
 def _rule_id(test: str, status) -> str:
@@ -74,15 +76,16 @@ def _rule_id(test: str, status) -> str:
 
 
 def _result(
-    result: CheckResult, f: Finding, paths: dict[str, str], tol: float | None, ids: list[str]
+    result: CheckResult, f: Finding, paths: dict[str, str], tol: float | None, ids: dict[str, int]
 ) -> dict:
     detail = describe(f, tol)
     text = f"{printable(f.a)} and {printable(f.b)}: {f.status}, {detail}"
     if f.test:
         text = f"{printable(f.test)}: {text}"
+    rule = _rule_id(f.test, f.status)
     entry = {
-        "ruleId": _rule_id(f.test, f.status),
-        "ruleIndex": ids.index(_rule_id(f.test, f.status)),
+        "ruleId": rule,
+        "ruleIndex": ids[rule],
         "level": _level(result, f),
         "message": {"text": text},
         "locations": [{"physicalLocation": {"artifactLocation": uri(part_file(paths, f.a))}}],
@@ -188,7 +191,7 @@ def document(result: CheckResult) -> dict:
             results.append(
                 {
                     "ruleId": rule,
-                    "ruleIndex": ids.index(rule),
+                    "ruleIndex": ids[rule],
                     "level": "none",
                     "message": {
                         "text": f"{printable(r.a)} and {printable(r.b)}: {r.status} resolved"
