@@ -20,8 +20,10 @@ from __future__ import annotations
 RELATIVE_TOLERANCE = 1e-7
 #: The rebuilt solid's volume matches the original's within this fraction.
 VOLUME_MATCH = 1e-6
-#: Relative error asked of the adaptive volume integration that compares the two.
-VOLUME_PRECISION = 1e-9
+#: Relative error asked of the adaptive volume integration that compares the two, and that
+#: measures a shared solid's volume: volumes are promised within 1e-6; on threaded screws'
+#: shared solids 1e-8 lands within 2e-8 of the 1e-9 integral in half its time.
+VOLUME_PRECISION = 1e-8
 
 
 def analytic(shape):

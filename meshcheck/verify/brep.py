@@ -69,6 +69,7 @@ import dataclasses
 import functools
 import json
 import os
+import time
 import warnings
 from collections.abc import Sequence
 
@@ -85,7 +86,7 @@ from ..results import Finding, Location, PairVerdict, Solid, Verdict
 from ..settings import Settings
 from ..tolerances import default_tolerance
 from ..units import METRES
-from .solids import NOT_ONE_SOLID
+from .solids import NOT_ONE_SOLID, SHAPES
 
 #: Bump when a cached B-rep verdict's meaning changes.
 FORMAT_VERSION = 2
@@ -448,19 +449,26 @@ def _screened(bodies, pairs, near_surfaces, settings) -> list[_PairJob | None]:
     return out
 
 
-def _pays_in_workers(executor: Executor | None, pairs: int) -> bool:
-    """Whether deciding ``pairs`` pairs (``PAIR_SECONDS`` each) in ``executor``'s workers saves
-    more than their start and their loading OpenCASCADE (``WORKER_SECONDS``) cost."""
+def _pays_in_workers(executor: Executor | None, pairs: int, seconds: float | None = None) -> bool:
+    """Whether deciding ``pairs`` pairs (``seconds`` each, default ``PAIR_SECONDS``) in
+    ``executor``'s workers saves more than their start and their loading OpenCASCADE
+    (``WORKER_SECONDS``) cost."""
     from .batch import POOL_SECONDS
 
     if executor is None or not pairs:
         return False
     if executor.is_distributed:
         return True
-    if executor.jobs <= 1:
+    if not _may_pay(executor):
         return False
     start = WORKER_SECONDS + (0.0 if executor.is_started else POOL_SECONDS)
-    return pairs * PAIR_SECONDS * (1.0 - 1.0 / executor.jobs) > start
+    each = PAIR_SECONDS if seconds is None else seconds
+    return pairs * each * (1.0 - 1.0 / executor.jobs) > start
+
+
+def _may_pay(executor: Executor) -> bool:
+    """Whether ``executor`` has processes besides this one (a Dask cluster, or local workers)."""
+    return executor.is_distributed or executor.jobs > 1
 
 
 def _decide_all(bodies, jobs: list[_PairJob], executor) -> dict[str, PairVerdict | str]:
@@ -495,15 +503,32 @@ def _decide_all(bodies, jobs: list[_PairJob], executor) -> dict[str, PairVerdict
         )
         for n, job in enumerate(jobs)
     ]
-    runner = executor if _pays_in_workers(executor, len(jobs)) else Executor()
+    # This process's solids, read once and kept from one map here to the next.
+    shared[SHAPES] = {}
     with Progress("checking on the B-rep", len(tasks)) as bar:
-        results = runner.map(
-            "meshcheck.verify.solids:brep_task",
-            tasks,
-            shared=shared,
-            progress=bar.update,
-            here=True,
-        )
+
+        def run(runner: Executor, chosen: list[Task], done: int = 0) -> list:
+            return runner.map(
+                "meshcheck.verify.solids:brep_task",
+                chosen,
+                shared=shared,
+                progress=lambda n: bar.update(done + n),
+                here=True,
+            )
+
+        if _pays_in_workers(executor, len(tasks)):
+            results = run(executor, tasks)
+        elif executor is None or not _may_pay(executor):
+            results = run(Executor(), tasks)
+        else:  # pairs here, one at a time, until their mean seconds say the rest repay workers
+            results, started = [], time.process_time()
+            while len(results) < len(tasks):
+                done = len(results)
+                mean = (time.process_time() - started) / done if done else PAIR_SECONDS
+                if done and _pays_in_workers(executor, len(tasks) - done, mean):
+                    results += run(executor, tasks[done:], done)
+                else:
+                    results += run(Executor(), tasks[done : done + 1], done)
     out = {}
     for job, task, result in zip(jobs, tasks, results, strict=True):
         if result is None:  # its worker died: decide here (a bug then shows its traceback)

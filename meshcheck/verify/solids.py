@@ -22,6 +22,8 @@ BALL_SEEDS = 24
 #: The shared solid of an interference is drawn (reports, export) from a tessellation this
 #: fraction of its box diagonal from its faces.
 SOLID_DEFLECTION = 2e-3
+#: The key of a process's solids (read from their BRep text) in a task's store.
+SHAPES = ("brep", "shapes")
 #: Why a pair is not decided when a product is not a closed solid.
 NOT_ONE_SOLID = "the part is not one closed solid of its file"
 
@@ -59,7 +61,7 @@ def _shape(store: dict, product) -> object:
 
     from .analytic import analytic
 
-    memo = store.setdefault(("brep", "shapes"), {})
+    memo = store.setdefault(SHAPES, {})
     if product not in memo:
         shape = TopoDS_Shape()
         BRepTools.Read_s(shape, io.BytesIO(store[product]), BRep_Builder())
@@ -216,12 +218,15 @@ def decide(
     >>> str(v.status), round(v.distance, 9)
     ('clearance', 0.2)
     """
-    shared, section, volume, points = None, None, 0.0, None
+    shared, section, volume, points, props = None, None, 0.0, None, None
     if may_overlap:
         shared, section = _intersection(shape_a, shape_b)
-        volume = max(_volume(shared), 0.0)
+        props = _mass_properties(shared)
+        volume = max(float(props.Mass()), 0.0)
     if section is not None and _meets_within(section, tolerance):
         distance = 0.0  # the boundaries meet (within their own tolerances, at most ``tolerance``)
+    elif volume > 0.0:
+        distance = 0.0  # they share volume: no distance to compute
     else:
         distance, points = _distance(shape_a, shape_b)
     if distance > tolerance:
@@ -233,11 +238,12 @@ def decide(
         return BrepVerdict(Verdict.CLEAR, distance, None, 0.0)
     if shared is None:
         shared, section = _intersection(shape_a, shape_b)
-        volume = max(_volume(shared), 0.0)
+        props = _mass_properties(shared)
+        volume = max(float(props.Mass()), 0.0)
     if volume > math.pi / 6.0 * tolerance**3:
-        depth, ball_bound = _largest_ball(shared), _thickness_bound(shared)
-        if depth > tolerance or ball_bound > tolerance:
-            centroid, lower, upper = _placement_of(shared)
+        depth = _largest_ball(shared)
+        if depth > tolerance or _thickness_bound(shared) > tolerance:
+            centroid, lower, upper = _placement_of(shared, props)
             return BrepVerdict(
                 Verdict.INTERFERENCE,
                 0.0,
@@ -248,8 +254,10 @@ def decide(
                 upper,
                 solid=_tessellation(shared),
             )
+    if points is None and not _has_vertices(section):  # a sliver the boundaries do not cut
+        _, points = _distance(shape_a, shape_b)
     if points is None:
-        _, lower, upper = _placement_of(section)
+        lower, upper = _box(section)
         centre = 0.5 * (lower + upper)
     else:
         centre, lower, upper = _box_of(points)
@@ -341,6 +349,13 @@ def _meets_within(section, tolerance: float) -> bool:
     return found
 
 
+def _has_vertices(shape) -> bool:
+    from OCP.TopAbs import TopAbs_VERTEX
+    from OCP.TopExp import TopExp_Explorer
+
+    return TopExp_Explorer(shape, TopAbs_VERTEX).More()
+
+
 def _volume(shape) -> float:
     return float(_mass_properties(shape).Mass())
 
@@ -359,19 +374,21 @@ def _mass_properties(shape):
     return props
 
 
-def _placement_of(shape) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Centre of mass and bounding box of a solid."""
+def _placement_of(shape, props=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Centre of mass and bounding box of a solid (``props``: its ``_mass_properties`` when
+    already integrated)."""
+    props = _mass_properties(shape) if props is None else props
+    return (np.array(props.CentreOfMass().Coord()), *_box(shape))
+
+
+def _box(shape) -> tuple[np.ndarray, np.ndarray]:
+    """A shape's exact bounding box (not enlarged by its tessellation): lower, upper corner."""
     from OCP.Bnd import Bnd_Box
     from OCP.BRepBndLib import BRepBndLib
 
-    props = _mass_properties(shape)
     box = Bnd_Box()
-    BRepBndLib.Add_s(shape, box, False)  # exact, not enlarged by the tessellation
-    return (
-        np.array(props.CentreOfMass().Coord()),
-        np.array(box.CornerMin().Coord()),
-        np.array(box.CornerMax().Coord()),
-    )
+    BRepBndLib.Add_s(shape, box, False)
+    return np.array(box.CornerMin().Coord()), np.array(box.CornerMax().Coord())
 
 
 def _box_of(points: list[tuple[np.ndarray, np.ndarray]]):
@@ -475,15 +492,26 @@ def _largest_ball(shape) -> float:
     lower bound on its depth.
     """
     from OCP.BRepClass3d import BRepClass3d_SolidClassifier
+    from OCP.IntCurvesFace import IntCurvesFace_ShapeIntersector
     from OCP.TopAbs import TopAbs_IN
 
     best = 0.0
     for solid in _solids(shape):
         classifier = BRepClass3d_SolidClassifier(solid)
+        intersector = IntCurvesFace_ShapeIntersector()
+        intersector.Load(solid, 1e-9)
+        rays = []
         for point, inward in _seeds(solid):
-            exit_at = _ray_exit(solid, point, inward)
-            if exit_at is None:
-                continue
+            exit_at = _ray_exit(intersector, point, inward)
+            if exit_at is not None:
+                rays.append((exit_at, point, inward))
+        # A ball's centre is exit_at / 2 from its seed, a point of the surface: its diameter is
+        # at most exit_at. Longest rays first, so the seeds that cannot beat the best ball are
+        # never classified or measured.
+        rays.sort(key=lambda ray: -ray[0])
+        for exit_at, point, inward in rays:
+            if exit_at <= best:
+                break
             centre = point + 0.5 * exit_at * inward
             classifier.Perform(_pnt(centre), 1e-12)
             if classifier.State() != TopAbs_IN:
@@ -496,29 +524,60 @@ def _seeds(solid) -> list[tuple[np.ndarray, np.ndarray]]:
     """(point, inward unit normal) on the solid's faces, at the parameters of the centroids of a
     coarse mesh's largest facets: points of the exact surface, normals of the exact surface."""
     from OCP.BRep import BRep_Tool
-    from OCP.BRepAdaptor import BRepAdaptor_Surface
     from OCP.BRepMesh import BRepMesh_IncrementalMesh
-    from OCP.gp import gp_Pnt, gp_Vec
-    from OCP.TopAbs import TopAbs_FACE, TopAbs_REVERSED
+    from OCP.TopAbs import TopAbs_FACE
     from OCP.TopExp import TopExp_Explorer
     from OCP.TopLoc import TopLoc_Location
     from OCP.TopoDS import TopoDS
 
     BRepMesh_IncrementalMesh(solid, max(_diagonal(solid) * 1e-2, 1e-9), False, 0.5, False)
-    facets = []
+    meshed = []  # (face, triangulation, (t, 3) node indices, (t,) areas), every face
     explorer = TopExp_Explorer(solid, TopAbs_FACE)
     while explorer.More():
         face = TopoDS.Face(explorer.Current())
         explorer.Next()
         tri = BRep_Tool.Triangulation_s(face, TopLoc_Location())
-        if tri is None or not tri.HasUVNodes():
+        if tri is None or not tri.HasUVNodes() or tri.NbTriangles() == 0:
             continue
+        xyz = np.array([tri.Node(k).Coord() for k in range(1, tri.NbNodes() + 1)])
+        idx = np.array([tri.Triangle(i).Get() for i in range(1, tri.NbTriangles() + 1)]) - 1
+        corners = xyz[idx]
+        area = np.linalg.norm(
+            np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1
+        )
+        meshed.append((face, tri, idx, area))
+    if not meshed:
+        return []
+    # Only the largest facets can be seeds: those within a hair of the k-th largest area (ties
+    # included) are measured exactly, one at a time; k grows while degenerate facets leave
+    # fewer than BALL_SEEDS.
+    every = np.sort(np.concatenate([m[3] for m in meshed]))[::-1]
+    count = BALL_SEEDS
+    while True:
+        least = every[min(count, len(every)) - 1] * (1.0 - 1e-9)
+        facets = _facets(meshed, least)
+        if len(facets) >= BALL_SEEDS or count >= len(every):
+            break
+        count *= 4
+    facets.sort(key=lambda f: (-f[0], tuple(f[1])))
+    return [(p, n) for _, p, n in facets[:BALL_SEEDS]]
+
+
+def _facets(meshed, least: float) -> list[tuple[float, np.ndarray, np.ndarray]]:
+    """(area, point, inward unit normal) of the facets of area ``least`` or more: the surface's
+    point and normal at the parameters of the facet's centroid."""
+    from OCP.BRepAdaptor import BRepAdaptor_Surface
+    from OCP.gp import gp_Pnt, gp_Vec
+    from OCP.TopAbs import TopAbs_REVERSED
+
+    facets = []
+    for face, tri, idx, areas in meshed:
         surface = BRepAdaptor_Surface(face)
         sign = -1.0 if face.Orientation() == TopAbs_REVERSED else 1.0
-        for i in range(1, tri.NbTriangles() + 1):
-            idx = tri.Triangle(i).Get()
-            uv = np.mean([tri.UVNode(k).Coord() for k in idx], axis=0)
-            xyz = np.array([tri.Node(k).Coord() for k in idx])
+        for i in np.flatnonzero(areas >= least):
+            nodes = [int(k) + 1 for k in idx[i]]
+            uv = np.mean([tri.UVNode(k).Coord() for k in nodes], axis=0)
+            xyz = np.array([tri.Node(k).Coord() for k in nodes])
             area = float(np.linalg.norm(np.cross(xyz[1] - xyz[0], xyz[2] - xyz[0])))
             point, du, dv = gp_Pnt(), gp_Vec(), gp_Vec()
             surface.D1(float(uv[0]), float(uv[1]), point, du, dv)
@@ -526,18 +585,15 @@ def _seeds(solid) -> list[tuple[np.ndarray, np.ndarray]]:
             length = float(np.linalg.norm(normal))
             if area > 0 and length > 0:
                 facets.append((area, np.array(point.Coord()), -sign * normal / length))
-    facets.sort(key=lambda f: (-f[0], tuple(f[1])))
-    return [(p, n) for _, p, n in facets[:BALL_SEEDS]]
+    return facets
 
 
-def _ray_exit(solid, point: np.ndarray, direction: np.ndarray) -> float | None:
+def _ray_exit(intersector, point: np.ndarray, direction: np.ndarray) -> float | None:
     """Distance along ``direction`` from ``point`` (on the surface) to where the ray meets the
-    surface again, or None."""
+    surface again, or None; ``intersector`` is an ``IntCurvesFace_ShapeIntersector`` loaded
+    with the solid."""
     from OCP.gp import gp_Dir, gp_Lin
-    from OCP.IntCurvesFace import IntCurvesFace_ShapeIntersector
 
-    intersector = IntCurvesFace_ShapeIntersector()
-    intersector.Load(solid, 1e-9)
     intersector.Perform(gp_Lin(_pnt(point), gp_Dir(*direction)), 0.0, math.inf)
     if not intersector.IsDone():
         return None
