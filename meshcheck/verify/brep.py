@@ -22,8 +22,9 @@ and only on them:
 
   * when the meshes come within the two deflections, one OpenCASCADE intersection gives the
     shared solid (``BRepAlgoAPI_Common``) and the section of the two boundaries; a section
-    whose vertices and edges lie within ``t`` proves the solids meet. Otherwise (or when the
-    meshes keep farther apart) ``BRepExtrema_DistShapeShape`` gives the distance ``d``;
+    edge or vertex that lies on both within ``t`` proves the solids meet, and a shared solid
+    with volume that they overlap. Otherwise (or when the meshes keep farther apart)
+    ``BRepExtrema_DistShapeShape`` gives the distance ``d``;
   * ``d > t``: **clearance** (``d`` and the two closest points) up to the clearance, else clear;
   * a shared volume ``V`` at most ``pi/6 t**3`` (the volume of a ball of diameter ``t``) proves
     the overlap thinner than ``t``: **touching**, located at the section's box (or the closest

@@ -330,23 +330,22 @@ def _intersection(shape_a, shape_b):
 
 
 def _meets_within(section, tolerance: float) -> bool:
-    """Whether a section of two boundaries is not empty and each of its vertices and edges lies
-    on both within ``tolerance`` (OpenCASCADE's tolerance of each): then the solids are at most
-    ``tolerance`` apart."""
+    """Whether a section of two boundaries has an edge or a vertex that lies on both within
+    ``tolerance`` (OpenCASCADE's tolerance of it): a point of it is then on both boundaries, so
+    the solids are at most ``tolerance`` apart. (The vertices where a section ends on tangent
+    faces can carry a far larger tolerance than its edges; one element suffices.)"""
     from OCP.BRep import BRep_Tool
     from OCP.TopAbs import TopAbs_EDGE, TopAbs_VERTEX
     from OCP.TopExp import TopExp_Explorer
     from OCP.TopoDS import TopoDS
 
-    found = False
-    for kind, cast in ((TopAbs_VERTEX, TopoDS.Vertex), (TopAbs_EDGE, TopoDS.Edge)):
+    for kind, cast in ((TopAbs_EDGE, TopoDS.Edge), (TopAbs_VERTEX, TopoDS.Vertex)):
         explorer = TopExp_Explorer(section, kind)
         while explorer.More():
-            if BRep_Tool.Tolerance_s(cast(explorer.Current())) > tolerance:
-                return False
-            found = True
+            if BRep_Tool.Tolerance_s(cast(explorer.Current())) <= tolerance:
+                return True
             explorer.Next()
-    return found
+    return False
 
 
 def _has_vertices(shape) -> bool:
