@@ -162,7 +162,7 @@ def test_every_pair_of_the_test_files_decides_the_same_on_the_rebuilt_solids(
         assert rebuilt.distance == pytest.approx(verdict.distance, rel=1e-6, abs=1e-12)
         if verdict.volume is not None:
             moved = b.Moved(solids._location(relative))
-            shared, _ = solids._intersection(a, moved)
+            shared = solids._Intersection(a, moved).shared
             assert rebuilt.volume == pytest.approx(exact_volume(shared), rel=1e-6)
 
 

@@ -10,6 +10,7 @@ numpy only, so a worker that decides solids starts in the time OpenCASCADE takes
 from __future__ import annotations
 
 import dataclasses
+import functools
 import io
 import math
 
@@ -218,15 +219,15 @@ def decide(
     >>> str(v.status), round(v.distance, 9)
     ('clearance', 0.2)
     """
-    shared, section, volume, points, props = None, None, 0.0, None, None
+    meeting, volume, points, props = None, 0.0, None, None
     if may_overlap:
-        shared, section = _intersection(shape_a, shape_b)
-        props = _mass_properties(shared)
+        meeting = _Intersection(shape_a, shape_b)
+        props = _mass_properties(meeting.shared)
         volume = max(float(props.Mass()), 0.0)
-    if section is not None and _meets_within(section, tolerance):
-        distance = 0.0  # the boundaries meet (within their own tolerances, at most ``tolerance``)
-    elif volume > 0.0:
+    if volume > 0.0:
         distance = 0.0  # they share volume: no distance to compute
+    elif meeting is not None and _meets_within(meeting.section, tolerance):
+        distance = 0.0  # the boundaries meet (within their own tolerances, at most ``tolerance``)
     else:
         distance, points = _distance(shape_a, shape_b)
     if distance > tolerance:
@@ -236,10 +237,11 @@ def decide(
                 Verdict.CLEARANCE, distance, None, 0.0, centre, lower, upper, closest=points[0]
             )
         return BrepVerdict(Verdict.CLEAR, distance, None, 0.0)
-    if shared is None:
-        shared, section = _intersection(shape_a, shape_b)
-        props = _mass_properties(shared)
+    if meeting is None:
+        meeting = _Intersection(shape_a, shape_b)
+        props = _mass_properties(meeting.shared)
         volume = max(float(props.Mass()), 0.0)
+    shared = meeting.shared
     if volume > math.pi / 6.0 * tolerance**3:
         depth = _largest_ball(shared)
         if depth > tolerance or _thickness_bound(shared) > tolerance:
@@ -254,10 +256,10 @@ def decide(
                 upper,
                 solid=_tessellation(shared),
             )
-    if points is None and not _has_vertices(section):  # a sliver the boundaries do not cut
+    if points is None and not _has_vertices(meeting.section):  # a sliver no boundary cuts
         _, points = _distance(shape_a, shape_b)
     if points is None:
-        lower, upper = _box(section)
+        lower, upper = _box(meeting.section)
         centre = 0.5 * (lower + upper)
     else:
         centre, lower, upper = _box_of(points)
@@ -305,28 +307,41 @@ def is_closed_solid(shape) -> bool:
     return bool(solids)
 
 
-def _intersection(shape_a, shape_b):
-    """The shared solid of two solids and the section of their boundaries (OpenCASCADE's boolean
-    common and section from one intersection, one thread, the arguments left untouched)."""
-    from OCP.BOPAlgo import BOPAlgo_PaveFiller
-    from OCP.BRepAlgoAPI import BRepAlgoAPI_Common, BRepAlgoAPI_Section
-    from OCP.OCP.collections import List_TopoDS_Shape
+class _Intersection:
+    """One OpenCASCADE intersection of two solids (one thread, the arguments left untouched):
+    the shared solid (boolean common) at once, the section of their boundaries when asked, from
+    the same intersection."""
 
-    arguments = List_TopoDS_Shape()
-    arguments.Append(shape_a)
-    arguments.Append(shape_b)
-    filler = BOPAlgo_PaveFiller()
-    filler.SetArguments(arguments)
-    filler.SetRunParallel(False)
-    filler.SetNonDestructive(True)
-    filler.Perform()
-    if filler.HasErrors():
-        raise Undecided("OpenCASCADE's boolean intersection failed")
-    common = BRepAlgoAPI_Common(shape_a, shape_b, filler)
-    section = BRepAlgoAPI_Section(shape_a, shape_b, filler)
-    if not (common.IsDone() and section.IsDone()):
-        raise Undecided("OpenCASCADE's boolean common failed")
-    return common.Shape(), section.Shape()
+    def __init__(self, shape_a, shape_b):
+        from OCP.BOPAlgo import BOPAlgo_PaveFiller
+        from OCP.BRepAlgoAPI import BRepAlgoAPI_Common
+        from OCP.OCP.collections import List_TopoDS_Shape
+
+        arguments = List_TopoDS_Shape()
+        arguments.Append(shape_a)
+        arguments.Append(shape_b)
+        self.filler = BOPAlgo_PaveFiller()
+        self.filler.SetArguments(arguments)
+        self.filler.SetRunParallel(False)
+        self.filler.SetNonDestructive(True)
+        self.filler.Perform()
+        if self.filler.HasErrors():
+            raise Undecided("OpenCASCADE's boolean intersection failed")
+        self.shapes = (shape_a, shape_b)
+        common = BRepAlgoAPI_Common(shape_a, shape_b, self.filler)
+        if not common.IsDone():
+            raise Undecided("OpenCASCADE's boolean common failed")
+        self.shared = common.Shape()
+
+    @functools.cached_property
+    def section(self):
+        """The section of the two boundaries."""
+        from OCP.BRepAlgoAPI import BRepAlgoAPI_Section
+
+        section = BRepAlgoAPI_Section(*self.shapes, self.filler)
+        if not section.IsDone():
+            raise Undecided("OpenCASCADE's boolean section failed")
+        return section.Shape()
 
 
 def _meets_within(section, tolerance: float) -> bool:
