@@ -252,6 +252,21 @@ def test_reports_are_the_same_cold_warm_and_in_workers(tmp_path, monkeypatch):
     ]
 
 
+def test_a_verdict_does_not_depend_on_meshes_earlier_pairs_left_on_the_faces():
+    # A worker decides many pairs on the same products; the shared solid's faces can be a
+    # product's own (the cylinder's top here), and a face keeps the finest triangulation any
+    # call gave it. The verdict, its seeds and its drawing must not depend on that history.
+    from OCP.BRepMesh import BRepMesh_IncrementalMesh
+
+    pin, block = cylinder(5.0, 0.0, 10.0), box((-6, -6, 5), (6, 6, 11))
+    first = solids.decide(pin, block, tolerance=1e-3)
+    BRepMesh_IncrementalMesh(pin, 5e-4, False, 0.02, False)  # what an earlier pair may leave
+    again = solids.decide(pin, block, tolerance=1e-3)
+    assert first.status == again.status == solids.Verdict.INTERFERENCE
+    assert (first.depth, first.volume) == (again.depth, again.volume)
+    assert [a.tobytes() for a in first.solid] == [a.tobytes() for a in again.solid]
+
+
 def test_the_solids_travel_to_workers_as_brep_text(tmp_path):
     # the text a worker reads back is the product as read, with no triangulation
     path = fastened(tmp_path / "fastened.step")

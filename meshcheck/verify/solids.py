@@ -429,13 +429,12 @@ def _distance(shape_a, shape_b) -> tuple[float, list[tuple[np.ndarray, np.ndarra
 def _tessellation(shape) -> tuple[np.ndarray, np.ndarray]:
     """A tessellation of a solid, ``SOLID_DEFLECTION`` of its size from its faces, to draw."""
     from OCP.BRep import BRep_Tool
-    from OCP.BRepMesh import BRepMesh_IncrementalMesh
     from OCP.TopAbs import TopAbs_FACE, TopAbs_REVERSED
     from OCP.TopExp import TopExp_Explorer
     from OCP.TopLoc import TopLoc_Location
     from OCP.TopoDS import TopoDS
 
-    BRepMesh_IncrementalMesh(shape, max(SOLID_DEFLECTION * _diagonal(shape), 1e-9), False, 0.5)
+    shape = _meshed(shape, max(SOLID_DEFLECTION * _diagonal(shape), 1e-9))
     vertices, faces, offset = [np.zeros((0, 3))], [np.zeros((0, 3), dtype=np.int64)], 0
     explorer = TopExp_Explorer(shape, TopAbs_FACE)
     while explorer.More():
@@ -456,6 +455,20 @@ def _tessellation(shape) -> tuple[np.ndarray, np.ndarray]:
         faces.append(triangles - 1 + offset)
         offset += len(nodes)
     return np.concatenate(vertices), np.concatenate(faces)
+
+
+def _meshed(shape, deflection: float):
+    """A copy of ``shape`` (its geometry shared) meshed afresh at ``deflection``.
+
+    A shared solid's faces can be its arguments' own faces, and a face keeps the finest
+    triangulation any call gave it: meshing them in place would make one pair's seeds and
+    drawing depend on the pairs decided before it in the same process (so on ``-j``)."""
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_Copy
+    from OCP.BRepMesh import BRepMesh_IncrementalMesh
+
+    copy = BRepBuilderAPI_Copy(shape, False, False).Shape()
+    BRepMesh_IncrementalMesh(copy, deflection, False, 0.5, False)
+    return copy
 
 
 def _diagonal(shape) -> float:
@@ -538,13 +551,12 @@ def _seeds(solid) -> list[tuple[np.ndarray, np.ndarray]]:
     """(point, inward unit normal) on the solid's faces, at the parameters of the centroids of a
     coarse mesh's largest facets: points of the exact surface, normals of the exact surface."""
     from OCP.BRep import BRep_Tool
-    from OCP.BRepMesh import BRepMesh_IncrementalMesh
     from OCP.TopAbs import TopAbs_FACE
     from OCP.TopExp import TopExp_Explorer
     from OCP.TopLoc import TopLoc_Location
     from OCP.TopoDS import TopoDS
 
-    BRepMesh_IncrementalMesh(solid, max(_diagonal(solid) * 1e-2, 1e-9), False, 0.5, False)
+    solid = _meshed(solid, max(_diagonal(solid) * 1e-2, 1e-9))
     meshed = []  # (face, triangulation, (t, 3) node indices, (t,) areas), every face
     explorer = TopExp_Explorer(solid, TopAbs_FACE)
     while explorer.More():
