@@ -105,7 +105,7 @@ def warn(name: str, reason: str) -> None:
 
 
 def clean_arrays(
-    vertices, faces, name: str, *, max_coordinate: float = np.inf
+    vertices, faces, name: str, *, max_coordinate: float = np.inf, shells: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Validated mesh arrays: finite, vertices merged, triangles with a repeated vertex dropped.
 
@@ -121,6 +121,8 @@ def clean_arrays(
         The part name errors and warnings start with.
     max_coordinate : float
         Largest absolute coordinate accepted.
+    shells : (n,) int64, optional
+        A label per vertex: vertices of different labels are never merged (``merge_vertices``).
 
     Returns
     -------
@@ -144,7 +146,7 @@ def clean_arrays(
         )
     if faces.size and (faces.min() < 0 or faces.max() >= len(vertices)):
         raise InputError(name, "triangles refer to vertices that do not exist")
-    v, f = merge_vertices(vertices, faces)
+    v, f = merge_vertices(vertices, faces, shells=shells)
     repeated, flat = topology.degenerate_triangles(v, f)
     if flat.all():
         raise InputError(name, "every triangle is degenerate (zero area)")
@@ -162,7 +164,9 @@ _MERGE_SCALE = 10.0**MERGE_DIGITS
 _MERGE_KEY_LIMIT = float(1 << 62)
 
 
-def merge_vertices(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def merge_vertices(
+    vertices: np.ndarray, faces: np.ndarray, *, shells: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Merge the vertices that are equal to ``MERGE_DIGITS`` decimals; drop unused ones.
 
     trimesh's rule (``Trimesh.merge_vertices``): two vertices the faces use are one when each
@@ -176,6 +180,9 @@ def merge_vertices(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray,
         Finite.
     faces : (m, 3) int64
         Indices into ``vertices``.
+    shells : (n,) int64, optional
+        A label per vertex; vertices of different labels are not merged (the closed shells of
+        a part made of solids that share faces stay apart).
 
     Returns
     -------
@@ -206,6 +213,9 @@ def merge_vertices(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray,
         small = np.where(big, np.iinfo(np.int64).min, scaled).astype(np.int64)
         exact = np.where(big, points + 0.0, 0.0).view(np.int64)  # + 0.0: no -0.0 bits
         keys = np.concatenate([small, exact], axis=1)
+    if shells is not None:
+        labels = np.asarray(shells, dtype=np.int64)
+        keys = np.concatenate([keys, (labels if every else labels[used])[:, None]], axis=1)
     first, inverse = topology.group_rows(keys)
     if every:
         return vertices[first], inverse[faces]

@@ -19,7 +19,7 @@ from ..units import METRES
 from .store import Store, checksum, npz_sizes_agree, package_version
 
 # Bump when an entry's layout or the meaning of its meshes changes (the welding, the naming).
-FORMAT_VERSION = 3  # 3: welded along the edges faces share; 2: OCP's XCAF reader
+FORMAT_VERSION = 4  # 4: each solid welded on its own; 3: welded along shared edges; 2: XCAF
 #: A tessellation cache entry larger than this is a miss (an assembly's is megabytes).
 MAX_TESSELLATION_BYTES = 1 << 30
 

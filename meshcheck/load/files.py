@@ -204,7 +204,11 @@ def _read(
         name = f"{path}#{node}" if multi else path
         if id(geom) not in index:
             v, f = clean_arrays(
-                geom.vertices, geom.faces, name, max_coordinate=budget.limits.max_coordinate
+                geom.vertices,
+                geom.faces,
+                name,
+                max_coordinate=budget.limits.max_coordinate,
+                shells=_shells(geom) if ext in STEP_EXTENSIONS else None,
             )
             closed = topology.is_closed(f)
             index[id(geom)] = len(geometries)
@@ -223,6 +227,16 @@ def _read(
         solids=solids,
         elements={node: geom.elements for node, geom, _ in items if hasattr(geom, "elements")},
     )
+
+
+def _shells(mesh) -> np.ndarray:
+    """(n,) int64: the connected shell of each vertex of a mesh welded as read (a STEP part's
+    solids, each welded on its own: vertices where two solids meet stay apart)."""
+    faces = np.asarray(mesh.faces, dtype=np.int64)
+    face_label, _ = topology.shell_labels(faces, len(mesh.vertices))
+    labels = np.full(len(mesh.vertices), -1, dtype=np.int64)
+    labels[faces] = np.asarray(face_label, dtype=np.int64)[:, None]
+    return labels
 
 
 def _stl_head_check(path: str, budget: Budget):

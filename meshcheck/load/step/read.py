@@ -278,8 +278,9 @@ def _tessellation(
     scale = METRES[unit]  # metres per file unit
     meshed = with_copied_topology(instances)
     used_mm = tessellate(meshed, path, wanted_mm, angular, budget, unit, ratio)
-    deflection = used_mm * 1e-3 / scale
-    items = placed_meshes(meshed, path, 1e-3 / scale, deflection)
+    items, deflection = placed_meshes(
+        meshed, path, 1e-3 / scale, used_mm * 1e-3 / scale, angular=angular
+    )
     return Tessellation(items, unit, deflection, angular)
 
 

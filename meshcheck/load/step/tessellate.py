@@ -16,7 +16,18 @@ Faces are tessellated one by one: each face has its own copy of the vertices of 
 shares, and a few triangles collapse to slivers. Vertices closer than a tolerance far below the
 deflection are merged (in float64), degenerate triangles dropped, and a closed solid comes out
 closed: every edge used by exactly two triangles, consistently wound, facing out
-(``close_mesh``).
+(``close_mesh``). Each solid of a product is welded on its own (``product_mesh``): a part made of
+several solids that share faces or edges is several closed shells, not one surface whose shared
+edges join four triangles.
+
+BRepMesh leaves some faces without triangles, or with triangles that stop short of the face's
+edges (a full-turn chamfer cone a few tenths of a millimetre tall, at 0.005 mm): its node
+insertion inside such a face fails, not the discretisation of its edges. Those faces of a solid
+whose mesh is not closed are meshed again by BRepMesh (``mend_faces``) with the same deflection
+on the edges, so they still share their neighbours' nodes, and a coarser one inside
+(``IMeshTools_Parameters.DeflectionInterior``, ``MEND_INTERIOR_FACTORS``); the distance between
+such a face and its new triangles is measured, and a distance above the deflection becomes the
+file's deflection.
 """
 
 from __future__ import annotations
@@ -27,6 +38,7 @@ import numpy as np
 import trimesh
 
 from ...errors import InputError
+from ...mesh import is_closed
 from ...units import METRES
 from .assembly import Instance, UniqueNames, order_key
 from .document import captured_output
@@ -49,6 +61,12 @@ MIN_DEFLECTION_MM = 1e-6
 # ... and below this fraction of the largest solid's bounding-box diagonal: a million chords
 # across a part resolve nothing a collision check can use, and cost memory quadratic in them.
 MIN_RELATIVE_DEFLECTION = 1e-6
+# Interior deflections tried, as multiples of the linear deflection, for a face BRepMesh could not
+# mesh (``mend_faces``): the edges keep the linear deflection. A larger one makes BRepMesh insert
+# fewer nodes inside the face, which the chamfer cones that fail need (four to eight times; their
+# triangles then measured within a third of the deflection). Each failed try costs about as much
+# as meshing the face, so the list is short.
+MEND_INTERIOR_FACTORS = (2, 4, 8, 16)
 # Triangles one STEP file may be tessellated into (every distinct product once), unless the run's
 # budget (``--max-triangles``) has less left: a million triangles take about 200 MB here.
 MAX_STEP_TRIANGLES = 5_000_000
@@ -232,18 +250,27 @@ def face_arrays(shape) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def placed_meshes(
-    instances: list[Instance], path: str, to_unit: float, deflection: float
-) -> list[tuple[str, trimesh.Trimesh, np.ndarray]]:
-    """(unique product name, closed local mesh, transform) per solid instance, file units."""
+    instances: list[Instance],
+    path: str,
+    to_unit: float,
+    deflection: float,
+    *,
+    angular: float = DEFAULT_ANGULAR_DEFLECTION,
+) -> tuple[list[tuple[str, trimesh.Trimesh, np.ndarray]], float]:
+    """(unique product name, closed local mesh, transform) per solid instance, file units; and
+    the deflection the meshes hold, file units: ``deflection``, or more when a face meshed
+    again (``mend_faces``) lies farther from its triangles."""
     meshes: dict[str, trimesh.Trimesh] = {}  # one closed mesh per product
     items = []
     unique = UniqueNames()
+    held = deflection
     for inst in sorted(instances, key=order_key):
         if inst.product_key not in meshes:
-            vertices, faces, same = face_arrays(inst.product)
-            if not np.all(np.isfinite(vertices)):
-                raise InputError(f"{path}#{inst.name}", "vertices have NaN or infinite coordinates")
-            meshes[inst.product_key] = close_mesh(vertices * to_unit, faces, deflection, same=same)
+            mesh, deviation_mm = product_mesh(
+                inst.product, f"{path}#{inst.name}", to_unit, deflection, angular=angular
+            )
+            meshes[inst.product_key] = mesh
+            held = max(held, deviation_mm * to_unit)
         transform = inst.matrix.copy()
         transform[:3, 3] *= to_unit
         if not np.all(np.isfinite(transform)):
@@ -257,7 +284,227 @@ def placed_meshes(
     if not items:
         raise InputError(path, "holds no solids (nothing OpenCASCADE could tessellate)")
     items.sort(key=lambda item: item[0])
-    return items
+    return items, held
+
+
+def product_mesh(
+    shape, name: str, to_unit: float, deflection: float, *, angular: float
+) -> tuple[trimesh.Trimesh, float]:
+    """A meshed product as one mesh, file units: each solid welded on its own (so each closed
+    solid is a closed shell), then the faces outside every solid welded together.
+
+    A solid whose mesh is not closed has its faces meshed again where BRepMesh left them
+    without triangles or short of their edges (``mend_faces``).
+
+    Returns
+    -------
+    mesh : trimesh.Trimesh
+        The shells one after the other, no vertex shared between two of them.
+    deviation : float
+        The largest distance, mm, between a face meshed again and its triangles (0 if none).
+    """
+    deflection_mm = deflection / to_unit
+    shells, deviation = [], 0.0
+    for part, is_solid in _solids_and_rest(shape):
+        mesh = _welded(part, name, to_unit, deflection)
+        if is_solid and not is_closed(mesh):
+            measured = mend_faces(part, deflection_mm, angular)
+            if measured is not None:
+                deviation = max(deviation, measured)
+                mesh = _welded(part, name, to_unit, deflection)
+        shells.append(mesh)
+    if len(shells) == 1:
+        return shells[0], deviation
+    offsets = np.cumsum([0] + [len(m.vertices) for m in shells[:-1]])
+    vertices = np.concatenate([m.vertices for m in shells]) if shells else np.zeros((0, 3))
+    faces = np.concatenate([m.faces + k for m, k in zip(shells, offsets, strict=True)])
+    return trimesh.Trimesh(vertices, faces.reshape(-1, 3), process=False), deviation
+
+
+def _welded(shape, name: str, to_unit: float, deflection: float) -> trimesh.Trimesh:
+    """``shape``'s triangles welded into one surface (``close_mesh``), file units."""
+    vertices, faces, same = face_arrays(shape)
+    if not np.all(np.isfinite(vertices)):
+        raise InputError(name, "vertices have NaN or infinite coordinates")
+    return close_mesh(vertices * to_unit, faces, deflection, same=same)
+
+
+def _solids_and_rest(shape) -> list[tuple[object, bool]]:
+    """(sub-shape, is a solid): each solid of ``shape``, then a compound of the faces outside
+    every solid, if any; ``shape`` itself when it holds no solid."""
+    from OCP.BRep import BRep_Builder
+    from OCP.TopAbs import TopAbs_FACE, TopAbs_SOLID
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS_Compound
+
+    out = []
+    explorer = TopExp_Explorer(shape, TopAbs_SOLID)
+    while explorer.More():
+        out.append((explorer.Current(), True))
+        explorer.Next()
+    if not out:
+        return [(shape, False)]
+    builder, rest, has_rest = BRep_Builder(), TopoDS_Compound(), False
+    builder.MakeCompound(rest)
+    explorer = TopExp_Explorer(shape, TopAbs_FACE, TopAbs_SOLID)
+    while explorer.More():
+        builder.Add(rest, explorer.Current())
+        has_rest = True
+        explorer.Next()
+    return [*out, (rest, False)] if has_rest else out
+
+
+def mend_faces(solid, deflection_mm: float, angular: float) -> float | None:
+    """Mesh again the faces of a meshed ``solid`` that BRepMesh left without triangles or whose
+    triangles do not reach their edges (``follows_edges``).
+
+    BRepMesh meshes the compound of those faces alone, at the deflection and angle the solid was
+    meshed at on the edges: it discretises their edges as it did the first time (the same nodes
+    as the neighbours' triangulations hold), so the seams stay closed. Inside the faces the
+    deflection is ``MEND_INTERIOR_FACTORS`` times coarser, the first that succeeds; the
+    triangles' real distance from the face is then measured (``face_deviation``).
+
+    Parameters
+    ----------
+    solid : TopoDS_Shape
+        Meshed at ``deflection_mm`` and ``angular`` by ``BRepMesh_IncrementalMesh``.
+    deflection_mm, angular : float
+        Its linear (mm) and angular (radians) deflections.
+
+    Returns
+    -------
+    float or None
+        The largest distance, mm, between a face meshed again and its triangles; None when no
+        face needed it.
+    """
+    from OCP.BRep import BRep_Builder
+    from OCP.BRepMesh import BRepMesh_IncrementalMesh
+    from OCP.IMeshTools import IMeshTools_Parameters
+
+    broken = [face for face in _faces(solid) if not follows_edges(face)]
+    if not broken:
+        return None
+    mended, builder = list(broken), BRep_Builder()
+    for factor in MEND_INTERIOR_FACTORS:
+        for face in broken:
+            builder.UpdateFace(face, None)  # dropped: BRepMesh meshes them again
+        params = IMeshTools_Parameters()
+        params.Deflection = deflection_mm
+        params.Angle = angular
+        params.DeflectionInterior = factor * deflection_mm
+        with captured_output():
+            BRepMesh_IncrementalMesh(_compound(broken), params)
+        broken = [face for face in broken if not follows_edges(face)]
+        if not broken:
+            break
+    return max((face_deviation(face) for face in mended if _has_triangles(face)), default=0.0)
+
+
+def _compound(shapes):
+    """An OpenCASCADE compound of ``shapes`` (which stay shared with their solid)."""
+    from OCP.BRep import BRep_Builder
+    from OCP.TopoDS import TopoDS_Compound
+
+    builder, compound = BRep_Builder(), TopoDS_Compound()
+    builder.MakeCompound(compound)
+    for shape in shapes:
+        builder.Add(compound, shape)
+    return compound
+
+
+def _faces(shape) -> list:
+    from OCP.TopAbs import TopAbs_FACE
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS
+
+    out, explorer = [], TopExp_Explorer(shape, TopAbs_FACE)
+    while explorer.More():
+        out.append(TopoDS.Face(explorer.Current()))
+        explorer.Next()
+    return out
+
+
+def _has_triangles(face) -> bool:
+    from OCP.BRep import BRep_Tool
+    from OCP.TopLoc import TopLoc_Location
+
+    tri = BRep_Tool.Triangulation_s(face, TopLoc_Location())
+    return tri is not None and tri.NbTriangles() > 0
+
+
+def _triangles(tri) -> np.ndarray:
+    """(m, 3) int64: a ``Poly_Triangulation``'s triangles, 1-based node numbers."""
+    return np.array(
+        [tri.Triangle(i).Get() for i in range(1, tri.NbTriangles() + 1)], dtype=np.int64
+    ).reshape(-1, 3)
+
+
+def follows_edges(face) -> bool:
+    """Whether a meshed face's triangles cover it up to its edges: each segment of its edges'
+    polygons (OpenCASCADE's nodes of the edge on this face's triangulation) borders exactly one
+    triangle, and no other triangle side is unshared or shared by more than two triangles.
+    Degenerate edges (a cone's apex) and internal ones (inside the face) are left out."""
+    from OCP.BRep import BRep_Tool
+    from OCP.TopAbs import TopAbs_EDGE, TopAbs_EXTERNAL, TopAbs_INTERNAL
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopLoc import TopLoc_Location
+    from OCP.TopoDS import TopoDS
+
+    location = TopLoc_Location()
+    tri = BRep_Tool.Triangulation_s(face, location)
+    if tri is None or tri.NbTriangles() == 0:
+        return False
+    triangles = _triangles(tri)
+    sides = np.sort(
+        np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]]), axis=1
+    )
+    sides, uses = np.unique(sides, axis=0, return_counts=True)
+    if (uses > 2).any():
+        return False
+    segments = [np.zeros((0, 2), dtype=np.int64)]
+    explorer = TopExp_Explorer(face, TopAbs_EDGE)
+    while explorer.More():
+        edge = TopoDS.Edge(explorer.Current())
+        explorer.Next()
+        if BRep_Tool.Degenerated_s(edge) or edge.Orientation() in (
+            TopAbs_INTERNAL,
+            TopAbs_EXTERNAL,
+        ):
+            continue
+        polygon = BRep_Tool.PolygonOnTriangulation_s(edge, tri, location)
+        if polygon is None:
+            return False
+        nodes = np.array([polygon.Node(i) for i in range(1, polygon.NbNodes() + 1)], dtype=np.int64)
+        segments.append(np.stack([nodes[:-1], nodes[1:]], axis=1))
+    border = np.sort(np.concatenate(segments), axis=1)
+    border = np.unique(border[border[:, 0] != border[:, 1]], axis=0)
+    return np.array_equal(border, sides[uses == 1])
+
+
+def face_deviation(face) -> float:
+    """Largest distance, mm, between a meshed face's surface and its triangles, measured at each
+    triangle's centroid and the midpoints of its sides (where a chord strays farthest from a
+    surface curved along it)."""
+    from OCP.BRep import BRep_Tool
+    from OCP.GeomAPI import GeomAPI_ProjectPointOnSurf
+    from OCP.gp import gp_Pnt
+    from OCP.TopLoc import TopLoc_Location
+
+    location = TopLoc_Location()
+    tri = BRep_Tool.Triangulation_s(face, location)
+    surface = BRep_Tool.Surface_s(face)  # placed by the face's location
+    trsf = location.Transformation()
+    nodes = np.array([tri.Node(i).Transformed(trsf).Coord() for i in range(1, tri.NbNodes() + 1)])
+    corners = nodes[_triangles(tri) - 1]
+    points = np.concatenate(
+        [corners.mean(axis=1)] + [(corners[:, k] + corners[:, (k + 1) % 3]) / 2 for k in range(3)]
+    )
+    worst = 0.0
+    for point in points:
+        projection = GeomAPI_ProjectPointOnSurf(gp_Pnt(*map(float, point)), surface)
+        if projection.NbPoints():
+            worst = max(worst, float(projection.LowerDistance()))
+    return worst
 
 
 def close_mesh(

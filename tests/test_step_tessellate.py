@@ -1,0 +1,176 @@
+"""STEP tessellation: a part of several solids is several closed shells, and a face BRepMesh
+left without triangles is meshed again with its seams closed and its deflection measured.
+
+The solids are built by OpenCASCADE here (tests/step_writer.py); the known answers are the CAD
+volumes in closed form and the requested deflection.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+from step_writer import box, cut, cylinder, write_step
+
+from meshcheck.load import load_bodies
+from meshcheck.load.step import read_step
+from meshcheck.load.step.tessellate import (
+    face_deviation,
+    follows_edges,
+    mend_faces,
+    product_mesh,
+)
+from meshcheck.mesh import is_closed, merge_vertices, split_shells
+
+EYE = np.eye(4)
+
+
+def shared_face_pair():
+    """Two 2 x 2 x 1 boxes stacked in z, one compound whose solids share the face z = 1
+    (OpenCASCADE's general fuse keeps both solids and makes their common face one face)."""
+    from OCP.BOPAlgo import BOPAlgo_Builder
+
+    builder = BOPAlgo_Builder()
+    builder.AddArgument(box((0, 0, 0), (2, 2, 1)))
+    builder.AddArgument(box((0, 0, 1), (2, 2, 2)))
+    builder.Perform()
+    return builder.Shape()
+
+
+def chamfered_plate():
+    """A 10 x 10 x 3 plate with a 1.7 radius hole whose entry has a 0.3 x 45 degree chamfer:
+    volume 300 - pi 1.7^2 3 - the chamfer ring."""
+    from OCP.BRepPrimAPI import BRepPrimAPI_MakeCone
+    from OCP.gp import gp_Ax2, gp_Dir, gp_Pnt
+
+    plate = cut(box((-5, -5, -3), (5, 5, 0)), cylinder(1.7, -4, 1))
+    cone = BRepPrimAPI_MakeCone(gp_Ax2(gp_Pnt(0, 0, -0.3), gp_Dir(0, 0, 1)), 1.7, 2.3, 0.6)
+    return cut(plate, cone.Shape())
+
+
+def chamfered_plate_volume() -> float:
+    """CAD volume of ``chamfered_plate``: the chamfer is a frustum from r 1.7 to 2.0 over 0.3,
+    less the hole's cylinder over the same height."""
+    frustum = np.pi * 0.3 / 3 * (1.7**2 + 1.7 * 2.0 + 2.0**2)
+    return 300 - np.pi * 1.7**2 * 3 - (frustum - np.pi * 1.7**2 * 0.3)
+
+
+def faces_of(shape) -> list:
+    from OCP.TopAbs import TopAbs_FACE
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS
+
+    out, explorer = [], TopExp_Explorer(shape, TopAbs_FACE)
+    while explorer.More():
+        out.append(TopoDS.Face(explorer.Current()))
+        explorer.Next()
+    return out
+
+
+def is_cone(face) -> bool:
+    from OCP.BRepAdaptor import BRepAdaptor_Surface
+    from OCP.GeomAbs import GeomAbs_Cone
+
+    return BRepAdaptor_Surface(face).GetType() == GeomAbs_Cone
+
+
+# --------------------------------------------------------------------------------------------
+# Several solids in one part
+
+
+def test_a_part_of_two_solids_sharing_a_face_is_two_closed_shells(tmp_path):
+    path = write_step(tmp_path / "pair.step", {"pair": shared_face_pair()}, [("pair", EYE)])
+    ((name, mesh, _),) = read_step(path).items
+    shells = split_shells(mesh)
+    assert name == "pair" and len(shells) == 2
+    assert all(is_closed(shell) for shell in shells)
+    assert sorted(float(s.volume) for s in shells) == pytest.approx([4.0, 4.0])
+
+
+def test_loading_a_part_of_two_solids_sharing_a_face_keeps_it_closed(tmp_path):
+    path = write_step(tmp_path / "pair.step", {"pair": shared_face_pair()}, [("pair", EYE)])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # "mesh is not closed" would be raised here
+        (body,) = load_bodies([path])
+    assert is_closed(body.mesh) and float(body.mesh.volume) == pytest.approx(8.0)
+    assert len(split_shells(body.mesh)) == 2
+
+
+def test_vertices_of_different_shells_are_not_merged():
+    v = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0.0, 0, 0], [1, 0, 0], [0, 0, 1]])
+    f = np.array([[0, 1, 2], [3, 4, 5]])
+    assert len(merge_vertices(v, f)[0]) == 4
+    merged, faces = merge_vertices(v, f, shells=np.array([0, 0, 0, 1, 1, 1]))
+    assert len(merged) == 6 and faces.tolist() == f.tolist()
+
+
+# --------------------------------------------------------------------------------------------
+# Faces meshed again
+
+
+def meshed_chamfered_plate(deflection: float):
+    from OCP.BRepMesh import BRepMesh_IncrementalMesh
+
+    plate = chamfered_plate()
+    BRepMesh_IncrementalMesh(plate, deflection, False, 0.5, False)
+    return plate
+
+
+def test_a_face_left_without_triangles_is_meshed_again_with_its_seams_closed():
+    from OCP.BRep import BRep_Builder
+
+    deflection = 0.005
+    plate = meshed_chamfered_plate(deflection)
+    (chamfer,) = [face for face in faces_of(plate) if is_cone(face)]
+    assert all(follows_edges(face) for face in faces_of(plate))
+    BRep_Builder().UpdateFace(chamfer, None)  # what BRepMesh leaves when a face fails
+    assert not follows_edges(chamfer)
+
+    mesh, deviation = product_mesh(plate, "plate", 1.0, deflection, angular=0.5)
+    assert follows_edges(chamfer)
+    assert is_closed(mesh)
+    # meshed with twice the deflection inside: its measured distance is what is reported
+    assert deviation == face_deviation(chamfer) and 0 < deviation <= 2 * deflection
+    # the chords lie within the deflection of the faces: the volume within their area times it
+    area = 2 * (100 - np.pi * 1.7**2) + 40 * 3 + 2 * np.pi * 1.7 * 3 + 2 * np.pi * 2.0 * 0.43
+    assert float(mesh.volume) == pytest.approx(chamfered_plate_volume(), abs=area * deviation)
+
+
+def test_mend_faces_leaves_a_fully_meshed_solid_alone():
+    plate = meshed_chamfered_plate(0.01)
+    assert mend_faces(plate, 0.01, 0.5) is None
+
+
+def test_face_deviation_is_the_chord_sag_of_a_cylinder():
+    # A cylinder's facets meet it along their sides' ends: the farthest point of a facet from
+    # it is the middle of a chord across n equal steps, r (1 - cos(pi / n)) inside.
+    from OCP.BRep import BRep_Tool
+    from OCP.BRepMesh import BRepMesh_IncrementalMesh
+    from OCP.TopAbs import TopAbs_EDGE
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopLoc import TopLoc_Location
+    from OCP.TopoDS import TopoDS
+
+    pin = cylinder(2.0, 0, 1)
+    BRepMesh_IncrementalMesh(pin, 0.01, False, 0.5, False)
+    (side,) = [face for face in faces_of(pin) if not _is_plane(face)]
+    location = TopLoc_Location()
+    tri = BRep_Tool.Triangulation_s(side, location)
+    explorer = TopExp_Explorer(side, TopAbs_EDGE)
+    steps = set()
+    while explorer.More():
+        edge = TopoDS.Edge(explorer.Current())
+        explorer.Next()
+        if not BRep_Tool.IsClosed_s(edge, side):  # the two circles, not the seam
+            steps.add(BRep_Tool.PolygonOnTriangulation_s(edge, tri, location).NbNodes() - 1)
+    (n,) = steps
+    assert face_deviation(side) == pytest.approx(2.0 * (1 - np.cos(np.pi / n)), rel=1e-6)
+    assert face_deviation(side) <= 0.01
+
+
+def _is_plane(face) -> bool:
+    from OCP.BRepAdaptor import BRepAdaptor_Surface
+    from OCP.GeomAbs import GeomAbs_Plane
+
+    return BRepAdaptor_Surface(face).GetType() == GeomAbs_Plane
