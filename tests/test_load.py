@@ -629,6 +629,19 @@ def test_touching_or_apart_shells_do_not_warn(tmp_path):
     warn_overlapping_shells([body])  # filterwarnings = error: any warning fails
 
 
+def test_shells_of_a_tessellated_solid_crossing_within_both_deflections_do_not_overlap():
+    # Two solids of one STEP part that touch, each meshed within 0.005 of its faces, can show
+    # chords crossing by up to both deflections: that is contact, not a shared volume. The same
+    # crossing in a mesh file (no deflection) and a deeper one are overlaps.
+    from meshcheck.verify.shells import overlapping_shells
+
+    crossing = trimesh.util.concatenate([box(), box(at=(1 - 0.008, 0, 0))])
+    assert overlapping_shells(crossing, deflection=0.005) is None
+    assert overlapping_shells(crossing) == (1, 2)
+    deeper = trimesh.util.concatenate([box(), box(at=(1 - 0.012, 0, 0))])
+    assert overlapping_shells(deeper, deflection=0.005) == (1, 2)
+
+
 def test_mm_stl_beside_a_metre_gltf_is_checked_in_one_unit(tmp_path):
     import meshcheck
 

@@ -35,7 +35,7 @@ def warn_overlapping_shells(bodies: Sequence[Body]) -> None:
         if id(body.mesh) in seen or body.elements:
             continue
         seen.add(id(body.mesh))
-        overlap = overlapping_shells(body.mesh)
+        overlap = overlapping_shells(body.mesh, deflection=body.deflection)
         if overlap is not None:
             i, j = overlap
             warn(
@@ -61,11 +61,13 @@ def warn_nothing_to_compare(bodies: Sequence[Body], *, is_split: bool) -> None:
     warn(body.name, reason)
 
 
-def overlapping_shells(mesh: trimesh.Trimesh) -> tuple[int, int] | None:
+def overlapping_shells(mesh: trimesh.Trimesh, *, deflection: float = 0.0) -> tuple[int, int] | None:
     """Two closed shells of ``mesh`` that share volume, as 1-based shell numbers, or None.
 
     Shells are numbered as ``split_shells`` lists them. Shells that only touch (within
-    ``SHELL_TOUCH_FRACTION`` of their size) do not count; the exact test is
+    ``SHELL_TOUCH_FRACTION`` of their size, plus twice ``deflection``: the shells of a
+    tessellated solid lie within it of their faces, so solids that touch can show chords
+    crossing by up to both deflections) do not count; the exact test is
     ``verify.verify_pair``.
     """
     if shell_labels(mesh)[1] == 1:
@@ -78,7 +80,8 @@ def overlapping_shells(mesh: trimesh.Trimesh) -> tuple[int, int] | None:
     upper = np.array([shells[k].bounds[1] for k in solid])
     for i, j in candidate_pairs(lower, upper, margin=0.0):
         a, b = shells[solid[i]], shells[solid[j]]
-        tolerance = SHELL_TOUCH_FRACTION * float(np.linalg.norm(np.maximum(a.extents, b.extents)))
+        size = float(np.linalg.norm(np.maximum(a.extents, b.extents)))
+        tolerance = SHELL_TOUCH_FRACTION * size + 2.0 * deflection
         shared = np.minimum(upper[i], upper[j]) - np.maximum(lower[i], lower[j])
         if shared.min() <= tolerance:  # boxes meeting face to face (an assembly export's
             continue  # neighbours) cannot share a solid thicker than the tolerance
