@@ -74,6 +74,9 @@ CORNER_JOINTS = 5
 #: evaluated at their centre alone (``bench/sweep.py --robot pr2 --pair
 #: l_gripper_palm_link:l_shoulder_lift_link``: 0.06 ms a box, 0.77 ms a corner test of 32 copies).
 CORNER_BOXES = 12
+#: Boxes given the corner test in one compiled call: the work is checked against the pair's
+#: allowance between them, so a pair stops within one such call of it.
+CORNER_BATCH = 32
 #: Boxes a link pair evaluates by the first-order bound alone before the corner test joins
 #: in: most pairs are decided within them, where the corner test's copies cost more than the
 #: boxes they save.
@@ -468,12 +471,17 @@ def sweep_pair(
             # the interpolation's error: boxes whose centre is not past it are left to split
             hopeful = lowest[rows] > grown + pair.tolerance
             rows, chosen, grown = rows[hopeful], chosen[hopeful], grown[hopeful]
-            corner = pair.corner_bounds(
-                blo[rows], bhi[rows], chosen, grown, centres=(ta[rows], tb[rows]),
-                first=bound[rows],
-            )  # fmt: skip
-            open_[rows[corner > pair.tolerance]] = False
-            evaluated += CORNER_BOXES * len(rows)
+            for k in range(0, len(rows), CORNER_BATCH):  # the work checked between batches
+                if pair.work > allowance:
+                    break  # the boxes left stay open: the pair stops after this batch
+                part = slice(k, k + CORNER_BATCH)
+                some = rows[part]
+                corner = pair.corner_bounds(
+                    blo[some], bhi[some], chosen[part], grown[part],
+                    centres=(ta[some], tb[some]), first=bound[some],
+                )  # fmt: skip
+                open_[some[corner > pair.tolerance]] = False
+                evaluated += CORNER_BOXES * len(some)
         if not np.any(open_):
             continue
         blo, bhi, half, w = blo[open_], bhi[open_], half[open_], w[open_]
