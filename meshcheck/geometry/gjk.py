@@ -390,3 +390,94 @@ def placed_distances(
         relative, _contiguous(pad_a, f8), _contiguous(pad_b, f8), reach, bool(settle), lowest,
     )  # fmt: skip
     return lowest, queries + boxes // PLACED_BOXES_PER_QUERY
+
+
+def copied_distances(
+    pack_a: ConvexPack,
+    pack_b: ConvexPack,
+    ta: np.ndarray,
+    count_a: np.ndarray,
+    tb: np.ndarray,
+    count_b: np.ndarray,
+    reach: np.ndarray,
+    pad_a: np.ndarray,
+    pad_b: np.ndarray,
+    *,
+    centres: tuple[np.ndarray, np.ndarray] | None = None,
+    first: np.ndarray | None = None,
+    settle: bool = True,
+) -> tuple[np.ndarray, int]:
+    """Whether the hulls of each piece's copies under several placements, less the pads, stay
+    farther apart than ``reach``, for E sets of placements in one compiled call.
+
+    For each row ``e``, piece ``i`` of ``pack_a`` stands for the convex hull of its copies
+    placed by ``ta[e, :count_a[e]]``, and piece ``j`` of ``pack_b`` for that of its copies
+    under ``tb[e, :count_b[e]]`` (all in one common frame); the piece pairs whose boxes come
+    within ``reach[e]`` plus both pads are measured by GJK (``tolerance=0``), nearest boxes
+    first; with ``settle``, the first brought within reach answers. A hull's support is the
+    farthest of its copies' vertices, so each query scans ``count_a[e] + count_b[e]`` copies.
+
+    Parameters
+    ----------
+    pack_a, pack_b : ConvexPack
+        The pieces, each in its own frame.
+    ta : (E, KA, 4, 4) float64
+    count_a : (E,) int64
+        How many of ``ta[e]``'s placements are used, 1 to KA.
+    tb : (E, KB, 4, 4) float64
+    count_b : (E,) int64
+    reach : (E,) float64
+    pad_a, pad_b : (m_a,), (m_b,) float64
+        Each piece stands for itself grown by this much.
+    centres : ((E, 4, 4), (E, 4, 4)) float64, keyword-only
+        One placement of each pack per row, with ``first``: a piece pair farther apart than
+        ``first[e]`` (less its pads) placed by them is passed over (the caller knows it clear
+        another way). Default: none passed over.
+    first : (E,) float64, keyword-only
+        Negative: no piece pair of the row is passed over.
+    settle : bool, keyword-only
+        Only whether each row stays beyond ``reach`` matters.
+
+    Returns
+    -------
+    lowest : (E,) float64
+        A lower bound on every piece pair's hull distance less both pads (``inf`` where no
+        boxes come within reach), exact when at most ``reach`` and the hulls are apart (at
+        most 0 less the pads where they meet). With ``settle``, a value at most ``reach`` is
+        some piece pair's, not the least. ``-inf`` where a placement
+        is not finite or a count out of range.
+    work : int
+        GJK queries weighted by the copies they scan over two, plus the piece boxes compared
+        over ``PLACED_BOXES_PER_QUERY``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from meshcheck.geometry import pack_convex
+    >>> cube = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)
+    >>> pack = pack_convex([cube])
+    >>> ta = np.stack([np.eye(4), np.eye(4)])[None]
+    >>> ta[0, 1, 0, 3] = 1.0  # a's hull: [0, 2] x [0, 1] x [0, 1]
+    >>> tb = np.eye(4)[None, None].copy()
+    >>> tb[0, 0, 0, 3] = 3.5
+    >>> one, two = np.array([1]), np.array([2])
+    >>> copied_distances(pack, pack, ta, two, tb, one, np.array([3.0]), np.zeros(1), np.zeros(1))
+    (array([1.5]), 1)
+    >>> copied_distances(pack, pack, ta, one, tb, one, np.array([3.0]), np.zeros(1), np.zeros(1))
+    (array([2.5]), 1)
+    """
+    f8, i8 = np.float64, np.int64
+    reach = _contiguous(reach, f8)
+    lowest = np.empty(len(reach))
+    if centres is None:
+        centres = (ta[:, 0], tb[:, 0])
+        first = np.full(len(reach), -1.0)
+    queries, boxes, supports = _kernels.copied_distances(
+        *(_contiguous(x, f8 if x.dtype.kind == "f" else i8) for x in pack_a),
+        *(_contiguous(x, f8 if x.dtype.kind == "f" else i8) for x in pack_b),
+        _contiguous(centres[0], f8), _contiguous(centres[1], f8), _contiguous(first, f8),
+        _contiguous(ta, f8), _contiguous(count_a, i8), _contiguous(tb, f8),
+        _contiguous(count_b, i8), _contiguous(pad_a, f8), _contiguous(pad_b, f8), reach,
+        bool(settle), lowest,
+    )  # fmt: skip
+    return lowest, max(queries, supports // 2) + boxes // PLACED_BOXES_PER_QUERY

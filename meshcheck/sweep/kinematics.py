@@ -240,7 +240,16 @@ def box_weights(
     sweep (``motion_weights``); a slide moves points at one unit per unit. The links'
     distance then changes by at most ``sum_k h_k r_k`` within the box.
     """
-    out = np.zeros(half.shape)
+    return combined_weights(sides, joint_rates(sides, ta, tb, axes, half), half.shape)
+
+
+def joint_rates(
+    sides: tuple[LinkSide, LinkSide], ta: np.ndarray, tb: np.ndarray, axes: dict, half: np.ndarray
+) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Each side's ``r`` of every term of ``LinkSide.terms`` (``box_weights``): (E,) bounds,
+    over the whole box, on the speed of the link's points per unit of the term's joint; for a
+    revolute joint, on their distance from its axis."""
+    out = []
     for side, placed in zip(sides, (ta, tb), strict=True):
         turning = [t.joint.name for t in side.terms if t.joint.type != "prismatic"]
         levers = {}
@@ -250,11 +259,60 @@ def box_weights(
             found = farthest_from_lines(side.hull, placed, origins, directions)
             levers = {name: found[:, k] for k, name in enumerate(turning)}
         below = np.zeros(len(half))
-        for term in reversed(side.terms):  # from the link up
+        rates: list[np.ndarray] = [np.empty(0)] * len(side.terms)
+        for k in range(len(side.terms) - 1, -1, -1):  # from the link up
+            term = side.terms[k]
             if term.joint.type == "prismatic":
                 r = np.full(len(half), term.weight)
             else:
                 r = np.minimum(term.weight, levers[term.joint.name] + side.pad + below)
-            out[:, term.lead] += term.multiplier * r
+            rates[k] = r
             below = below + term.multiplier * half[:, term.lead] * r
+        out.append(rates)
+    return out[0], out[1]
+
+
+def combined_weights(sides, rates, shape) -> np.ndarray:
+    """(E, n) both links' first-order bounds per unit of each free joint (``box_weights``)."""
+    out = np.zeros(shape)
+    for side, side_rates in zip(sides, rates, strict=True):
+        for k in range(len(side.terms) - 1, -1, -1):
+            term = side.terms[k]
+            out[:, term.lead] += term.multiplier * side_rates[k]
     return out
+
+
+def side_bounds(side: LinkSide, rates: list[np.ndarray], shape) -> tuple[np.ndarray, np.ndarray]:
+    """(E, n) first- and second-order bounds on one link's motion per free joint in a box.
+
+    ``first[:, i]`` bounds ``|dp/dq_i|`` and ``second[:, i]`` bounds ``|d2p/dq_i2|`` for
+    every point ``p`` of the link anywhere in the box (``rates`` from ``joint_rates``).
+
+    With ``w_j`` the unit axis of revolute joint ``j`` and ``o_j`` a point on it,
+    ``dp/dtheta_j = w_j x (p - o_j)``, of length ``dist(p, axis_j) <= r_j``. For two revolute
+    joints ``j`` above ``k`` (nearer the root), turning ``j`` turns axis ``k`` and ``p`` alike,
+    so ``d2p/dtheta_j dtheta_k = w_j x (w_k x (p - o_k))``, of length at most ``r_k``; the
+    same holds for ``j = k``. A slide ``s`` below a revolute ``j`` turns with it:
+    ``d2p/dtheta_j ds = w_j x u_s``, at most the slide's rate; a slide above a revolute
+    joint moves its axis and ``p`` alike (0), and two slides commute (0). A free joint leading
+    several of the chain's joints (mimic joints, multipliers ``m``) sums
+    ``|m_j m_k| * bound(j, k)`` over their pairs.
+    """
+    first, second = np.zeros(shape), np.zeros(shape)
+    terms = side.terms
+    for k, term in enumerate(terms):
+        first[:, term.lead] += term.multiplier * rates[k]
+        for j in range(k + 1):  # j at or above k: terms run from the common ancestor down
+            other = terms[j]
+            if other.lead != term.lead:
+                continue
+            revolute = (term.joint.type != "prismatic", other.joint.type != "prismatic")
+            if revolute == (True, True):
+                bound = rates[k]
+            elif revolute == (False, True):  # a slide k below revolute j
+                bound = rates[k]
+            else:
+                continue
+            factor = term.multiplier * other.multiplier * (1.0 if j == k else 2.0)
+            second[:, term.lead] += factor * bound
+    return first, second

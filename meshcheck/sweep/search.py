@@ -3,7 +3,9 @@ witness pose the real meshes confirm.
 
 A box of joint values is evaluated at its centre: the links' distance there, less how far any
 point can move within the box (``kinematics.box_weights``), either certifies the whole box free
-of contact or the box is halved. Witnesses are looked for before the proof (seeded samples),
+of contact or, for a pair that has needed many boxes, the hulls of the links' pieces at the
+box's corners, less the interpolation's second-order error (``LinkPair.corner_bounds``), may;
+else the box is halved. Witnesses are looked for before the proof (seeded samples),
 among the nearest box centres, and by a descent from them (``descent_witness``).
 """
 
@@ -14,12 +16,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..geometry import copied_distances
 from ..load import Body
 from ..load.robot import MOVABLE, Joint, Robot, chain_transforms
 from ..results import PairSweep, SweepStatus, Verdict
 from ..verify.pair import verify_pair
 from .distances import LinkGeometry, piece_distances, surface_distance
-from .kinematics import LinkSide, box_weights, joints_below_common
+from .kinematics import (
+    LinkSide,
+    box_weights,
+    combined_weights,
+    joint_rates,
+    joints_below_common,
+    side_bounds,
+)
 
 #: Boxes of joint values one link pair may evaluate before it is left undecided (the panda's
 #: link 0 and link 4 need 71,579; bench/sweep.py on the PR2 sets the time against 10,000
@@ -54,6 +64,23 @@ VERIFY_WORK = 1024
 #: What a pair of a ``[[joint]]`` mechanism that no swept joint moves costs: it is passed over
 #: (the check judged it at the pose) after a few microseconds, never set up.
 SKIP_WORK = 64
+
+#: The joints a box's corner test (``LinkPair.corner_bounds``) takes corners of: those that
+#: contribute most to its first-order bound, at most this many (2**CORNER_JOINTS copies of
+#: each piece): each costs more per box, and each clears boxes ``h / 2`` times wider along its
+#: joint; on the PR2's palm and shoulder (5 joints) five needed a ninth of the boxes three did.
+CORNER_JOINTS = 5
+#: What one box's corner test counts for against ``MAX_BOXES``: about its time in boxes
+#: evaluated at their centre alone (``bench/sweep.py --robot pr2 --pair
+#: l_gripper_palm_link:l_shoulder_lift_link``: 0.06 ms a box, 0.77 ms a corner test of 32 copies).
+CORNER_BOXES = 12
+#: Boxes given the corner test in one compiled call: the work is checked against the pair's
+#: allowance between them, so a pair stops within one such call of it.
+CORNER_BATCH = 32
+#: Boxes a link pair evaluates by the first-order bound alone before the corner test joins
+#: in: most pairs are decided within them, where the corner test's copies cost more than the
+#: boxes they save.
+CORNER_AFTER = 4096
 
 #: The real meshes' statuses that make a pose a witness.
 COLLIDING = (Verdict.INTERFERENCE, Verdict.TOUCHING)
@@ -123,6 +150,98 @@ class LinkPair:
         two links within the boxes of half-widths ``half`` about ``ta``, ``tb``
         (``kinematics.box_weights``)."""
         return box_weights(self.sides, ta, tb, axes, half)
+
+    def joint_rates(self, ta, tb, axes: dict, half: np.ndarray):
+        """Each side's bound per term of its joints (``kinematics.joint_rates``)."""
+        return joint_rates(self.sides, ta, tb, axes, half)
+
+    def corner_plan(self, half: np.ndarray, rates) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Which joints of each box of half-widths ``half`` the corner test takes corners of,
+        how far its bound falls below the hulls' distance, and the terms to split by.
+
+        Returns
+        -------
+        chosen : (E, m) int64
+            The ``CORNER_JOINTS`` (at most) free joints that contribute most to each box's
+            first-order bound (``rates``, ``kinematics.joint_rates``).
+        grown : (E,) float64
+            ``G_a + G_b`` (``corner_bounds``).
+        split : (E, n) float64
+            ``split * half`` are the terms of ``grown`` per free joint (``halve_boxes``).
+        """
+        bounds = [
+            side_bounds(side, r, half.shape) for side, r in zip(self.sides, rates, strict=True)
+        ]
+        first = bounds[0][0] + bounds[1][0]
+        m = min(CORNER_JOINTS, half.shape[1])
+        chosen = np.argsort(-(half * first), axis=1, kind="stable")[:, :m]
+        is_corner = np.zeros(half.shape, bool)
+        np.put_along_axis(is_corner, chosen, True, axis=1)
+        second = bounds[0][1] + bounds[1][1]
+        split = np.where(is_corner, 0.5 * half * second, first)
+        return chosen, np.sum(half * split, axis=1), split
+
+    def corner_bounds(
+        self, lo: np.ndarray, hi: np.ndarray, chosen: np.ndarray, grown: np.ndarray, *,
+        centres: tuple[np.ndarray, np.ndarray] | None = None, first: np.ndarray | None = None,
+        settle: bool = True,
+    ) -> np.ndarray:  # fmt: skip
+        """Lower bounds on the links' distance over each box ``lo..hi`` from the hulls of their
+        pieces' copies at the box's corners over the joints ``chosen`` (``corner_plan``).
+
+        For each box, the ``C`` joints ``chosen`` take their two extreme values; the others, ``L``,
+        stay at the centre ``c``. For a point ``p`` of a link and ``q`` in the box, ``|p(q_C, q_L) -
+        p(q_C, c_L)| <= sum_{i in L} r_i h_i`` (the first-order bound, ``box_weights``). Over the
+        ``C`` joints, the tensor-product linear interpolant ``I p`` of ``p`` between the ``2**|C|``
+        corners is a convex combination of the corner values (its weights are products of ``t`` and
+        ``1 - t``), and ``|p - I p| <= sum_{i in C} (h_i**2 / 2) sup |d2p/dq_i2|``: ``I = I_1 ...
+        I_m`` telescopes, ``p - I p = sum_k I_1 ... I_{k-1} (p - I_k p)``, each linear interpolation
+        is non-expanding in the sup norm, and one coordinate's error is at most ``(2 h)**2 / 8``
+        times the second derivative's bound (for a vector ``g`` equal to its interpolant at both
+        ends, apply the scalar bound to ``u . g`` with ``u`` the error's direction).
+        ``kinematics.side_bounds`` bounds the derivatives over the whole box. So every point of a
+        piece, carried rigidly with its link, lies within ``G = sum_{i in C} second_i h_i**2 / 2 +
+        sum_{i in L} first_i h_i`` of the hull of the piece's copies at the corners (the piece is
+        the hull of its vertices, and the ``G``-neighbourhood of a convex set is convex). Each link
+        takes copies over the ``C`` joints that move it, and the bound is the least distance of the
+        two links' hulls of copies, less both pads (``geometry.copied_distances``), less ``G_a +
+        G_b``. Its error vanishes at the corners: per joint it is ``h_i / 2`` times the
+        first-order term.
+
+        The ``G`` of both links are ``grown``. With ``centres`` (the links' placements at the
+        boxes' centres) and ``first`` (their first-order bounds plus the tolerance), a piece
+        pair farther apart than ``first`` at the centre is clear of the tolerance over the box
+        already and is not measured again. With ``settle``, only whether a bound exceeds the
+        tolerance is known: a value at most the tolerance is not the least.
+        """
+        sides, count, m = self.sides, len(lo), chosen.shape[1]
+        centre = 0.5 * (lo + hi)
+        corners = np.arange(2**m)
+        bits = (corners[:, None] >> np.arange(m)[None, :]) & 1  # (K, m)
+        values = np.repeat(centre[:, None, :], len(corners), axis=1)
+        rows, cols = np.arange(count)[:, None, None], chosen[:, None, :]
+        values[rows, corners[None, :, None], cols] = np.where(
+            bits[None] == 1, hi[rows, cols], lo[rows, cols]
+        )
+        ta, tb, _ = self.placements(values.reshape(-1, lo.shape[1]))
+        placed, counts = [], []
+        for side, t in zip(sides, (ta, tb), strict=True):
+            moves = np.zeros(lo.shape[1], bool)
+            moves[[term.lead for term in side.terms]] = True
+            mask = moves[chosen]  # (E, m): the corner joints that move this side
+            foreign = np.any((bits[None] == 1) & ~mask[:, None, :], axis=2)  # (E, K)
+            order = np.argsort(foreign, axis=1, kind="stable")  # its distinct corners first
+            t = t.reshape(count, len(corners), 4, 4)
+            placed.append(np.take_along_axis(t, order[:, :, None, None], axis=1))
+            counts.append(2 ** mask.sum(axis=1))
+        a, b = self.links[self.a], self.links[self.b]
+        reach = grown + self.tolerance if settle else np.full(count, np.inf)
+        lowest, work = copied_distances(
+            a.pack, b.pack, placed[0], counts[0], placed[1], counts[1], reach, a.pad, b.pad,
+            centres=centres, first=first, settle=settle,
+        )  # fmt: skip
+        self.work += work
+        return lowest - grown
 
     def distances(self, ta: np.ndarray, tb: np.ndarray, reach: np.ndarray) -> np.ndarray:
         """Lower bounds on the distance between the two links' surfaces at placements ``ta``,
@@ -293,7 +412,11 @@ def sweep_pair(
     more than ``M = sum_k r_k h_k`` (``LinkPair.box_weights``: each joint's lever arm bounded
     at the box's centre pose) within the box, so a box whose centre distance exceeds
     ``M + tolerance`` is certified free of contact. Other boxes are halved along the joint that
-    contributes most to ``M``, down to ``resolution``. Centres where pieces overlap are
+    contributes most to ``M``, down to ``resolution``. Once a pair has evaluated
+    ``CORNER_AFTER`` boxes, a box its centre does not certify gets the corner test
+    (``LinkPair.corner_bounds``: the hulls of each link's pieces placed at the box's corners,
+    less a second-order bound) and, when that fails too, is halved across the joint with the
+    largest term of that bound. Centres where pieces overlap are
     re-checked on the real meshes, nearest first: one that interferes or touches is the witness
     of ``sometimes``; after ``DESCENT_AFTER`` boxes, and each time they grow by
     ``DESCENT_GROWTH`` after that, a descent from the nearest centres so far looks for one
@@ -324,7 +447,8 @@ def sweep_pair(
         centre, half = 0.5 * (blo + bhi), 0.5 * (bhi - blo)
         axes: dict = {}
         ta, tb, poses = pair.placements(centre, axes)
-        w = pair.box_weights(ta, tb, axes, half)
+        rates = pair.joint_rates(ta, tb, axes, half)
+        w = combined_weights(pair.sides, rates, half.shape)
         bound = np.sum(half * w, axis=1) + pair.tolerance
         lowest = pair.distances(ta, tb, bound)
         evaluated += len(centre)
@@ -337,6 +461,27 @@ def sweep_pair(
             if found is not None:
                 return found
         open_ = lowest <= bound
+        if evaluated > CORNER_AFTER and np.any(open_):
+            rows = np.flatnonzero(open_)
+            picked = ([r[rows] for r in rates[0]], [r[rows] for r in rates[1]])
+            chosen, grown, split = pair.corner_plan(half[rows], picked)
+            w = w.copy()
+            w[rows] = split  # halve_boxes cuts across the largest term of the bound in force
+            # the hulls come no farther apart than the pieces at the centre, give or take
+            # the interpolation's error: boxes whose centre is not past it are left to split
+            hopeful = lowest[rows] > grown + pair.tolerance
+            rows, chosen, grown = rows[hopeful], chosen[hopeful], grown[hopeful]
+            for k in range(0, len(rows), CORNER_BATCH):  # the work checked between batches
+                if pair.work > allowance:
+                    break  # the boxes left stay open: the pair stops after this batch
+                part = slice(k, k + CORNER_BATCH)
+                some = rows[part]
+                corner = pair.corner_bounds(
+                    blo[some], bhi[some], chosen[part], grown[part],
+                    centres=(ta[some], tb[some]), first=bound[some],
+                )  # fmt: skip
+                open_[some[corner > pair.tolerance]] = False
+                evaluated += CORNER_BOXES * len(some)
         if not np.any(open_):
             continue
         blo, bhi, half, w = blo[open_], bhi[open_], half[open_], w[open_]

@@ -348,6 +348,71 @@ PyObject* placed_distances_py(PyObject*, PyObject* args) {
                          static_cast<long long>(done.boxes));
 }
 
+// copied_distances(a: points, starts, nbr_starts, nbrs, lower, upper; b: the same, local;
+//                  centre_a (E, 4, 4), centre_b (E, 4, 4), first (E,),
+//                  ta (E, KA, 4, 4), count_a (E,), tb (E, KB, 4, 4), count_b (E,), pad_a (m_a,),
+//                  pad_b (m_b,), reach (E,), settle, lowest (E,) out)
+//     -> (GJK queries, piece boxes compared, copies scanned by the queries)
+PyObject* copied_distances_py(PyObject*, PyObject* args) {
+    PyObject* o[23];
+    int settle;
+    if (!PyArg_ParseTuple(args, "OOOOOOOOOOOOOOOOOOOOOOpO", &o[0], &o[1], &o[2], &o[3], &o[4],
+                          &o[5], &o[6], &o[7], &o[8], &o[9], &o[10], &o[11], &o[20], &o[21],
+                          &o[22], &o[12], &o[13], &o[14], &o[15], &o[16], &o[17], &o[18],
+                          &settle, &o[19]))
+        return nullptr;
+    Array pa, sa, nsa, na, la, ua, pb, sb, nsb, nb, lb, ub, ta, ca, tb, cb, pad_a, pad_b, reach,
+        lowest, centre_a, centre_b, first;
+    if (!as_array(o[0], NPY_DOUBLE, 2, 3, "a.points", pa) ||
+        !as_array(o[1], NPY_INT64, 1, 0, "a.starts", sa) ||
+        !as_array(o[2], NPY_INT64, 1, 0, "a.nbr_starts", nsa) ||
+        !as_array(o[3], NPY_INT64, 1, 0, "a.nbrs", na) ||
+        !as_array(o[4], NPY_DOUBLE, 2, 3, "a.lower", la) ||
+        !as_array(o[5], NPY_DOUBLE, 2, 3, "a.upper", ua) ||
+        !as_array(o[6], NPY_DOUBLE, 2, 3, "b.points", pb) ||
+        !as_array(o[7], NPY_INT64, 1, 0, "b.starts", sb) ||
+        !as_array(o[8], NPY_INT64, 1, 0, "b.nbr_starts", nsb) ||
+        !as_array(o[9], NPY_INT64, 1, 0, "b.nbrs", nb) ||
+        !as_array(o[10], NPY_DOUBLE, 2, 3, "b.lower", lb) ||
+        !as_array(o[11], NPY_DOUBLE, 2, 3, "b.upper", ub) ||
+        !as_array(o[12], NPY_DOUBLE, 4, 0, "ta", ta) ||
+        !as_array(o[13], NPY_INT64, 1, 0, "count_a", ca) ||
+        !as_array(o[14], NPY_DOUBLE, 4, 0, "tb", tb) ||
+        !as_array(o[15], NPY_INT64, 1, 0, "count_b", cb) ||
+        !as_array(o[16], NPY_DOUBLE, 1, 0, "pad_a", pad_a) ||
+        !as_array(o[17], NPY_DOUBLE, 1, 0, "pad_b", pad_b) ||
+        !as_array(o[18], NPY_DOUBLE, 1, 0, "reach", reach) ||
+        !as_array(o[19], NPY_DOUBLE, 1, 0, "lowest", lowest, true) ||
+        !as_array(o[20], NPY_DOUBLE, 3, 0, "centre_a", centre_a) ||
+        !as_array(o[21], NPY_DOUBLE, 3, 0, "centre_b", centre_b) ||
+        !as_array(o[22], NPY_DOUBLE, 1, 0, "first", first))
+        return nullptr;
+    if (!check_pack(pa, sa, nsa, na, la, ua) || !check_pack(pb, sb, nsb, nb, lb, ub))
+        return nullptr;
+    npy_intp count = reach.len();
+    if (centre_a.len(0) != count || centre_a.len(1) != 4 || centre_a.len(2) != 4 ||
+        centre_b.len(0) != count || centre_b.len(1) != 4 || centre_b.len(2) != 4 ||
+        first.len() != count || ta.len(0) != count || ta.len(2) != 4 || ta.len(3) != 4 || tb.len(0) != count ||
+        tb.len(2) != 4 || tb.len(3) != 4 || ca.len() != count || cb.len() != count ||
+        lowest.len() != count || pad_a.len() != sa.len() - 1 || pad_b.len() != sb.len() - 1) {
+        PyErr_SetString(PyExc_ValueError, "copied_distances: array lengths do not match");
+        return nullptr;
+    }
+    CopiedBatch t{{pa.f8(), sa.i8(), nsa.i8(), na.i8(), la.f8(), ua.f8(), sa.len() - 1, pa.len()},
+                  {pb.f8(), sb.i8(), nsb.i8(), nb.i8(), lb.f8(), ub.f8(), sb.len() - 1, pb.len()},
+                  centre_a.f8(), centre_b.f8(), first.f8(),
+                  ta.f8(), tb.f8(), ca.i8(), cb.i8(), ta.len(1), tb.len(1), pad_a.f8(),
+                  pad_b.f8(), reach.f8(), settle != 0, lowest.f8()};
+    PlacedWorkDone done;
+    {
+        const NoGil released;
+        done = copied_distances(t, count);
+    }
+    return Py_BuildValue("LLL", static_cast<long long>(done.queries),
+                         static_cast<long long>(done.boxes),
+                         static_cast<long long>(done.supports));
+}
+
 // hull_levers(hull (k, 3), placed (E, 4, 4), points (E, T, 3), directions (E, T, 3)) -> (E, T)
 PyObject* hull_levers_py(PyObject*, PyObject* args) {
     PyObject *ho, *po, *lo, *do_;
@@ -762,6 +827,7 @@ PyMethodDef METHODS[] = {
     {"query_points", guarded<query_points>, METH_VARARGS, nullptr},
     {"query_pairs", guarded<query_pairs>, METH_VARARGS, nullptr},
     {"placed_distances", guarded<placed_distances_py>, METH_VARARGS, nullptr},
+    {"copied_distances", guarded<copied_distances_py>, METH_VARARGS, nullptr},
     {"hull_levers", guarded<hull_levers_py>, METH_VARARGS, nullptr},
     {"placed_surface_distance", guarded<placed_surface_distance_py>, METH_VARARGS, nullptr},
     {"triangle_boxes", guarded<triangle_boxes_py>, METH_VARARGS, nullptr},

@@ -30,9 +30,10 @@ struct PlacedBatch {
     double* lowest;  // (E,)
 };
 
-// What a batch cost: GJK queries run and piece boxes compared.
+// What a batch cost: GJK queries run, piece boxes compared and, for copied pieces, the
+// copies the queries' supports scanned (summed over queries).
 struct PlacedWorkDone {
-    int64_t queries = 0, boxes = 0;
+    int64_t queries = 0, boxes = 0, supports = 0;
 };
 
 // Work space of one placement: b's points placed, their pieces' boxes, candidate pairs.
@@ -276,6 +277,165 @@ inline double placed_surface_distance(const double* va, const int64_t* fa, int64
         if (settle && best <= reach) break;
     }
     return best;
+}
+
+}  // namespace meshcheck
+
+namespace meshcheck {
+
+// Many copies of one pack of pieces, each piece's copies held as one point set: the hull of
+// piece i's copies under K placements. Piece i's copies are rows [K * starts[i], K *
+// starts[i + 1]) of `points`, placed only once the piece is wanted; no adjacency (the
+// support scans them). Each piece's box holds its copies' boxes.
+struct CopiedPieces {
+    std::vector<double> points, lower, upper;
+    std::vector<char> placed;
+};
+
+// Bound `count` copies of pack p's pieces (its boxes placed by the (4, 4) transforms T); false
+// when a transform is not finite.
+inline bool bound_copies(const Pieces& p, const double* T, int64_t count, CopiedPieces& out) {
+    for (int64_t k = 0; k < count; ++k)
+        for (int c = 0; c < 12; ++c)
+            if (!std::isfinite(T[16 * k + c])) return false;
+    out.points.resize(3 * p.n * count);
+    out.lower.assign(3 * p.m, INF);
+    out.upper.assign(3 * p.m, -INF);
+    out.placed.assign(p.m, 0);
+    for (int64_t s = 0; s < p.m; ++s) {
+        const double* lo = p.lower + 3 * s;
+        const double* hi = p.upper + 3 * s;
+        for (int64_t k = 0; k < count; ++k) {
+            const double* M = T + 16 * k;
+            for (int r = 0; r < 3; ++r) {
+                double mid = M[4 * r + 3], ext = 0.0;
+                for (int c = 0; c < 3; ++c) {
+                    mid += M[4 * r + c] * 0.5 * (lo[c] + hi[c]);
+                    ext += std::fabs(M[4 * r + c]) * 0.5 * (hi[c] - lo[c]);
+                }
+                out.lower[3 * s + r] = std::min(out.lower[3 * s + r], mid - ext);
+                out.upper[3 * s + r] = std::max(out.upper[3 * s + r], mid + ext);
+            }
+        }
+    }
+    return true;
+}
+
+// Place the `count` copies of piece s of pack p (once).
+inline void place_copies(const Pieces& p, const double* T, int64_t count, int64_t s,
+                         CopiedPieces& out) {
+    if (out.placed[s]) return;
+    out.placed[s] = 1;
+    int64_t s0 = p.starts[s], s1 = p.starts[s + 1];
+    double* o = out.points.data() + 3 * count * s0;
+    for (int64_t k = 0; k < count; ++k) {
+        const double* M = T + 16 * k;
+        for (int64_t q = s0; q < s1; ++q, o += 3) {
+            const double* x = p.points + 3 * q;
+            for (int r = 0; r < 3; ++r)
+                o[r] = x[0] * M[4 * r] + x[1] * M[4 * r + 1] + x[2] * M[4 * r + 2] + M[4 * r + 3];
+        }
+    }
+}
+
+struct CopiedBatch {
+    Pieces a, b;
+    const double *ca, *cb;  // (E, 4, 4): one placement each, where a piece pair may clear first
+    const double* first;    // (E,): the reach a piece pair clears at ca, cb
+    const double *ta, *tb;  // (E, KA, 4, 4), (E, KB, 4, 4)
+    const int64_t *count_a, *count_b;  // (E,): the copies used, at most KA, KB
+    int64_t ka, kb;
+    const double *pad_a, *pad_b, *reach;
+    bool settle;
+    double* lowest;  // (E,)
+};
+
+// Placement e: whether the hulls of each piece's copies, less both pads, stay farther apart
+// than reach. A piece pair farther apart than first[e] (when not negative) at the single
+// placements ca[e], cb[e] is passed over: the caller knows it clear another way. The piece pairs whose boxes come within reach are measured by GJK, nearest boxes
+// first; with settle the first within reach answers (its distance, or 0 less the pads where
+// the hulls meet), else the least. -inf when a transform is not finite.
+inline double copied_distance(const CopiedBatch& t, int64_t e, CopiedPieces& ca,
+                              CopiedPieces& cb, CopiedPieces& sa, CopiedPieces& sb,
+                              PlacedWork& w, PlacedWorkDone& done) {
+    const double reach = t.reach[e];
+    const int64_t na = t.count_a[e], nb = t.count_b[e];
+    if (std::isnan(reach) || na < 1 || nb < 1 || na > t.ka || nb > t.kb) return -INF;
+    const double* Ta = t.ta + 16 * t.ka * e;
+    const double* Tb = t.tb + 16 * t.kb * e;
+    const double* Sa = t.ca + 16 * e;
+    const double* Sb = t.cb + 16 * e;
+    if (!bound_copies(t.a, Ta, na, ca) || !bound_copies(t.b, Tb, nb, cb) ||
+        !bound_copies(t.a, Sa, 1, sa) || !bound_copies(t.b, Sb, 1, sb))
+        return -INF;
+    w.cand_i.clear(), w.cand_j.clear(), w.cand_key.clear();
+    done.boxes += t.a.m * t.b.m;
+    for (int64_t i = 0; i < t.a.m; ++i)
+        for (int64_t j = 0; j < t.b.m; ++j) {
+            double sq = 0.0;
+            for (int c = 0; c < 3; ++c) {
+                double g = std::max({ca.lower[3 * i + c] - cb.upper[3 * j + c],
+                                     cb.lower[3 * j + c] - ca.upper[3 * i + c], 0.0});
+                sq += g * g;
+            }
+            double key = std::sqrt(sq) - (t.pad_a[i] + t.pad_b[j]);
+            if (key <= reach) {
+                w.cand_i.push_back(i);
+                w.cand_j.push_back(j);
+                w.cand_key.push_back(key);
+            }
+        }
+    size_t count = w.cand_i.size();
+    std::vector<size_t> order(count);
+    for (size_t c = 0; c < count; ++c) order[c] = c;
+    std::stable_sort(order.begin(), order.end(),
+                     [&](size_t x, size_t y) { return w.cand_key[x] < w.cand_key[y]; });
+    double lowest = INF;
+    for (size_t c : order) {
+        int64_t i = w.cand_i[c], j = w.cand_j[c];
+        double pad = t.pad_a[i] + t.pad_b[j];
+        if (t.first[e] >= 0.0) {  // the pair clears at the single placements: no copies
+            place_copies(t.a, Sa, 1, i, sa);
+            place_copies(t.b, Sb, 1, j, sb);
+            Shape A{sa.points.data(), nullptr, nullptr, t.a.starts[i], t.a.starts[i + 1], false};
+            Shape B{sb.points.data(), nullptr, nullptr, t.b.starts[j], t.b.starts[j + 1], false};
+            Frame fr = make_frame(sa.lower.data() + 3 * i, sa.upper.data() + 3 * i,
+                                  sb.lower.data() + 3 * j, sb.upper.data() + 3 * j, 0.0);
+            Answer out;
+            ++done.queries;
+            if (gjk(A, B, fr, t.first[e] + pad, w.s, out) == 0 &&
+                static_cast<int>(out.v[0]) != K.undecided && out.v[1] - pad > t.first[e])
+                continue;
+        }
+        place_copies(t.a, Ta, na, i, ca);
+        place_copies(t.b, Tb, nb, j, cb);
+        Shape A{ca.points.data(), nullptr, nullptr, na * t.a.starts[i], na * t.a.starts[i + 1],
+                false};
+        Shape B{cb.points.data(), nullptr, nullptr, nb * t.b.starts[j], nb * t.b.starts[j + 1],
+                false};
+        Frame fr = make_frame(ca.lower.data() + 3 * i, ca.upper.data() + 3 * i,
+                              cb.lower.data() + 3 * j, cb.upper.data() + 3 * j, 0.0);
+        Answer out;
+        ++done.queries;
+        done.supports += na + nb;
+        double d = 0.0;  // the hulls meet
+        if (gjk(A, B, fr, reach + pad, w.s, out) == 0) {
+            d = out.v[1];
+            if (static_cast<int>(out.v[0]) == K.undecided) d = std::min(d, 0.0);
+        }
+        lowest = std::min(lowest, d - pad);
+        if (t.settle && lowest <= reach) break;
+    }
+    return lowest;
+}
+
+inline PlacedWorkDone copied_distances(const CopiedBatch& t, int64_t count) {
+    PlacedWork w;
+    CopiedPieces ca, cb, sa, sb;
+    PlacedWorkDone done;
+    for (int64_t e = 0; e < count; ++e)
+        t.lowest[e] = copied_distance(t, e, ca, cb, sa, sb, w, done);
+    return done;
 }
 
 }  // namespace meshcheck
