@@ -267,6 +267,33 @@ def test_a_verdict_does_not_depend_on_meshes_earlier_pairs_left_on_the_faces():
     assert [a.tobytes() for a in first.solid] == [a.tobytes() for a in again.solid]
 
 
+def test_pairs_timed_here_then_sent_to_workers_give_the_same_findings(tmp_path, monkeypatch):
+    # With the workers' start free and no expected seconds a pair, the fixed estimate keeps the
+    # pairs here; the first pair's measured seconds then send the rest to the workers.
+    from meshcheck.verify import batch
+
+    path = fastened(tmp_path / "fastened.step")
+    bodies = load_bodies([path])
+    here = check_bodies(bodies, jobs=1, clearance=1.0).findings
+    monkeypatch.setattr(brep, "PAIR_SECONDS", 0.0)
+    monkeypatch.setattr(brep, "WORKER_SECONDS", 0.0)
+    monkeypatch.setattr(batch, "POOL_SECONDS", 0.0)
+    answers = []
+    real = brep._pays_in_workers
+
+    def pays(executor, pairs, seconds=None):
+        answers.append((seconds is None, real(executor, pairs, seconds)))
+        return answers[-1][1]
+
+    monkeypatch.setattr(brep, "_pays_in_workers", pays)
+    with LocalPool(2) as pool:
+        there = check_bodies(bodies, jobs=2, clearance=1.0, executor=pool).findings
+        assert pool.is_started  # the pairs after the first went to its worker
+    assert answers[0] == (True, False)  # the fixed estimate: here
+    assert answers[1] == (False, True)  # the first pair's seconds: the rest in workers
+    assert here == there
+
+
 def test_the_solids_travel_to_workers_as_brep_text(tmp_path):
     # the text a worker reads back is the product as read, with no triangulation
     path = fastened(tmp_path / "fastened.step")
