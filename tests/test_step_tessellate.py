@@ -174,3 +174,37 @@ def _is_plane(face) -> bool:
     from OCP.GeomAbs import GeomAbs_Plane
 
     return BRepAdaptor_Surface(face).GetType() == GeomAbs_Plane
+
+
+# --------------------------------------------------------------------------------------------
+# Each product's deflection
+
+
+def test_a_product_meshed_again_coarser_holds_its_own_deflection(tmp_path, monkeypatch):
+    # A face meshed again may lie farther from its triangles than the deflection asked: that
+    # product's parts hold the measured distance, the others the deflection asked, also when
+    # the tessellation comes back from the cache.
+    from meshcheck.cache import TessellationCache
+    from meshcheck.load.step import tessellate
+
+    path = write_step(
+        tmp_path / "two.step",
+        {"plate": box((0, 0, 0), (10, 10, 2)), "pin": cylinder(1.0, 2, 6)},
+        [("plate", EYE), ("pin", EYE)],
+    )
+    real = tessellate.product_mesh
+
+    def product_mesh(shape, name, to_unit, deflection, *, angular):
+        mesh, deviation = real(shape, name, to_unit, deflection, angular=angular)
+        return mesh, (0.02 if name.endswith("#plate") else deviation)
+
+    monkeypatch.setattr(tessellate, "product_mesh", product_mesh)
+    cache = TessellationCache(str(tmp_path / "cache"), secret=b"k" * 32)
+    fresh = read_step(path, cache=cache)
+    again = read_step(path, cache=cache)  # from the cache
+    for assembly in (fresh, again):
+        held = {n: m.metadata["deflection"] for n, m, _ in assembly.items}
+        assert held == {"plate": 0.02, "pin": 0.005}
+        assert assembly.deflection == 0.02  # the file's: the largest
+    bodies = {b.name.rsplit("#", 1)[1]: b.deflection for b in load_bodies([path])}
+    assert bodies == {"plate": 0.02, "pin": 0.005}

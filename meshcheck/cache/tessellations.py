@@ -18,8 +18,9 @@ import trimesh
 from ..units import METRES
 from .store import Store, checksum, npz_sizes_agree, package_version
 
-# Bump when an entry's layout or the meaning of its meshes changes (the welding, the naming).
-FORMAT_VERSION = 4  # 4: each solid welded on its own; 3: welded along shared edges; 2: XCAF
+# Bump when an entry's layout or the meaning of its meshes changes (the welding, the naming):
+# 5 a deflection per product, 4 each solid welded on its own, 3 welded along shared edges, 2 XCAF.
+FORMAT_VERSION = 5
 #: A tessellation cache entry larger than this is a miss (an assembly's is megabytes).
 MAX_TESSELLATION_BYTES = 1 << 30
 
@@ -148,6 +149,9 @@ def _pack(tessellation: Tessellation) -> dict[str, np.ndarray]:
         "names": [name for name, _, _ in items],
         "unit": tessellation.unit,
         "deflection": float(tessellation.deflection).hex(),
+        "deflections": [
+            float(m.metadata.get("deflection", tessellation.deflection)).hex() for m in meshes
+        ],
         "angular_deflection": float(tessellation.angular_deflection).hex(),
     }
     return {
@@ -190,6 +194,7 @@ def _unpack(arrays: dict[str, np.ndarray]) -> Tessellation | None:
         or np.any(mesh_of < 0)
         or np.any(mesh_of >= n_meshes)
         or header["unit"] not in METRES
+        or len(header["deflections"]) != n_meshes
     ):
         return None
     meshes = []
@@ -198,7 +203,9 @@ def _unpack(arrays: dict[str, np.ndarray]) -> Tessellation | None:
         vertices = arrays["vertices"][vs[k] : vs[k + 1]]
         if len(faces) and (faces.min() < 0 or faces.max() >= len(vertices)):
             return None
-        meshes.append(trimesh.Trimesh(vertices.copy(), faces.copy(), process=False))
+        mesh = trimesh.Trimesh(vertices.copy(), faces.copy(), process=False)
+        mesh.metadata["deflection"] = float.fromhex(header["deflections"][k])
+        meshes.append(mesh)
     items = [
         (str(name), meshes[int(m)], arrays["transforms"][i].copy())
         for i, (name, m) in enumerate(zip(names, mesh_of, strict=True))

@@ -254,7 +254,7 @@ def _place(
             transform,
             relative_name=f"{rel}#{node}" if multi else rel,
             units=report,
-            deflection=file_read.deflection * factor,
+            deflection=file_read.deflection_of(g) * factor,
             is_float32=file_read.is_float32,
             is_rescaled=is_rescaled,
             brep=file_read.solids,

@@ -91,7 +91,11 @@ class FileRead:
     declared : str or None
         The unit the file declares.
     deflection : float
-        How far its triangles may lie from the true surface, in that unit (0 for mesh files).
+        How far its triangles may lie from the true surface, in that unit (0 for mesh files):
+        the largest of ``deflections``.
+    deflections : tuple of float
+        Each geometry's own deflection (a STEP product whose faces were meshed again may hold
+        more than the others); empty when every geometry holds ``deflection``.
     is_float32 : bool
         Whether the reader got the coordinates through float32 (``Body.is_float32``).
     robot : robot.Robot or None
@@ -111,6 +115,11 @@ class FileRead:
     robot: Robot | None = None
     solids: StepSolids | None = None
     elements: dict = dataclasses.field(default_factory=dict)
+    deflections: tuple[float, ...] = ()
+
+    def deflection_of(self, geometry: int) -> float:
+        """The deflection geometry ``geometry`` holds, in the file's unit."""
+        return self.deflections[geometry] if self.deflections else self.deflection
 
     @property
     def triangles(self) -> int:
@@ -199,6 +208,7 @@ def _read(
     multi = is_multi(path, items)
     index: dict[int, int] = {}  # id(geometry) -> its index: cleaned once, shared by instances
     geometries: list[tuple[np.ndarray, np.ndarray, bool]] = []
+    deflections: list[float] = []
     out = []
     for node, geom, transform in sorted(items, key=lambda item: item[0]):
         name = f"{path}#{node}" if multi else path
@@ -213,6 +223,7 @@ def _read(
             closed = topology.is_closed(f)
             index[id(geom)] = len(geometries)
             geometries.append((v, f, closed))
+            deflections.append(float(getattr(geom, "metadata", {}).get("deflection", deflection)))
         g = index[id(geom)]
         if not geometries[g][2]:
             warn(name, "mesh is not closed (not watertight); its findings rest on surfaces only")
@@ -226,6 +237,7 @@ def _read(
         robot=robot,
         solids=solids,
         elements={node: geom.elements for node, geom, _ in items if hasattr(geom, "elements")},
+        deflections=tuple(deflections) if ext in STEP_EXTENSIONS else (),
     )
 
 

@@ -27,7 +27,7 @@ whose mesh is not closed are meshed again by BRepMesh (``mend_faces``) with the 
 on the edges, so they still share their neighbours' nodes, and a coarser one inside
 (``IMeshTools_Parameters.DeflectionInterior``, ``MEND_INTERIOR_FACTORS``); the distance between
 such a face and its new triangles is measured, and a distance above the deflection becomes the
-file's deflection.
+deflection its product's parts hold (the file's is the largest).
 """
 
 from __future__ import annotations
@@ -259,7 +259,8 @@ def placed_meshes(
 ) -> tuple[list[tuple[str, trimesh.Trimesh, np.ndarray]], float]:
     """(unique product name, closed local mesh, transform) per solid instance, file units; and
     the deflection the meshes hold, file units: ``deflection``, or more when a face meshed
-    again (``mend_faces``) lies farther from its triangles."""
+    again (``mend_faces``) lies farther from its triangles. Each product's mesh keeps its own
+    in ``mesh.metadata["deflection"]``."""
     meshes: dict[str, trimesh.Trimesh] = {}  # one closed mesh per product
     items = []
     unique = UniqueNames()
@@ -269,8 +270,9 @@ def placed_meshes(
             mesh, deviation_mm = product_mesh(
                 inst.product, f"{path}#{inst.name}", to_unit, deflection, angular=angular
             )
+            mesh.metadata["deflection"] = max(deflection, deviation_mm * to_unit)
             meshes[inst.product_key] = mesh
-            held = max(held, deviation_mm * to_unit)
+            held = max(held, mesh.metadata["deflection"])
         transform = inst.matrix.copy()
         transform[:3, 3] *= to_unit
         if not np.all(np.isfinite(transform)):
