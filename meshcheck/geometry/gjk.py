@@ -327,6 +327,11 @@ def query_pairs(
 PLACED_BOXES_PER_QUERY = 64
 
 
+def _pack_arrays(pack: ConvexPack) -> list[np.ndarray]:
+    """A pack's six arrays as the two-pack kernels read them: float64 or int64, contiguous."""
+    return [_contiguous(x, np.float64 if x.dtype.kind == "f" else np.int64) for x in pack]
+
+
 def placed_distances(
     pack_a: ConvexPack,
     pack_b: ConvexPack,
@@ -380,13 +385,13 @@ def placed_distances(
     >>> placed_distances(pack, pack, moved, np.array([5.0, 5.0]), np.zeros(1), np.zeros(1))
     (array([2. , 0.5]), 2)
     """
-    f8, i8 = np.float64, np.int64
+    f8 = np.float64
     relative = _contiguous(relative, f8)
     reach = _contiguous(reach, f8)
     lowest = np.empty(len(reach))
     queries, boxes = _kernels.placed_distances(
-        *(_contiguous(x, f8 if x.dtype.kind == "f" else i8) for x in pack_a),
-        *(_contiguous(x, f8 if x.dtype.kind == "f" else i8) for x in pack_b),
+        *_pack_arrays(pack_a),
+        *_pack_arrays(pack_b),
         relative, _contiguous(pad_a, f8), _contiguous(pad_b, f8), reach, bool(settle), lowest,
     )  # fmt: skip
     return lowest, queries + boxes // PLACED_BOXES_PER_QUERY
@@ -473,8 +478,8 @@ def copied_distances(
         centres = (ta[:, 0], tb[:, 0])
         first = np.full(len(reach), -1.0)
     queries, boxes, supports = _kernels.copied_distances(
-        *(_contiguous(x, f8 if x.dtype.kind == "f" else i8) for x in pack_a),
-        *(_contiguous(x, f8 if x.dtype.kind == "f" else i8) for x in pack_b),
+        *_pack_arrays(pack_a),
+        *_pack_arrays(pack_b),
         _contiguous(centres[0], f8), _contiguous(centres[1], f8), _contiguous(first, f8),
         _contiguous(ta, f8), _contiguous(count_a, i8), _contiguous(tb, f8),
         _contiguous(count_b, i8), _contiguous(pad_a, f8), _contiguous(pad_b, f8), reach,

@@ -14,6 +14,7 @@
 #include <mutex>
 #include <new>
 #include <stdexcept>
+#include <string>
 #include <thread>
 
 #include "epa.hpp"
@@ -224,6 +225,28 @@ bool check_pack(const Array& points, const Array& starts, const Array& nbr_start
     return indices_in(nbrs.i8(), nbrs.len(), n, "pack.nbrs");
 }
 
+// One side of a two-pack kernel: its six arrays (points, starts, nbr_starts, nbrs, lower,
+// upper) read from `o` and checked, named `side`.points and so on in errors.
+struct PackArgs {
+    Array points, starts, nbr_starts, nbrs, lower, upper;
+
+    bool parse(PyObject* const* o, const char* side) {
+        const std::string s(side);
+        return as_array(o[0], NPY_DOUBLE, 2, 3, (s + ".points").c_str(), points) &&
+               as_array(o[1], NPY_INT64, 1, 0, (s + ".starts").c_str(), starts) &&
+               as_array(o[2], NPY_INT64, 1, 0, (s + ".nbr_starts").c_str(), nbr_starts) &&
+               as_array(o[3], NPY_INT64, 1, 0, (s + ".nbrs").c_str(), nbrs) &&
+               as_array(o[4], NPY_DOUBLE, 2, 3, (s + ".lower").c_str(), lower) &&
+               as_array(o[5], NPY_DOUBLE, 2, 3, (s + ".upper").c_str(), upper) &&
+               check_pack(points, starts, nbr_starts, nbrs, lower, upper);
+    }
+    npy_intp pieces_count() const { return starts.len() - 1; }
+    Pieces pieces() const {
+        return {points.f8(), starts.i8(), nbr_starts.i8(), nbrs.i8(),
+                lower.f8(),  upper.f8(),  starts.len() - 1, points.len()};
+    }
+};
+
 // query_pairs(points, starts, nbr_starts, nbrs, lower, upper, pairs, tols, max_dists,
 //             want_depth, status, distance, point_a, point_b, normal, threads) -> None
 PyObject* query_pairs(PyObject*, PyObject* args) {
@@ -309,36 +332,23 @@ PyObject* placed_distances_py(PyObject*, PyObject* args) {
                           &o[6], &o[7], &o[8], &o[9], &o[10], &o[11], &o[12], &o[13], &o[14],
                           &o[15], &settle, &o[16]))
         return nullptr;
-    Array pa, sa, nsa, na, la, ua, pb, sb, nsb, nb, lb, ub, rel, pad_a, pad_b, reach, lowest;
-    if (!as_array(o[0], NPY_DOUBLE, 2, 3, "a.points", pa) ||
-        !as_array(o[1], NPY_INT64, 1, 0, "a.starts", sa) ||
-        !as_array(o[2], NPY_INT64, 1, 0, "a.nbr_starts", nsa) ||
-        !as_array(o[3], NPY_INT64, 1, 0, "a.nbrs", na) ||
-        !as_array(o[4], NPY_DOUBLE, 2, 3, "a.lower", la) ||
-        !as_array(o[5], NPY_DOUBLE, 2, 3, "a.upper", ua) ||
-        !as_array(o[6], NPY_DOUBLE, 2, 3, "b.points", pb) ||
-        !as_array(o[7], NPY_INT64, 1, 0, "b.starts", sb) ||
-        !as_array(o[8], NPY_INT64, 1, 0, "b.nbr_starts", nsb) ||
-        !as_array(o[9], NPY_INT64, 1, 0, "b.nbrs", nb) ||
-        !as_array(o[10], NPY_DOUBLE, 2, 3, "b.lower", lb) ||
-        !as_array(o[11], NPY_DOUBLE, 2, 3, "b.upper", ub) ||
+    PackArgs a, b;
+    Array rel, pad_a, pad_b, reach, lowest;
+    if (!a.parse(o, "a") || !b.parse(o + 6, "b") ||
         !as_array(o[12], NPY_DOUBLE, 3, 0, "relative", rel) ||
         !as_array(o[13], NPY_DOUBLE, 1, 0, "pad_a", pad_a) ||
         !as_array(o[14], NPY_DOUBLE, 1, 0, "pad_b", pad_b) ||
         !as_array(o[15], NPY_DOUBLE, 1, 0, "reach", reach) ||
         !as_array(o[16], NPY_DOUBLE, 1, 0, "lowest", lowest, true))
         return nullptr;
-    if (!check_pack(pa, sa, nsa, na, la, ua) || !check_pack(pb, sb, nsb, nb, lb, ub))
-        return nullptr;
     npy_intp count = reach.len();
     if (rel.len(0) != count || rel.len(1) != 4 || rel.len(2) != 4 || lowest.len() != count ||
-        pad_a.len() != sa.len() - 1 || pad_b.len() != sb.len() - 1) {
+        pad_a.len() != a.pieces_count() || pad_b.len() != b.pieces_count()) {
         PyErr_SetString(PyExc_ValueError, "placed_distances: array lengths do not match");
         return nullptr;
     }
-    PlacedBatch t{{pa.f8(), sa.i8(), nsa.i8(), na.i8(), la.f8(), ua.f8(), sa.len() - 1, pa.len()},
-                  {pb.f8(), sb.i8(), nsb.i8(), nb.i8(), lb.f8(), ub.f8(), sb.len() - 1, pb.len()},
-                  rel.f8(), pad_a.f8(), pad_b.f8(), reach.f8(), settle != 0, lowest.f8()};
+    PlacedBatch t{a.pieces(), b.pieces(), rel.f8(),    pad_a.f8(),
+                  pad_b.f8(), reach.f8(), settle != 0, lowest.f8()};
     PlacedWorkDone done;
     {
         const NoGil released;
@@ -357,52 +367,41 @@ PyObject* copied_distances_py(PyObject*, PyObject* args) {
     PyObject* o[23];
     int settle;
     if (!PyArg_ParseTuple(args, "OOOOOOOOOOOOOOOOOOOOOOpO", &o[0], &o[1], &o[2], &o[3], &o[4],
-                          &o[5], &o[6], &o[7], &o[8], &o[9], &o[10], &o[11], &o[20], &o[21],
-                          &o[22], &o[12], &o[13], &o[14], &o[15], &o[16], &o[17], &o[18],
-                          &settle, &o[19]))
+                          &o[5], &o[6], &o[7], &o[8], &o[9], &o[10], &o[11], &o[12], &o[13],
+                          &o[14], &o[15], &o[16], &o[17], &o[18], &o[19], &o[20], &o[21],
+                          &settle, &o[22]))
         return nullptr;
-    Array pa, sa, nsa, na, la, ua, pb, sb, nsb, nb, lb, ub, ta, ca, tb, cb, pad_a, pad_b, reach,
-        lowest, centre_a, centre_b, first;
-    if (!as_array(o[0], NPY_DOUBLE, 2, 3, "a.points", pa) ||
-        !as_array(o[1], NPY_INT64, 1, 0, "a.starts", sa) ||
-        !as_array(o[2], NPY_INT64, 1, 0, "a.nbr_starts", nsa) ||
-        !as_array(o[3], NPY_INT64, 1, 0, "a.nbrs", na) ||
-        !as_array(o[4], NPY_DOUBLE, 2, 3, "a.lower", la) ||
-        !as_array(o[5], NPY_DOUBLE, 2, 3, "a.upper", ua) ||
-        !as_array(o[6], NPY_DOUBLE, 2, 3, "b.points", pb) ||
-        !as_array(o[7], NPY_INT64, 1, 0, "b.starts", sb) ||
-        !as_array(o[8], NPY_INT64, 1, 0, "b.nbr_starts", nsb) ||
-        !as_array(o[9], NPY_INT64, 1, 0, "b.nbrs", nb) ||
-        !as_array(o[10], NPY_DOUBLE, 2, 3, "b.lower", lb) ||
-        !as_array(o[11], NPY_DOUBLE, 2, 3, "b.upper", ub) ||
-        !as_array(o[12], NPY_DOUBLE, 4, 0, "ta", ta) ||
-        !as_array(o[13], NPY_INT64, 1, 0, "count_a", ca) ||
-        !as_array(o[14], NPY_DOUBLE, 4, 0, "tb", tb) ||
-        !as_array(o[15], NPY_INT64, 1, 0, "count_b", cb) ||
-        !as_array(o[16], NPY_DOUBLE, 1, 0, "pad_a", pad_a) ||
-        !as_array(o[17], NPY_DOUBLE, 1, 0, "pad_b", pad_b) ||
-        !as_array(o[18], NPY_DOUBLE, 1, 0, "reach", reach) ||
-        !as_array(o[19], NPY_DOUBLE, 1, 0, "lowest", lowest, true) ||
-        !as_array(o[20], NPY_DOUBLE, 3, 0, "centre_a", centre_a) ||
-        !as_array(o[21], NPY_DOUBLE, 3, 0, "centre_b", centre_b) ||
-        !as_array(o[22], NPY_DOUBLE, 1, 0, "first", first))
-        return nullptr;
-    if (!check_pack(pa, sa, nsa, na, la, ua) || !check_pack(pb, sb, nsb, nb, lb, ub))
+    PackArgs a, b;
+    Array centre_a, centre_b, first, ta, ca, tb, cb, pad_a, pad_b, reach, lowest;
+    if (!a.parse(o, "a") || !b.parse(o + 6, "b") ||
+        !as_array(o[12], NPY_DOUBLE, 3, 0, "centre_a", centre_a) ||
+        !as_array(o[13], NPY_DOUBLE, 3, 0, "centre_b", centre_b) ||
+        !as_array(o[14], NPY_DOUBLE, 1, 0, "first", first) ||
+        !as_array(o[15], NPY_DOUBLE, 4, 0, "ta", ta) ||
+        !as_array(o[16], NPY_INT64, 1, 0, "count_a", ca) ||
+        !as_array(o[17], NPY_DOUBLE, 4, 0, "tb", tb) ||
+        !as_array(o[18], NPY_INT64, 1, 0, "count_b", cb) ||
+        !as_array(o[19], NPY_DOUBLE, 1, 0, "pad_a", pad_a) ||
+        !as_array(o[20], NPY_DOUBLE, 1, 0, "pad_b", pad_b) ||
+        !as_array(o[21], NPY_DOUBLE, 1, 0, "reach", reach) ||
+        !as_array(o[22], NPY_DOUBLE, 1, 0, "lowest", lowest, true))
         return nullptr;
     npy_intp count = reach.len();
-    if (centre_a.len(0) != count || centre_a.len(1) != 4 || centre_a.len(2) != 4 ||
-        centre_b.len(0) != count || centre_b.len(1) != 4 || centre_b.len(2) != 4 ||
-        first.len() != count || ta.len(0) != count || ta.len(2) != 4 || ta.len(3) != 4 || tb.len(0) != count ||
-        tb.len(2) != 4 || tb.len(3) != 4 || ca.len() != count || cb.len() != count ||
-        lowest.len() != count || pad_a.len() != sa.len() - 1 || pad_b.len() != sb.len() - 1) {
+    auto placements = [count](const Array& t) {
+        return t.len(0) == count && t.len(PyArray_NDIM(t.a) - 2) == 4 &&
+               t.len(PyArray_NDIM(t.a) - 1) == 4;
+    };
+    if (!placements(centre_a) || !placements(centre_b) || !placements(ta) || !placements(tb) ||
+        first.len() != count || ca.len() != count || cb.len() != count ||
+        lowest.len() != count || pad_a.len() != a.pieces_count() ||
+        pad_b.len() != b.pieces_count()) {
         PyErr_SetString(PyExc_ValueError, "copied_distances: array lengths do not match");
         return nullptr;
     }
-    CopiedBatch t{{pa.f8(), sa.i8(), nsa.i8(), na.i8(), la.f8(), ua.f8(), sa.len() - 1, pa.len()},
-                  {pb.f8(), sb.i8(), nsb.i8(), nb.i8(), lb.f8(), ub.f8(), sb.len() - 1, pb.len()},
-                  centre_a.f8(), centre_b.f8(), first.f8(),
-                  ta.f8(), tb.f8(), ca.i8(), cb.i8(), ta.len(1), tb.len(1), pad_a.f8(),
-                  pad_b.f8(), reach.f8(), settle != 0, lowest.f8()};
+    CopiedBatch t{a.pieces(), b.pieces(), centre_a.f8(), centre_b.f8(), first.f8(),
+                  ta.f8(),    tb.f8(),    ca.i8(),       cb.i8(),       ta.len(1),
+                  tb.len(1),  pad_a.f8(), pad_b.f8(),    reach.f8(),    settle != 0,
+                  lowest.f8()};
     PlacedWorkDone done;
     {
         const NoGil released;

@@ -45,6 +45,34 @@ struct PlacedWork {
     Polytope P;
 };
 
+// The piece pairs (i, j) whose boxes (a's m_a boxes against b's m_b, (m, 3) corners each)
+// come within reach of each other less both pads, into work's candidates with that gap.
+inline void box_candidates(const double* lower_a, const double* upper_a, int64_t m_a,
+                           const double* lower_b, const double* upper_b, int64_t m_b,
+                           const double* pad_a, const double* pad_b, double reach,
+                           PlacedWork& w) {
+    w.cand_i.clear(), w.cand_j.clear(), w.cand_key.clear();
+    for (int64_t i = 0; i < m_a; ++i) {
+        const double* la = lower_a + 3 * i;
+        const double* ua = upper_a + 3 * i;
+        for (int64_t j = 0; j < m_b; ++j) {
+            const double* lb = lower_b + 3 * j;
+            const double* ub = upper_b + 3 * j;
+            double sq = 0.0;
+            for (int c = 0; c < 3; ++c) {
+                double g = std::max({la[c] - ub[c], lb[c] - ua[c], 0.0});
+                sq += g * g;
+            }
+            double key = std::sqrt(sq) - (pad_a[i] + pad_b[j]);
+            if (key <= reach) {
+                w.cand_i.push_back(i);
+                w.cand_j.push_back(j);
+                w.cand_key.push_back(key);
+            }
+        }
+    }
+}
+
 // Lower bound on the distance of piece i of a and piece j of b (b already placed in work),
 // less both pads: GJK stops once it is past reach + pad; an undecided answer counts as 0 or
 // its (negative) bound.
@@ -103,27 +131,9 @@ inline double placed_distance(const PlacedBatch& t, int64_t e, PlacedWork& w,
                               PlacedWorkDone& done) {
     const double reach = t.reach[e];
     if (!place_pieces(t.b, t.relative + 16 * e, w) || std::isnan(reach)) return -INF;
-    w.cand_i.clear(), w.cand_j.clear(), w.cand_key.clear();
+    box_candidates(t.a.lower, t.a.upper, t.a.m, w.lower.data(), w.upper.data(), t.b.m, t.pad_a,
+                   t.pad_b, reach, w);
     done.boxes += t.a.m * t.b.m;
-    for (int64_t i = 0; i < t.a.m; ++i) {
-        const double* la = t.a.lower + 3 * i;
-        const double* ua = t.a.upper + 3 * i;
-        for (int64_t j = 0; j < t.b.m; ++j) {
-            const double* lb = w.lower.data() + 3 * j;
-            const double* ub = w.upper.data() + 3 * j;
-            double sq = 0.0;
-            for (int c = 0; c < 3; ++c) {
-                double g = std::max({la[c] - ub[c], lb[c] - ua[c], 0.0});
-                sq += g * g;
-            }
-            double key = std::sqrt(sq) - (t.pad_a[i] + t.pad_b[j]);
-            if (key <= reach) {
-                w.cand_i.push_back(i);
-                w.cand_j.push_back(j);
-                w.cand_key.push_back(key);
-            }
-        }
-    }
     size_t count = w.cand_i.size();
     if (count == 0) return INF;
     double lowest = INF;
@@ -368,23 +378,9 @@ inline double copied_distance(const CopiedBatch& t, int64_t e, CopiedPieces& ca,
     if (!bound_copies(t.a, Ta, na, ca) || !bound_copies(t.b, Tb, nb, cb) ||
         !bound_copies(t.a, Sa, 1, sa) || !bound_copies(t.b, Sb, 1, sb))
         return -INF;
-    w.cand_i.clear(), w.cand_j.clear(), w.cand_key.clear();
+    box_candidates(ca.lower.data(), ca.upper.data(), t.a.m, cb.lower.data(), cb.upper.data(),
+                   t.b.m, t.pad_a, t.pad_b, reach, w);
     done.boxes += t.a.m * t.b.m;
-    for (int64_t i = 0; i < t.a.m; ++i)
-        for (int64_t j = 0; j < t.b.m; ++j) {
-            double sq = 0.0;
-            for (int c = 0; c < 3; ++c) {
-                double g = std::max({ca.lower[3 * i + c] - cb.upper[3 * j + c],
-                                     cb.lower[3 * j + c] - ca.upper[3 * i + c], 0.0});
-                sq += g * g;
-            }
-            double key = std::sqrt(sq) - (t.pad_a[i] + t.pad_b[j]);
-            if (key <= reach) {
-                w.cand_i.push_back(i);
-                w.cand_j.push_back(j);
-                w.cand_key.push_back(key);
-            }
-        }
     size_t count = w.cand_i.size();
     std::vector<size_t> order(count);
     for (size_t c = 0; c < count; ++c) order[c] = c;
