@@ -525,7 +525,7 @@ def _decide_all(bodies, jobs: list[_PairJob], executor) -> dict[str, PairVerdict
             results, started = [], time.process_time()
             while len(results) < len(tasks):
                 done = len(results)
-                mean = (time.process_time() - started) / done if done else PAIR_SECONDS
+                mean = (time.process_time() - started) / max(done, 1)
                 if done and _pays_in_workers(executor, len(tasks) - done, mean):
                     results += run(executor, tasks[done:], done)
                 else:
