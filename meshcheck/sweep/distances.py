@@ -12,7 +12,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..geometry import ConvexPack, pack_convex, placed_distances, query_pairs
+from ..geometry import (
+    ConvexPack,
+    concat_packs,
+    pack_convex,
+    placed_distances,
+    query_pairs,
+    repeat_pack,
+)
 from ..load import Body
 from ..load.robot import Mechanism, Robot, link_transforms
 
@@ -54,14 +61,26 @@ def coarse_pieces(
             pads.append(0.0)
             continue
         kept = piece[np.unique(np.argmax(piece @ directions.T, axis=0))]
-        pack = pack_convex([kept, *piece[:, None, :]])
-        pairs = np.stack([np.zeros(len(piece), np.int64), np.arange(1, len(piece) + 1)], axis=1)
-        res = query_pairs(pack, pairs, tolerance=0.0, depth=False)
+        far = float(hull_distances(pack_convex([kept]), piece).max())
         size = float(np.ptp(piece, axis=0).max())
         # GJK's distances are exact to rounding; the margin covers that rounding.
-        pads.append(float(max(res.distance.max(), 0.0)) + 1e-9 * size)
+        pads.append(max(far, 0.0) + 1e-9 * size)
         coarse.append(kept)
     return coarse, np.array(pads)
+
+
+def hull_distances(pack: ConvexPack, points: np.ndarray) -> np.ndarray:
+    """(N, m) each of ``points``' distance from each of ``pack``'s ``m`` hulls (GJK, exact to
+    rounding; negative inside), in one compiled call."""
+    single = pack_convex([np.zeros((1, 3))])
+    placed = np.ascontiguousarray(points, dtype=np.float64)[:, None, :]
+    both = concat_packs([pack, repeat_pack(single, placed, placed, placed)])
+    m = len(pack.starts) - 1
+    pairs = np.stack(
+        [np.tile(np.arange(m), len(points)), np.repeat(np.arange(m, m + len(points)), m)], axis=1
+    )
+    res = query_pairs(both, pairs.astype(np.int64), tolerance=0.0, depth=False)
+    return res.distance.reshape(len(points), m)
 
 
 @dataclass(frozen=True)
@@ -87,6 +106,9 @@ class LinkGeometry:
         The real meshes' vertices, link frame.
     faces : (f, 3) int64
         Their triangles.
+    points_pad : float
+        The link's geometry lies within this of the hull of ``points`` (0: ``points`` are its
+        pieces' own vertices; an envelope's are padded, ``envelope.envelope``).
     """
 
     pack: ConvexPack
@@ -98,6 +120,7 @@ class LinkGeometry:
     hull_pad: float
     vertices: np.ndarray
     faces: np.ndarray
+    points_pad: float = 0.0
 
 
 def link_geometries(

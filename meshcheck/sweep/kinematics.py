@@ -108,14 +108,16 @@ def chain_weights(
     swept: set[str],
     base: dict[str, float],
     scale: float,
+    margin: float = 0.0,
 ) -> Iterator[tuple[Joint, float]]:
     """(joint, bound on the speed of the link's points per unit of it) up one chain.
 
     Walking up from the link, the points are either rigid in the current frame (``local``,
-    report units: only fixed joints passed) or known to lie within ``reach`` of ``anchor``, the
-    origin of the last movable joint passed, in the current frame. A revolute joint moves a
-    point at its distance from the joint's axis line per radian: the exact largest distance
-    while the points are rigid, else ``distance(anchor, axis) + reach``.
+    report units: only fixed joints passed; the link's geometry lies within ``margin`` of their
+    hull) or known to lie within ``reach`` of ``anchor``, the origin of the last movable joint
+    passed, in the current frame. A revolute joint moves a point at its distance from the
+    joint's axis line per radian: the largest distance (exact for ``margin`` 0) while the
+    points are rigid, else ``distance(anchor, axis) + reach``.
     """
     anchor, reach = np.zeros(3), radius
     for joint in reversed(chain):
@@ -124,17 +126,15 @@ def chain_weights(
             if joint.type == "prismatic":
                 yield joint, scale
             elif local is not None:
-                yield (
-                    joint,
-                    float(np.linalg.norm(local - np.outer(local @ axis, axis), axis=1).max()),
-                )
+                lever = np.linalg.norm(local - np.outer(local @ axis, axis), axis=1).max()
+                yield joint, float(lever) + margin
             else:
                 yield joint, float(np.linalg.norm(anchor - (anchor @ axis) * axis)) + reach
         origin = joint.origin.copy()
         origin[:3, 3] *= scale
         if joint.type in MOVABLE:
             if local is not None:  # the points stop being rigid here
-                reach = float(np.linalg.norm(local, axis=1).max())
+                reach = float(np.linalg.norm(local, axis=1).max()) + margin
                 local = None
             else:
                 reach += float(np.linalg.norm(anchor))
@@ -215,7 +215,7 @@ def link_sides(
         link = links[name]
         terms = []
         for joint, weight in chain_weights(
-            robot, chain, link.radius, link.points, swept, base, scale
+            robot, chain, link.radius, link.points, swept, base, scale, link.points_pad
         ):
             leader, multiplier = robot.leader(joint)
             terms.append(JointTerm(joint, free.index(leader), abs(multiplier), weight))

@@ -89,7 +89,7 @@ def sweep_mechanism(
     diagonal, _ = part_sizes(lower, upper)
     magnitude = np.full(len(names), max(radius.values()) + frame_reach(robot, swept, base) * scale)
     total = pair_count(mech, pairs)
-    out, done, current = [], 0, ()
+    out, done, current, envelopes = [], 0, (), {}
     with Progress("sweeping link pairs", total, detail=lambda: " / ".join(current)) as progress:
         for current in pairs_in_order(order, pairs):
             a, b = current
@@ -109,7 +109,9 @@ def sweep_mechanism(
                 continue  # nothing moves them: the check judged them at the pose
             free = sorted(weights)
             sides = link_sides(robot, (a, b), links, free, swept, base, scale)
-            pair = LinkPair(robot, a, b, free, sides, base, scale, tol, links, bodies)
+            pair = LinkPair(
+                robot, a, b, free, sides, base, scale, tol, links, bodies, envelopes=envelopes
+            )
             lo, hi = joint_ranges(robot, free)
             swept_pair = sweep_pair(pair, lo, hi, motion.resolution, allowance=allowance)
             budget.charge(pair.work)

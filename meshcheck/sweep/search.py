@@ -5,29 +5,35 @@ A box of joint values is evaluated at its centre: the links' distance there, les
 point can move within the box (``kinematics.box_weights``), either certifies the whole box free
 of contact or, for a pair that has needed many boxes, the hulls of the links' pieces at the
 box's corners, less the interpolation's second-order error (``LinkPair.corner_bounds``), may;
-else the box is halved. Witnesses are looked for before the proof (seeded samples),
-among the nearest box centres, and by a descent from them (``descent_witness``).
+else the box is halved. A pair still open after many boxes may be proven over its links'
+envelopes, the joints at the ends of their chains turned through their ranges instead of
+searched (``envelope_proof``, ``envelope.envelope``). Witnesses are looked for before the proof
+(seeded samples), among the nearest box centres, and by a descent from them
+(``descent_witness``).
 """
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..geometry import copied_distances
 from ..load import Body
-from ..load.robot import MOVABLE, Joint, Robot, chain_transforms
+from ..load.robot import MOVABLE, ROTARY, Joint, Robot, chain_transforms
 from ..results import PairSweep, SweepStatus, Verdict
 from ..verify.pair import verify_pair
 from .distances import LinkGeometry, piece_distances, surface_distance
+from .envelope import envelope, steps
 from .kinematics import (
     LinkSide,
     box_weights,
     combined_weights,
     joint_rates,
     joints_below_common,
+    link_sides,
     side_bounds,
 )
 
@@ -82,6 +88,13 @@ CORNER_BATCH = 32
 #: boxes they save.
 CORNER_AFTER = 4096
 
+#: A pair still open after this many boxes tries to prove never over its links' envelopes
+#: (``envelope_proof``), within ``ENVELOPE_BOXES`` more; the envelopes may reach
+#: ``ENVELOPE_SHARE`` of the nearest centre distance so far beyond the links.
+ENVELOPE_AFTER = 8192
+ENVELOPE_BOXES = 32_768
+ENVELOPE_SHARE = 0.9
+
 #: The real meshes' statuses that make a pose a witness.
 COLLIDING = (Verdict.INTERFERENCE, Verdict.TOUCHING)
 
@@ -114,6 +127,11 @@ class LinkPair:
         its triangles over 64.
     allowance : float
         The work it may do (``sweep_pair``); past it, distances are the pieces' bounds alone.
+    fine : bool
+        Whether boxes small enough are measured on the real meshes' triangles
+        (``distances``); an envelope's pair (``envelope_pair``) has no triangles at its poses.
+    envelopes : dict
+        The links' envelopes made so far, shared by a robot's pairs (``envelope_pair``).
     """
 
     robot: Robot
@@ -128,6 +146,8 @@ class LinkPair:
     bodies: Sequence[Body]
     work: int = 0
     allowance: float = np.inf
+    fine: bool = True
+    envelopes: dict = field(default_factory=dict)
 
     def __post_init__(self):
         self.chains = joints_below_common(self.robot, (self.a, self.b))
@@ -255,6 +275,7 @@ class LinkPair:
             a.pack, b.pack, ta, tb, reach, a.pad, b.pad, settle=True, work=work
         )
         fine = FINE_REACH * min(np.ptp(a.points, axis=0).max(), np.ptp(b.points, axis=0).max())
+        fine = fine if self.fine else -np.inf
         for e in np.flatnonzero((lowest <= reach) & (reach <= fine)):
             if self.work + work[0] > self.allowance:
                 break  # the pieces' bounds stand: lower, so nothing is certified wrongly
@@ -322,7 +343,8 @@ class WorkBudget:
     Work counts what a link pair's search asks for (``LinkPair.work``): each pose costs the
     joints that move the pair (at least 1), each convex-piece pair measured by GJK 1 (and every
     64 piece boxes compared 1), each triangle pair measured 1, a check on the real meshes
-    ``VERIFY_WORK`` and its triangles over 64; every link pair visited costs at least
+    ``VERIFY_WORK`` and its triangles over 64, an envelope each point it turns
+    (``envelope_pair``); every link pair visited costs at least
     ``PAIR_WORK``. Pairs are visited one after another in a fixed order and each may spend what
     is left, so which pairs are decided is a function of the inputs and the budget, never of
     time. A pair still searching when the budget is spent (checked after each batch of boxes)
@@ -423,8 +445,10 @@ def sweep_pair(
     (``descent_witness``). When every box is certified, the surfaces never come within
     the tolerance, so whether one link is buried in the other cannot change over the sweep: one
     exact check at the centre decides ``never`` (or ``always``, buried throughout). A pair
-    that would evaluate more than ``MAX_BOXES``, or whose work (``LinkPair.work``) passes
-    ``allowance`` (checked after each batch), is undecided.
+    still open after ``ENVELOPE_AFTER`` boxes tries to prove it over its links' envelopes
+    instead, the revolute joints at the ends of their chains taken out of the search
+    (``envelope_proof``). A pair that would evaluate more than ``MAX_BOXES``, or whose work
+    (``LinkPair.work``) passes ``allowance`` (checked after each batch), is undecided.
     """
     allowance = np.inf if allowance is None else allowance
     pair.allowance = allowance
@@ -433,16 +457,41 @@ def sweep_pair(
     found = sampled_witness(pair, lower, upper)
     if found is not None:
         return found
+    return box_search(pair, lower, upper, resolution, allowance)
+
+
+def box_search(
+    pair: LinkPair,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    resolution: float,
+    allowance: float,
+    *,
+    evaluated: int = SAMPLES,
+    witnesses: bool = True,
+    max_boxes: int | None = None,
+) -> PairSweep:
+    """``sweep_pair``'s search of the boxes, ``evaluated`` boxes counted already. Without
+    ``witnesses`` (an envelope's pair, ``envelope_proof``) it only proves: no pose is checked on
+    the real meshes, and the first box centre where the pieces come within the tolerance, or
+    box at the resolution, leaves the pair undecided. ``max_boxes`` defaults to ``MAX_BOXES``."""
+    max_boxes = MAX_BOXES if max_boxes is None else max_boxes
     lo, hi = lower[None, :].copy(), upper[None, :].copy()
-    evaluated, checks, unresolved = SAMPLES, 0, False
-    nearest, descents = NearestCentres(DESCENT_STARTS), 0
+    checks, unresolved = 0, False
+    nearest, descents, enveloped = NearestCentres(DESCENT_STARTS), 0, not witnesses
     while len(lo):
-        if evaluated >= DESCENT_AFTER * DESCENT_GROWTH**descents:
+        if witnesses and evaluated >= DESCENT_AFTER * DESCENT_GROWTH**descents:
             starts = nearest.values
             found = descent_witness(pair, lower, upper, starts, evaluated, seed=descents + 1)
             if found is not None:
                 return found
             descents += 1
+        if not enveloped and evaluated >= ENVELOPE_AFTER and nearest.values is not None:
+            enveloped = True
+            found, boxes = envelope_proof(pair, lower, upper, resolution, nearest, evaluated)
+            if found is not None:
+                return found
+            evaluated += boxes
         blo, bhi, lo, hi = lo[:BATCH], hi[:BATCH], lo[BATCH:], hi[BATCH:]
         centre, half = 0.5 * (blo + bhi), 0.5 * (bhi - blo)
         axes: dict = {}
@@ -452,6 +501,8 @@ def sweep_pair(
         bound = np.sum(half * w, axis=1) + pair.tolerance
         lowest = pair.distances(ta, tb, bound)
         evaluated += len(centre)
+        if not witnesses and np.any(lowest <= pair.tolerance):
+            return pair.outcome(SweepStatus.UNDECIDED, evaluated)  # no proof can close that box
         nearest.add(lowest, centre)
         for e in np.argsort(lowest, kind="stable"):
             if lowest[e] > pair.tolerance or checks >= MAX_WITNESS_CHECKS:
@@ -486,6 +537,8 @@ def sweep_pair(
             continue
         blo, bhi, half, w = blo[open_], bhi[open_], half[open_], w[open_]
         splittable = np.any(2.0 * half > resolution, axis=1)
+        if not witnesses and not np.all(splittable):
+            return pair.outcome(SweepStatus.UNDECIDED, evaluated)
         for e in np.flatnonzero(~splittable)[: max(0, MAX_WITNESS_CHECKS - checks) // 2]:
             unresolved = True  # at the resolution: its corners may still collide
             checks += 2
@@ -495,13 +548,125 @@ def sweep_pair(
         unresolved |= bool(np.any(~splittable))
         new_lo, new_hi = halve_boxes(blo[splittable], bhi[splittable], w[splittable])
         lo, hi = np.concatenate([lo, new_lo]), np.concatenate([hi, new_hi])
-        if evaluated + len(lo) > MAX_BOXES or pair.work > allowance:
+        if evaluated + len(lo) > max_boxes or pair.work > allowance:
             return pair.outcome(SweepStatus.UNDECIDED, evaluated)
     if unresolved:
         return pair.outcome(SweepStatus.UNDECIDED, evaluated)
     ta, tb, _ = pair.placements(0.5 * (lower + upper)[None, :])
     buried = pair.verdict(ta[0], tb[0], surfaces_apart=True) == Verdict.INTERFERENCE
     return pair.outcome(SweepStatus.ALWAYS if buried else SweepStatus.NEVER, evaluated)
+
+
+def envelope_proof(
+    pair: LinkPair, lower, upper, resolution: float, nearest: NearestCentres, evaluated: int
+) -> tuple[PairSweep | None, int]:
+    """Never (or always) proven over the envelopes of the links' last joints
+    (``envelope_pair``), within ``ENVELOPE_BOXES`` in all, else None; and the boxes it
+    evaluated.
+
+    The envelopes may first reach as far beyond the links as ``ENVELOPE_SHARE`` of the
+    smallest distance at the box centres so far less the tolerance (a pair that comes close
+    somewhere keeps the joints that bring it there); when their search fails, with half that,
+    and so on, each time fewer joints go."""
+    margin = ENVELOPE_SHARE * max(float(nearest.lowest.min()) - pair.tolerance, 0.0)
+    boxes, gone = 0, None
+    while boxes < ENVELOPE_BOXES and margin > 0.0:
+        made = envelope_pair(pair, lower, upper, margin)
+        if made is None:
+            break
+        if len(made[0].names) == gone:  # the same joints went: tried already
+            margin *= 0.5
+            continue
+        sub, sub_lower, sub_upper = made
+        gone = len(sub.names)
+        found = box_search(
+            sub, sub_lower, sub_upper, resolution, pair.allowance - pair.work, evaluated=0,
+            witnesses=False, max_boxes=ENVELOPE_BOXES - boxes,
+        )  # fmt: skip
+        pair.work += sub.work
+        boxes += found.boxes
+        if found.status in (SweepStatus.NEVER, SweepStatus.ALWAYS):
+            return pair.outcome(found.status, evaluated + boxes), boxes
+        margin *= 0.5
+    return None, boxes
+
+
+def envelope_pair(
+    pair: LinkPair, lower: np.ndarray, upper: np.ndarray, margin: float
+) -> tuple[LinkPair, np.ndarray, np.ndarray] | None:
+    """The pair with the revolute joints at the ends of its links' chains taken out of the
+    search: each link replaced by its envelope over the joint's range (``envelope.envelope``),
+    the joint held at its range's middle. Joints go one at a time, from the links up, the one
+    whose envelope reaches least beyond its link first, while the envelopes' reaches sum to at
+    most ``margin``; a joint that leads another of the pair's joints (a mimic) stays. None when
+    no joint goes.
+
+    Returns
+    -------
+    (LinkPair, (n',) float64, (n',) float64)
+        The pair over the joints left (no real-mesh distances: ``LinkPair.fine`` off) and their
+        ranges.
+    """
+    robot = pair.robot
+    links, base = dict(pair.links), dict(pair.base)
+    names, lo, hi = list(pair.names), list(lower), list(upper)
+    leads = Counter(term.lead for side in pair.sides for term in side.terms)
+    ends = [list(side.terms) for side in pair.sides]  # from the common ancestor down
+    gone: list[tuple[str, ...]] = [(), ()]
+    spent = 0.0
+    while True:
+        options = []
+        for k, terms in enumerate(ends):
+            if not terms:
+                continue
+            joint, term = terms[-1].joint, terms[-1]
+            if (
+                joint.type not in ROTARY
+                or leads[term.lead] != 1
+                or robot.leader(joint) != (joint.name, 1.0)
+            ):
+                continue
+            link = pair.sides[k].link
+            key = (link, *gone[k], joint.name)  # the same envelope in any of the robot's pairs
+            if key not in pair.envelopes:
+                i = names.index(joint.name)
+                origin, direction = axis_in_link(pair, k, joint.name, base)
+                pair.envelopes[key] = envelope(links[link], origin, direction, lo[i], hi[i])
+                # its cost grows with the points turned (about a million a second)
+                pair.work += len(links[link].pack.points) * (steps(hi[i] - lo[i]) + 1)
+            options.append((pair.envelopes[key][1], k, joint.name, key))
+        if not options:
+            break
+        reach, k, name, key = min(options)
+        if spent + reach > margin:
+            break
+        spent += reach
+        ends[k].pop()
+        gone[k] = key[1:]
+        links[pair.sides[k].link] = pair.envelopes[key][0]
+        i = names.index(name)
+        base[name] = 0.5 * (lo[i] + hi[i])
+        del names[i], lo[i], hi[i]
+    if len(names) == len(pair.names):
+        return None
+    sides = link_sides(robot, (pair.a, pair.b), links, names, set(names), base, pair.scale)
+    sub = LinkPair(
+        robot, pair.a, pair.b, names, sides, base, pair.scale, pair.tolerance, links,
+        pair.bodies, fine=False, envelopes=pair.envelopes,
+    )  # fmt: skip
+    return sub, np.array(lo), np.array(hi)
+
+
+def axis_in_link(pair: LinkPair, k: int, name: str, base: dict) -> tuple[np.ndarray, np.ndarray]:
+    """(point, unit direction) of joint ``name``'s axis line in the frame of the pair's link
+    ``k`` (0: ``a``), at the joint values ``base``."""
+    chain = pair.chains[k]
+    poses = {j.name: np.array([base[j.name]]) for j in chain if j.type in MOVABLE}
+    axes: dict = {}
+    placed = chain_transforms(chain, poses, pair.scale, 1, axes)[0]
+    point, direction = axes[name]
+    inverse = np.linalg.inv(placed)
+    return inverse[:3, :3] @ point[0] + inverse[:3, 3], placed[:3, :3].T @ direction[0]
 
 
 def fixed_pair(pair: LinkPair) -> PairSweep:
