@@ -92,7 +92,7 @@ CORNER_AFTER = 4096
 #: (``envelope_proof``), within ``ENVELOPE_BOXES`` more; the envelopes may reach
 #: ``ENVELOPE_SHARE`` of the nearest centre distance so far beyond the links.
 ENVELOPE_AFTER = 8192
-ENVELOPE_BOXES = 32_768
+ENVELOPE_BOXES = 65_536
 ENVELOPE_SHARE = 0.9
 
 #: The real meshes' statuses that make a pose a witness.
@@ -447,7 +447,8 @@ def sweep_pair(
     exact check at the centre decides ``never`` (or ``always``, buried throughout). A pair
     still open after ``ENVELOPE_AFTER`` boxes tries to prove it over its links' envelopes
     instead, the revolute joints at the ends of their chains taken out of the search
-    (``envelope_proof``). A pair that would evaluate more than ``MAX_BOXES``, or whose work
+    (``envelope_proof``). A pair that would evaluate more than ``MAX_BOXES`` (and the
+    envelopes' ``ENVELOPE_BOXES``), or whose work
     (``LinkPair.work``) passes ``allowance`` (checked after each batch), is undecided.
     """
     allowance = np.inf if allowance is None else allowance
@@ -471,16 +472,17 @@ def box_search(
     witnesses: bool = True,
     max_boxes: int | None = None,
 ) -> PairSweep:
-    """``sweep_pair``'s search of the boxes, ``evaluated`` boxes counted already. Without
+    """``sweep_pair``'s search of the boxes, ``evaluated`` boxes counted already (an envelope's
+    boxes are counted too, but apart from ``max_boxes`` and the descents' schedule). Without
     ``witnesses`` (an envelope's pair, ``envelope_proof``) it only proves: no pose is checked on
     the real meshes, and the first box centre where the pieces come within the tolerance, or
     box at the resolution, leaves the pair undecided. ``max_boxes`` defaults to ``MAX_BOXES``."""
     max_boxes = MAX_BOXES if max_boxes is None else max_boxes
     lo, hi = lower[None, :].copy(), upper[None, :].copy()
-    checks, unresolved = 0, False
+    checks, unresolved, aside = 0, False, 0  # aside: the envelopes' boxes
     nearest, descents, enveloped = NearestCentres(DESCENT_STARTS), 0, not witnesses
     while len(lo):
-        if witnesses and evaluated >= DESCENT_AFTER * DESCENT_GROWTH**descents:
+        if witnesses and evaluated - aside >= DESCENT_AFTER * DESCENT_GROWTH**descents:
             starts = nearest.values
             found = descent_witness(pair, lower, upper, starts, evaluated, seed=descents + 1)
             if found is not None:
@@ -491,7 +493,7 @@ def box_search(
             found, boxes = envelope_proof(pair, lower, upper, resolution, nearest, evaluated)
             if found is not None:
                 return found
-            evaluated += boxes
+            evaluated, aside = evaluated + boxes, boxes
         blo, bhi, lo, hi = lo[:BATCH], hi[:BATCH], lo[BATCH:], hi[BATCH:]
         centre, half = 0.5 * (blo + bhi), 0.5 * (bhi - blo)
         axes: dict = {}
@@ -512,7 +514,7 @@ def box_search(
             if found is not None:
                 return found
         open_ = lowest <= bound
-        if evaluated > CORNER_AFTER and np.any(open_):
+        if evaluated - aside > CORNER_AFTER and np.any(open_):
             rows = np.flatnonzero(open_)
             picked = ([r[rows] for r in rates[0]], [r[rows] for r in rates[1]])
             chosen, grown, split = pair.corner_plan(half[rows], picked)
@@ -548,7 +550,7 @@ def box_search(
         unresolved |= bool(np.any(~splittable))
         new_lo, new_hi = halve_boxes(blo[splittable], bhi[splittable], w[splittable])
         lo, hi = np.concatenate([lo, new_lo]), np.concatenate([hi, new_hi])
-        if evaluated + len(lo) > max_boxes or pair.work > allowance:
+        if evaluated - aside + len(lo) > max_boxes or pair.work > allowance:
             return pair.outcome(SweepStatus.UNDECIDED, evaluated)
     if unresolved:
         return pair.outcome(SweepStatus.UNDECIDED, evaluated)
