@@ -54,8 +54,13 @@ REACH = float(np.linalg.norm([3.0, 0.025, 0.025]))
 
 
 def sweep_arm(tmp_path, wall: float) -> dict:
-    path = tmp_path / "arm.urdf"
-    path.write_text(arm(wall))
+    return sweep_urdf(tmp_path / "arm.urdf", arm(wall))
+
+
+def sweep_urdf(path, text: str) -> dict:
+    """Every link pair's ``PairSweep`` of the robot ``text``, written to ``path``, swept over
+    all its joints."""
+    path.write_text(text)
     settings = Settings(motion=Motion(sweep=()))
     assembly = load_assembly([str(path)], motion=settings.motion)
     (robot,) = sweep_bodies(assembly.bodies, assembly.mechanisms, settings)

@@ -12,13 +12,9 @@ from hypothesis import given
 from hypothesis import settings as hypothesis_settings
 from hypothesis import strategies as st
 from test_sweep import PR2
-from test_sweep_corners import hull_pair, real_distance
+from test_sweep_corners import hull_pair, real_distance, sweep_urdf
 
 import meshcheck.sweep.search as search
-from meshcheck.load import load_assembly
-from meshcheck.motion import Motion
-from meshcheck.settings import Settings
-from meshcheck.sweep import sweep_bodies
 from meshcheck.sweep.search import envelope_pair
 
 
@@ -48,12 +44,7 @@ def arm_and_wheel(gap: float) -> str:
 
 
 def sweep_wheel(tmp_path, gap: float) -> dict:
-    path = tmp_path / "arm_and_wheel.urdf"
-    path.write_text(arm_and_wheel(gap))
-    settings = Settings(motion=Motion(sweep=()))
-    assembly = load_assembly([str(path)], motion=settings.motion)
-    (robot,) = sweep_bodies(assembly.bodies, assembly.mechanisms, settings)
-    return {(p.a, p.b): p for p in robot.pairs}
+    return sweep_urdf(tmp_path / "arm_and_wheel.urdf", arm_and_wheel(gap))
 
 
 def test_an_arm_just_short_of_a_spinning_wheel_is_proven_never_in_a_tenth_of_the_boxes(
