@@ -347,8 +347,10 @@ def placed_distances(
 
     For each placement, ``pack_b``'s points are placed by ``relative[e]``; the piece pairs
     whose bounding boxes come within ``reach[e]`` plus both pads are measured by GJK
-    (``tolerance=0``, stopping once a pair is past ``reach`` plus its pads), and the least
-    signed distance less both pads is the answer. An undecided pair counts as at most 0.
+    (``tolerance=0``), nearest boxes first, each stopping once it is past the least distance so
+    far (or ``reach``) plus its pads, and none whose boxes are no nearer than that least (a box
+    gap bounds the pieces' from below); the least signed distance less both pads is the answer.
+    An undecided pair counts as at most 0.
 
     Parameters
     ----------
@@ -361,9 +363,9 @@ def placed_distances(
     pad_a, pad_b : (m_a,), (m_b,) float64
         Each piece stands for itself grown by this much.
     settle : bool, keyword-only
-        Only whether each placement comes within ``reach`` matters: the piece pair whose boxes
-        are nearest (less their pads; the first such in piece order) is measured first, and a
-        placement it brings within reach gets that pair's distance and no more GJK.
+        Only whether each placement comes within ``reach`` matters: the first piece pair that
+        brings a placement within reach, nearest boxes first (less their pads; ties in piece
+        order), gives it that pair's distance and no more GJK.
 
     Returns
     -------

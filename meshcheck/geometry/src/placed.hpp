@@ -41,6 +41,8 @@ struct PlacedWork {
     std::vector<double> points, lower, upper;
     std::vector<int64_t> cand_i, cand_j;
     std::vector<double> cand_key;
+    std::vector<char> cand_apart;  // the boxes do not overlap
+    std::vector<size_t> order;
     Simplex s;
     Polytope P;
 };
@@ -51,7 +53,7 @@ inline void box_candidates(const double* lower_a, const double* upper_a, int64_t
                            const double* lower_b, const double* upper_b, int64_t m_b,
                            const double* pad_a, const double* pad_b, double reach,
                            PlacedWork& w) {
-    w.cand_i.clear(), w.cand_j.clear(), w.cand_key.clear();
+    w.cand_i.clear(), w.cand_j.clear(), w.cand_key.clear(), w.cand_apart.clear();
     for (int64_t i = 0; i < m_a; ++i) {
         const double* la = lower_a + 3 * i;
         const double* ua = upper_a + 3 * i;
@@ -68,6 +70,7 @@ inline void box_candidates(const double* lower_a, const double* upper_a, int64_t
                 w.cand_i.push_back(i);
                 w.cand_j.push_back(j);
                 w.cand_key.push_back(key);
+                w.cand_apart.push_back(sq > 0.0);
             }
         }
     }
@@ -125,8 +128,10 @@ inline bool place_pieces(const Pieces& b, const double* T, PlacedWork& w) {
 }
 
 // Placement e: the least piece gap among the piece pairs whose boxes come within reach (plus
-// their pads), inf when none does. With settle, the pair of nearest boxes is measured first
-// and, when within reach, answers alone.
+// their pads), inf when none does. Pairs are measured nearest boxes first, each GJK stopping
+// past the least gap so far (when not negative; else reach), and no pair whose boxes are apart
+// by no less than that gap is measured: boxes apart bound the pieces' distance from below, so
+// the least is the same. With settle, the first pair that comes within reach answers alone.
 inline double placed_distance(const PlacedBatch& t, int64_t e, PlacedWork& w,
                               PlacedWorkDone& done) {
     const double reach = t.reach[e];
@@ -136,17 +141,20 @@ inline double placed_distance(const PlacedBatch& t, int64_t e, PlacedWork& w,
     done.boxes += t.a.m * t.b.m;
     size_t count = w.cand_i.size();
     if (count == 0) return INF;
+    w.order.resize(count);
+    for (size_t c = 0; c < count; ++c) w.order[c] = c;
+    std::stable_sort(w.order.begin(), w.order.end(),
+                     [&](size_t x, size_t y) { return w.cand_key[x] < w.cand_key[y]; });
     double lowest = INF;
-    size_t first = count;
-    if (t.settle) {
-        first = static_cast<size_t>(
-            std::min_element(w.cand_key.begin(), w.cand_key.end()) - w.cand_key.begin());
-        lowest = piece_gap(t, w, w.cand_i[first], w.cand_j[first], reach, done);
-        if (lowest <= reach) return lowest;
+    for (size_t c : w.order) {
+        int64_t i = w.cand_i[c], j = w.cand_j[c];
+        // boxes apart bound the pieces' distance from below; overlapping boxes bound nothing
+        // of a depth
+        if (w.cand_apart[c] && w.cand_key[c] >= lowest) continue;
+        double stop = lowest >= 0.0 ? std::min(reach, lowest) : reach;
+        lowest = std::min(lowest, piece_gap(t, w, i, j, stop, done));
+        if (t.settle && lowest <= reach) break;
     }
-    for (size_t c = 0; c < count; ++c)
-        if (c != first)
-            lowest = std::min(lowest, piece_gap(t, w, w.cand_i[c], w.cand_j[c], reach, done));
     return lowest;
 }
 
