@@ -205,10 +205,10 @@ def piece_distances(
     pad_a, pad_b : (m_a,), (m_b,) float64, optional
         Each piece stands for itself grown by this much (``coarse_pieces``); default 0.
     settle : bool
-        Only whether each placement comes within ``reach`` matters: the piece pair whose
-        boxes are nearest is measured first, and a placement it brings within reach gets that
-        pair's distance (at most ``reach``, not the least) and no more GJK; the others are
-        measured in full. The sweep's boxes split or close on this alone.
+        Only whether each placement comes within ``reach`` matters: piece pairs are measured
+        nearest boxes first, and the first that brings a placement within reach gives it that
+        pair's distance (at most ``reach``, not the least) and no more GJK. The sweep's boxes
+        split or close on this alone.
     work : list of one int, optional
         Gets the work done added (``geometry.placed_distances``).
 
