@@ -33,8 +33,9 @@ REACH_STRIDE = 4
 
 
 def steps(span: float) -> int:
-    """How many steps between copies turn a link through ``span`` radians (``SAGITTA``)."""
-    return max(1, math.ceil(span / (2.0 * math.acos(1.0 - SAGITTA))))
+    """How many steps between copies turn a link through ``span`` radians (``SAGITTA``; a
+    span past a full turn is a full turn)."""
+    return max(1, math.ceil(min(span, 2.0 * math.pi) / (2.0 * math.acos(1.0 - SAGITTA))))
 
 
 def pieces_of(pack) -> list[np.ndarray]:
@@ -69,7 +70,7 @@ def envelope(
         About how far the envelope (with its pads) reaches beyond the volume the link's pieces
         sweep: each envelope piece's farthest vertex from the nearest copy, plus its pad.
     """
-    span = upper - lower
+    span = min(upper - lower, 2.0 * math.pi)  # past a full turn, every angle
     count = steps(span)
     angles = np.linspace(-0.5 * span, 0.5 * span, count + 1)
     fall = 1.0 - math.cos(0.5 * span / count)
