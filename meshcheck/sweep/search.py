@@ -569,18 +569,18 @@ def envelope_proof(
     The envelopes may first reach as far beyond the links as ``ENVELOPE_SHARE`` of the
     smallest distance at the box centres so far less the tolerance (a pair that comes close
     somewhere keeps the joints that bring it there); when their search fails, with half that,
-    and so on, each time fewer joints go."""
+    and so on, each time other joints go."""
     margin = ENVELOPE_SHARE * max(float(nearest.lowest.min()) - pair.tolerance, 0.0)
-    boxes, gone = 0, None
+    boxes, kept = 0, None
     while boxes < ENVELOPE_BOXES and margin > 0.0:
         made = envelope_pair(pair, lower, upper, margin)
         if made is None:
             break
-        if len(made[0].names) == gone:  # the same joints went: tried already
+        if made[0].names == kept:  # the same joints went: tried already
             margin *= 0.5
             continue
         sub, sub_lower, sub_upper = made
-        gone = len(sub.names)
+        kept = sub.names
         found = box_search(
             sub, sub_lower, sub_upper, resolution, pair.allowance - pair.work, evaluated=0,
             witnesses=False, max_boxes=ENVELOPE_BOXES - boxes,
