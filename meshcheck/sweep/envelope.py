@@ -19,14 +19,15 @@ import dataclasses
 import math
 
 import numpy as np
+from scipy.spatial import ConvexHull, QhullError
 
 from ..geometry import pack_convex
 from ..load.robot import rotation
 from .distances import LinkGeometry, coarse_pieces, hull_distances
 
 #: The sagitta between two copies, per unit of a point's distance from the axis: copies every
-#: ``2 acos(1 - SAGITTA)`` radians (71 over a full turn; at 1/250, 36, the PR2's sweep leaves
-#: its head cameras against the wrists undecided).
+#: ``2 acos(1 - SAGITTA)`` radians (71 over a full turn). Finer copies shrink the pad of a
+#: large link turned far (a head over its pan), at set-up work counted per point turned.
 SAGITTA = 1.0 / 1000.0
 #: ``reach_beyond`` measures from every this-many-th copy.
 REACH_STRIDE = 4
@@ -108,14 +109,12 @@ def reach_beyond(coarse: list[np.ndarray], copies: list[np.ndarray]) -> float:
     triangles and of the hull itself (a hull's vertices are the copies' own points; what it
     adds lies across its faces and inside). Only which joints go into an envelope rests on it,
     never a bound."""
-    from scipy.spatial import ConvexHull
-
     worst = 0.0
     for envelope_piece, turned_copies in zip(coarse, copies, strict=True):
         try:
             hull = ConvexHull(envelope_piece)
             samples = envelope_piece[hull.simplices].mean(axis=1)
-        except Exception:  # flat or degenerate: its vertices stand for it
+        except (QhullError, ValueError):  # flat or degenerate: its vertices stand for it
             samples = envelope_piece
         samples = np.vstack([samples, envelope_piece.mean(axis=0)])
         shown = turned_copies[::REACH_STRIDE]
