@@ -209,6 +209,20 @@ def test_no_point_moves_farther_than_the_motion_bound():
             assert displacement <= bound + 1e-12
 
 
+def hull_links(urdf: str, only=None):
+    """(robot, bodies, joint values at zero, every movable joint, link geometries) of a URDF
+    robot whose parts are each one convex piece, its hull (so the real meshes lie inside);
+    the geometries of the links ``only`` (default all)."""
+    assembly = load_assembly([urdf])
+    bodies, (mech,) = assembly.bodies, assembly.mechanisms
+    robot = mech.robot
+    base = joint_values(robot)
+    swept = {j.name for j in robot.movable}
+    pieces = {k: [bodies[k].world.convex_hull.vertices] for ks in mech.parts.values() for k in ks}
+    links = link_geometries(robot, mech, bodies, pieces, base, 1.0, only=only)
+    return robot, bodies, base, swept, links
+
+
 @pytest.mark.filterwarnings("ignore::meshcheck.errors.MeshcheckWarning")  # the PR2's open meshes
 @pytest.mark.parametrize(
     ("urdf", "pairs"),
@@ -224,13 +238,7 @@ def test_no_point_moves_farther_than_the_box_bound(urdf, pairs):
     (each link relative to the pair's common frame) between the centre and any pose in the box;
     it is never looser than the bound over the whole sweep, and on the PR2's arms it is
     tighter."""
-    assembly = load_assembly([urdf])
-    bodies, (mech,) = assembly.bodies, assembly.mechanisms
-    robot = mech.robot
-    base = joint_values(robot)
-    swept = {j.name for j in robot.movable}
-    pieces = {k: [bodies[k].world.convex_hull.vertices] for ks in mech.parts.values() for k in ks}
-    links = link_geometries(robot, mech, bodies, pieces, base, 1.0)
+    robot, bodies, base, swept, links = hull_links(urdf)
     radius = {n: link.radius for n, link in links.items()}
     points = {n: link.points for n, link in links.items()}
     rng = np.random.default_rng(2)

@@ -12,15 +12,14 @@ from hypothesis import given
 from hypothesis import settings as hypothesis_settings
 from hypothesis import strategies as st
 from meshes import fcl_distance
-from test_sweep import PANDA, PR2
+from test_sweep import PANDA, PR2, hull_links
 
 import meshcheck.sweep.search as search
 from meshcheck.load import load_assembly
-from meshcheck.load.robot import joint_values, link_transforms, with_mimics
+from meshcheck.load.robot import link_transforms, with_mimics
 from meshcheck.motion import Motion
 from meshcheck.settings import Settings
 from meshcheck.sweep import sweep_bodies
-from meshcheck.sweep.distances import link_geometries
 from meshcheck.sweep.kinematics import joint_ranges, link_sides, motion_weights
 from meshcheck.sweep.search import LinkPair
 
@@ -88,13 +87,7 @@ def test_an_arm_just_short_of_a_wall_is_proven_never_by_its_corners(tmp_path, mo
 def hull_pair(urdf: str, a: str, b: str):
     """A ``LinkPair`` of links ``a``, ``b`` with one convex piece per part, its hull (so the
     real meshes lie inside the pieces), the pair's joint ranges, and its meshes."""
-    assembly = load_assembly([urdf])
-    bodies, (mech,) = assembly.bodies, assembly.mechanisms
-    robot = mech.robot
-    base = joint_values(robot)
-    swept = {j.name for j in robot.movable}
-    pieces = {k: [bodies[k].world.convex_hull.vertices] for ks in mech.parts.values() for k in ks}
-    links = link_geometries(robot, mech, bodies, pieces, base, 1.0, only=(a, b))
+    robot, bodies, base, swept, links = hull_links(urdf, only=(a, b))
     radius = {n: link.radius for n, link in links.items()}
     points = {n: link.points for n, link in links.items()}
     names = sorted(motion_weights(robot, (a, b), radius, swept, base, 1.0, points))
@@ -121,6 +114,14 @@ def hull_pairs():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the PR2's open meshes
         return {key: hull_pair(*spec) for key, spec in PAIRS.items()}
+
+
+def random_box(rng, lower: np.ndarray, upper: np.ndarray, size: float):
+    """(centre, half-widths, lo, hi) of a random box within ``lower..upper``, each joint's
+    half-width up to ``size`` of its range."""
+    half = rng.uniform(0.0, size, len(lower)) * (upper - lower)
+    centre = rng.uniform(lower + half, upper - half)
+    return centre, half, centre - half, centre + half
 
 
 def corner_bound(pair: LinkPair, lo: np.ndarray, hi: np.ndarray) -> float:
@@ -155,9 +156,7 @@ def test_the_corner_bound_is_never_above_the_real_distance_in_its_box(hull_pairs
     corners, its centre and random poses within it."""
     pair, (lower, upper), meshes = hull_pairs[key]
     rng = np.random.default_rng(seed)
-    half = rng.uniform(0.0, size, len(lower)) * (upper - lower)
-    centre = rng.uniform(lower + half, upper - half)
-    lo, hi = centre - half, centre + half
+    centre, half, lo, hi = random_box(rng, lower, upper, size)
     bound = corner_bound(pair, lo, hi)
     poses = [centre, lo, hi, *(centre + half * rng.uniform(-1, 1, (3, len(lower))))]
     poses.append(np.where(rng.random(len(lower)) < 0.5, lo, hi))
@@ -195,9 +194,7 @@ def test_the_interpolation_error_is_within_its_bound(hull_pairs, key, size, seed
     over the two links, is at most the plan's ``G_a + G_b``."""
     pair, (lower, upper), _ = hull_pairs[key]
     rng = np.random.default_rng(seed)
-    half = rng.uniform(0.0, size, len(lower)) * (upper - lower)
-    centre = rng.uniform(lower + half, upper - half)
-    lo, hi = centre - half, centre + half
+    centre, half, lo, hi = random_box(rng, lower, upper, size)
     axes: dict = {}
     ta, tb, _ = pair.placements(centre[None, :], axes)
     rates = pair.joint_rates(ta, tb, axes, half[None, :])
