@@ -319,11 +319,21 @@ def test_surface_distance_agrees_with_fcl():
 
 
 @pytest.mark.filterwarnings("ignore::meshcheck.errors.MeshcheckWarning")  # the PR2's open meshes
-def test_descent_finds_a_collision_sampling_misses():
-    """The PR2's head tilt link and left forearm collide only in a small corner of their seven
-    joints (python-fcl's 10,000 samples in bench/sweep.py never hit it): descending the pieces'
-    distance from the nearest of a few hundred box centres finds a pose where the real meshes
-    collide, and FCL agrees there."""
+@pytest.mark.parametrize(
+    "a, b",
+    [
+        # seven joints
+        ("head_tilt_link", "l_forearm_link"),
+        # nine: the head tilted to its limit and the arm raised to its, the wrist rolled and
+        # flexed into the camera mount; ten descent steps from these starts stop short of it
+        ("head_mount_link", "r_wrist_roll_link"),
+    ],
+)
+def test_descent_finds_a_collision_sampling_misses(a, b):
+    """Two PR2 links that collide only in a small corner of their joints (python-fcl's 10,000
+    samples in bench/sweep.py never hit it): descending the pieces' distance from the nearest
+    of a few hundred box centres finds a pose where the real meshes collide, and FCL agrees
+    there."""
     import trimesh
 
     from meshcheck.sweep.kinematics import joint_ranges
@@ -331,7 +341,6 @@ def test_descent_finds_a_collision_sampling_misses():
 
     bodies, mech, base, links = _hull_pieces(PR2)
     robot = mech.robot
-    a, b = "head_tilt_link", "l_forearm_link"
     swept = {j.name for j in robot.movable}
     radius = {n: link.radius for n, link in links.items()}
     points = {n: link.points for n, link in links.items()}

@@ -55,10 +55,16 @@ MAX_WITNESS_CHECKS = 24
 #: A pair not decided after this many boxes looks for a witness by descending the pieces'
 #: distance from the nearest box centres (``descent_witness``): how many, steps, tries; and
 #: again, from the centres nearest by then, each time the boxes grow by ``DESCENT_GROWTH``.
+#: Three of the PR2's head-mount and wrist pairs collide only where the head is tilted and
+#: the arm raised to their limits: ten steps stopped short of it, thirty reach it. A descent
+#: stops after ``DESCENT_SETTLE`` steps once some pose's pieces overlap: most colliding pairs
+#: are there by then (bench/sweep.py: thirty steps for every descent cost the PR2's
+#: sometimes pairs half their time again).
 DESCENT_AFTER = 4096
 DESCENT_GROWTH = 4
 DESCENT_STARTS = 8
-DESCENT_STEPS = 10
+DESCENT_STEPS = 30
+DESCENT_SETTLE = 10
 DESCENT_TRIES = 32
 #: The least work a link pair visited costs (``WorkBudget``), and what a check on the real
 #: meshes costs besides its triangles over 64: the fixed cost of a pair's set-up and of one
@@ -714,7 +720,9 @@ def descent_witness(
     by the coarse pieces' signed distance; the final poses whose pieces overlap are
     re-checked on the real meshes, nearest first. A pair colliding only in a narrow window
     of many joints is found in a few thousand poses instead of by splitting boxes down to it.
-    ``seed`` draws the perturbations: each later descent of a pair draws its own.
+    ``seed`` draws the perturbations: each later descent of a pair draws its own. After
+    ``DESCENT_SETTLE`` steps it stops as soon as some pose's pieces overlap: the steps after
+    that are for the starts that have not come near.
     """
     if starts is None or len(starts) == 0:
         return None
@@ -728,7 +736,9 @@ def descent_witness(
     scores = measure(current, np.inf)
     reach = max(float(scores.max()), 0.0) + pair.tolerance  # nothing beyond the starts matters
     step = np.broadcast_to(0.125 * (upper - lower), current.shape).copy()
-    for _ in range(DESCENT_STEPS):
+    for k in range(DESCENT_STEPS):
+        if k >= DESCENT_SETTLE and np.any(scores <= pair.tolerance):
+            break
         noise = rng.standard_normal((len(current), DESCENT_TRIES, len(lower)))
         tries = np.clip(current[:, None, :] + step[:, None, :] * noise, lower, upper)
         flat = measure(tries.reshape(-1, len(lower)), reach).reshape(len(current), DESCENT_TRIES)
