@@ -269,17 +269,21 @@ class LinkPair:
         self.work += work
         return lowest - grown
 
-    def distances(self, ta: np.ndarray, tb: np.ndarray, reach: np.ndarray) -> np.ndarray:
+    def distances(
+        self, ta: np.ndarray, tb: np.ndarray, reach: np.ndarray, *, pieces: bool = False
+    ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
         """Lower bounds on the distance between the two links' surfaces at placements ``ta``,
         ``tb``: from the coarse pieces (``piece_distances``), and where those come within
         ``reach`` and the reach is below ``FINE_REACH`` of the smaller link's size, the real
         meshes' exact distance (``surface_distance``: its cost grows with the triangle pairs
-        within reach, so it waits for boxes small enough that it can close them)."""
+        within reach, so it waits for boxes small enough that it can close them). With
+        ``pieces``, also the pieces' bounds alone."""
         a, b = self.links[self.a], self.links[self.b]
         work = [0]
-        lowest = piece_distances(
+        coarse = piece_distances(
             a.pack, b.pack, ta, tb, reach, a.pad, b.pad, settle=True, work=work
         )
+        lowest = coarse.copy()
         fine = FINE_REACH * min(np.ptp(a.points, axis=0).max(), np.ptp(b.points, axis=0).max())
         fine = fine if self.fine else -np.inf
         for e in np.flatnonzero((lowest <= reach) & (reach <= fine)):
@@ -289,7 +293,7 @@ class LinkPair:
                 a, b, ta[e], tb[e], float(reach[e]), settle=True, work=work
             )
         self.work += work[0]
-        return lowest
+        return (lowest, coarse) if pieces else lowest
 
     def piece_distances(self, ta: np.ndarray, tb: np.ndarray, reach: float) -> np.ndarray:
         """The coarse pieces' signed distance bounds at placements ``ta``, ``tb`` (values above
@@ -507,7 +511,7 @@ def box_search(
         rates = pair.joint_rates(ta, tb, axes, half)
         w = combined_weights(pair.sides, rates, half.shape)
         bound = np.sum(half * w, axis=1) + pair.tolerance
-        lowest = pair.distances(ta, tb, bound)
+        lowest, coarse = pair.distances(ta, tb, bound, pieces=True)
         evaluated += len(centre)
         if not witnesses and np.any(lowest <= pair.tolerance):
             return pair.outcome(SweepStatus.UNDECIDED, evaluated)  # no proof can close that box
@@ -527,8 +531,9 @@ def box_search(
             w = w.copy()
             w[rows] = split  # halve_boxes cuts across the largest term of the bound in force
             # the hulls come no farther apart than the pieces at the centre, give or take
-            # the interpolation's error: boxes whose centre is not past it are left to split
-            hopeful = lowest[rows] > grown + pair.tolerance
+            # the interpolation's error: boxes whose pieces' centre distance is not past it
+            # (the real meshes' may be) are left to split
+            hopeful = coarse[rows] > grown + pair.tolerance
             rows, chosen, grown = rows[hopeful], chosen[hopeful], grown[hopeful]
             for k in range(0, len(rows), CORNER_BATCH):  # the work checked between batches
                 if pair.work > allowance:
