@@ -65,6 +65,7 @@ DESCENT_GROWTH = 4
 DESCENT_STARTS = 8
 DESCENT_STEPS = 30
 DESCENT_SETTLE = 10
+DESCENT_SETTLED = 64
 DESCENT_TRIES = 32
 #: The least work a link pair visited costs (``WorkBudget``), and what a check on the real
 #: meshes costs besides its triangles over 64: the fixed cost of a pair's set-up and of one
@@ -740,9 +741,12 @@ def descent_witness(
     current = starts.copy()
     scores = measure(current, np.inf)
     reach = max(float(scores.max()), 0.0) + pair.tolerance  # nothing beyond the starts matters
-    step = np.broadcast_to(0.125 * (upper - lower), current.shape).copy()
+    first = 0.125 * (upper - lower)
+    step = np.broadcast_to(first, current.shape).copy()
     for k in range(DESCENT_STEPS):
-        if k >= DESCENT_SETTLE and np.any(scores <= pair.tolerance):
+        if k >= DESCENT_SETTLE and (
+            np.any(scores <= pair.tolerance) or np.all(step <= first / DESCENT_SETTLED)
+        ):
             break
         noise = rng.standard_normal((len(current), DESCENT_TRIES, len(lower)))
         tries = np.clip(current[:, None, :] + step[:, None, :] * noise, lower, upper)
