@@ -198,10 +198,11 @@ def sweep_pairs(
         if (pair.a, pair.b) not in wanted:
             return PairSweep(pair.a, pair.b, "skipped")
         if closest:
-            distance, pose = nearest_pose(pair, lower, upper)
+            distance, pieces, pose = nearest_pose(pair, lower, upper)
             print(
                 f"{pair.a} / {pair.b}: {len(lower)} joints, python-fcl distance "
-                f"{distance:.6f} at " + ", ".join(f"{k}={v:.4f}" for k, v in pose.items())
+                f"{distance:.6f} (convex pieces {pieces:.6f}) at "
+                + ", ".join(f"{k}={v:.4f}" for k, v in pose.items())
             )
             return PairSweep(pair.a, pair.b, "skipped")
         start = time.perf_counter()
@@ -220,9 +221,10 @@ def sweep_pairs(
 
 
 def nearest_pose(pair, lower, upper, *, samples: int = 100_000, starts: int = 64,
-                 steps: int = 60, tries: int = 32) -> tuple[float, dict]:  # fmt: skip
+                 steps: int = 60, tries: int = 32) -> tuple[float, float, dict]:  # fmt: skip
     """The least python-fcl distance between the pair's real meshes found by descending the
-    convex pieces' distance from the nearest of ``samples`` random poses, and its pose."""
+    convex pieces' distance from the nearest of ``samples`` random poses, the pieces'
+    distance bound there, and its pose."""
     import fcl
     import trimesh
 
@@ -258,7 +260,11 @@ def nearest_pose(pair, lower, upper, *, samples: int = 100_000, starts: int = 64
             0.0 if hit else fcl.distance(oa, ob, fcl.DistanceRequest(), fcl.DistanceResult())
         )
     e = int(np.argmin(distances))
-    return float(distances[e]), dict(zip(pair.names, current[e].tolist(), strict=True))
+    return (
+        float(distances[e]),
+        float(scores[e]),
+        dict(zip(pair.names, current[e].tolist(), strict=True)),
+    )
 
 
 def main() -> int:
