@@ -56,10 +56,11 @@ MAX_WITNESS_CHECKS = 24
 #: distance from the nearest box centres (``descent_witness``): how many, steps, tries; and
 #: again, from the centres nearest by then, each time the boxes grow by ``DESCENT_GROWTH``.
 #: Three of the PR2's head-mount and wrist pairs collide only where the head is tilted and
-#: the arm raised to their limits: ten steps stopped short of it, thirty reach it. A descent
-#: stops after ``DESCENT_SETTLE`` steps once some pose's pieces overlap: most colliding pairs
-#: are there by then (bench/sweep.py: thirty steps for every descent cost the PR2's
-#: sometimes pairs half their time again).
+#: the arm raised to their limits: from the nearest box centres ten steps do not reach it,
+#: thirty do. A descent stops after ``DESCENT_SETTLE`` steps once some pose's pieces overlap
+#: (most colliding pairs are there by then: thirty steps for every descent cost the PR2's
+#: sometimes pairs half their time again, bench/sweep.py) or once every start's step has
+#: shrunk to ``1 / DESCENT_SETTLED`` of its first (each start settled in its minimum).
 DESCENT_AFTER = 4096
 DESCENT_GROWTH = 4
 DESCENT_STARTS = 8
@@ -727,8 +728,9 @@ def descent_witness(
     re-checked on the real meshes, nearest first. A pair colliding only in a narrow window
     of many joints is found in a few thousand poses instead of by splitting boxes down to it.
     ``seed`` draws the perturbations: each later descent of a pair draws its own. After
-    ``DESCENT_SETTLE`` steps it stops as soon as some pose's pieces overlap: the steps after
-    that are for the starts that have not come near.
+    ``DESCENT_SETTLE`` steps it stops as soon as some pose's pieces overlap, or every start's
+    step has shrunk to ``1 / DESCENT_SETTLED`` of its first: the steps after that are for
+    starts still moving toward a collision.
     """
     if starts is None or len(starts) == 0:
         return None
