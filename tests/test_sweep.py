@@ -275,16 +275,6 @@ def test_no_point_moves_farther_than_the_box_bound(urdf, pairs):
         assert tighter >= 15
 
 
-def _hull_pieces(urdf):
-    """A robot's bodies, mechanism, and each link (``link_geometries``) with one convex piece
-    per part, its hull: pieces that cover every triangle, without CoACD's time."""
-    assembly = load_assembly([urdf])
-    bodies, (mech,) = assembly.bodies, assembly.mechanisms
-    base = joint_values(mech.robot)
-    pieces = {k: [bodies[k].world.convex_hull.vertices] for ks in mech.parts.values() for k in ks}
-    return bodies, mech, base, link_geometries(mech.robot, mech, bodies, pieces, base, 1.0)
-
-
 @pytest.mark.filterwarnings("ignore::meshcheck.errors.MeshcheckWarning")  # the PR2's open meshes
 def test_surface_distance_agrees_with_fcl():
     """The real meshes' distance a box is certified with when its pieces do not suffice
@@ -295,8 +285,7 @@ def test_surface_distance_agrees_with_fcl():
 
     from meshcheck.sweep.distances import surface_distance
 
-    _, mech, base, links = _hull_pieces(PR2)
-    robot = mech.robot
+    robot, _, base, _, links = hull_links(PR2)
     a, b = "l_forearm_link", "l_upper_arm_link"
     rng = np.random.default_rng(3)
     for _ in range(6):
@@ -339,9 +328,7 @@ def test_descent_finds_a_collision_sampling_misses(a, b):
     from meshcheck.sweep.kinematics import joint_ranges
     from meshcheck.sweep.search import NearestCentres, descent_witness
 
-    bodies, mech, base, links = _hull_pieces(PR2)
-    robot = mech.robot
-    swept = {j.name for j in robot.movable}
+    robot, bodies, base, swept, links = hull_links(PR2)
     radius = {n: link.radius for n, link in links.items()}
     points = {n: link.points for n, link in links.items()}
     names = sorted(motion_weights(robot, (a, b), radius, swept, base, 1.0, points))
