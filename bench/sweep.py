@@ -228,6 +228,8 @@ def nearest_pose(pair, lower, upper, *, samples: int = 100_000, starts: int = 64
     import fcl
     import trimesh
 
+    from meshcheck.sweep.search import descent_step
+
     rng = np.random.default_rng(1)
 
     def pieces(values):
@@ -240,13 +242,7 @@ def nearest_pose(pair, lower, upper, *, samples: int = 100_000, starts: int = 64
     scores = pieces(current)
     step = np.broadcast_to(0.1 * (upper - lower), current.shape).copy()
     for _ in range(steps):
-        noise = rng.standard_normal((len(current), tries, len(lower)))
-        moved = np.clip(current[:, None, :] + step[:, None, :] * noise, lower, upper)
-        found = pieces(moved.reshape(-1, len(lower))).reshape(len(current), tries)
-        best = np.argmin(found, axis=1)
-        better = found[np.arange(len(current)), best] < scores
-        current[better] = moved[better, best[better]]
-        scores[better] = found[better, best[better]]
+        better = descent_step(pieces, lower, upper, current, scores, step, rng, tries)
         step[~better] *= 0.7
     ta, tb, _ = pair.placements(current)
     models = [_bvh(trimesh.Trimesh(pair.links[n].vertices, pair.links[n].faces, process=False))

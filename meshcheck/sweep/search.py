@@ -750,17 +750,33 @@ def descent_witness(
             np.any(scores <= pair.tolerance) or np.all(step <= first / DESCENT_SETTLED)
         ):
             break
-        noise = rng.standard_normal((len(current), DESCENT_TRIES, len(lower)))
-        tries = np.clip(current[:, None, :] + step[:, None, :] * noise, lower, upper)
-        flat = measure(tries.reshape(-1, len(lower)), reach).reshape(len(current), DESCENT_TRIES)
-        best = np.argmin(flat, axis=1)
-        better = flat[np.arange(len(current)), best] < scores
-        current[better] = tries[better, best[better]]
-        scores[better] = flat[better, best[better]]
+        better = descent_step(
+            lambda values: measure(values, reach), lower, upper, current, scores, step, rng,
+            DESCENT_TRIES,
+        )  # fmt: skip
         step[~better] *= 0.5
     order = np.argsort(scores, kind="stable")
     order = order[scores[order] <= pair.tolerance][:SAMPLE_CHECKS]
     return first_witness(pair, current[order], boxes)
+
+
+def descent_step(
+    measure, lower, upper, current: np.ndarray, scores: np.ndarray, step: np.ndarray, rng,
+    tries: int,
+) -> np.ndarray:  # fmt: skip
+    """One step of a descent: each row of ``current`` (joint values, (k, n)) moves to the
+    nearest, by ``measure`` ((m, n) values -> (m,) distances), of ``tries`` normal
+    perturbations of it scaled by its row of ``step`` and clipped to ``lower..upper``, when
+    that is below its ``scores``. ``current`` and ``scores`` are updated in place; returns
+    which rows moved."""
+    noise = rng.standard_normal((len(current), tries, len(lower)))
+    moved = np.clip(current[:, None, :] + step[:, None, :] * noise, lower, upper)
+    found = measure(moved.reshape(-1, len(lower))).reshape(len(current), tries)
+    best = np.argmin(found, axis=1)
+    better = found[np.arange(len(current)), best] < scores
+    current[better] = moved[better, best[better]]
+    scores[better] = found[better, best[better]]
+    return better
 
 
 def sampled_witness(pair: LinkPair, lower: np.ndarray, upper: np.ndarray) -> PairSweep | None:
