@@ -267,6 +267,48 @@ def test_a_verdict_does_not_depend_on_meshes_earlier_pairs_left_on_the_faces():
     assert [a.tobytes() for a in first.solid] == [a.tobytes() for a in again.solid]
 
 
+def _every_candidate_classified(shape) -> float:
+    """The largest ball of ``solids._largest_ball``'s candidates, every one classified."""
+    from OCP.BRepClass3d import BRepClass3d_SolidClassifier
+    from OCP.IntCurvesFace import IntCurvesFace_ShapeIntersector
+    from OCP.TopAbs import TopAbs_IN
+
+    best = 0.0
+    for solid in solids._solids(shape):
+        classifier, intersector = (
+            BRepClass3d_SolidClassifier(solid),
+            IntCurvesFace_ShapeIntersector(),
+        )
+        intersector.Load(solid, 1e-9)
+        for point, inward in solids._seeds(solid):
+            exit_at = solids._ray_exit(intersector, point, inward)
+            if exit_at is None:
+                continue
+            centre = point + 0.5 * exit_at * inward
+            classifier.Perform(solids._pnt(centre), 1e-12)
+            if classifier.State() == TopAbs_IN:
+                best = max(best, 2.0 * solids._distance_to_surface(solid, centre))
+    return best
+
+
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda: box((0, 0, 0), (3, 1, 2)),
+        lambda: cut(cylinder(3.0, 0.0, 2.0), cylinder(2.5, -1.0, 3.0)),  # a tube
+        lambda: fuse(box((0, 0, 0), (4, 1, 1)), box((0, 0, 0), (1, 3, 1))),  # an L
+        lambda: cut(cylinder(2.0, 0.0, 1.0), cylinder(2.0, -1.0, 2.0, x=1.2)),  # a crescent
+        lambda: fuse(box((0, 0, 0), (1, 1, 1)), box((3, 0, 0), (5, 2, 2))),  # two solids
+        # a plate and a fin: the longest rays (10 mm, along the fin) hold 0.67 mm balls, the
+        # plate's 1 mm rays 1 mm balls
+        lambda: fuse(box((0, 0, 0), (10, 10, 1)), box((3.23, 0, 0), (3.43, 10, 9))),
+    ],
+)
+def test_the_ball_is_the_largest_of_its_candidates_inside(make):
+    shape = make()
+    assert solids._largest_ball(shape) == _every_candidate_classified(shape) > 0.0
+
+
 def test_pairs_timed_here_then_sent_to_workers_give_the_same_findings(tmp_path, monkeypatch):
     # With the workers' start free and no expected seconds a pair, the fixed estimate keeps the
     # pairs here; the first pair's measured seconds then send the rest to the workers.

@@ -514,9 +514,15 @@ def _largest_ball(shape) -> float:
 
     For each seed (the centroids of a coarse tessellation's largest facets), a ray goes from the
     seed into the solid along the facet's inward normal; the midpoint between the seed and where
-    the ray leaves is kept when OpenCASCADE classifies it inside, with the exact distance from it
-    to the solid's surface as the radius. Each ball is inside the solid, so the largest is a
-    lower bound on its depth.
+    the ray leaves is a candidate centre, with the exact distance from it to the solid's surface
+    as its radius; a ball whose centre OpenCASCADE classifies inside is inside the solid, so the
+    largest of them is a lower bound on its depth.
+
+    Classifying a point against B-spline faces costs several distances to the surface (35 ms
+    against 7 ms in a screw thread's shared solid), so not every candidate is classified: the
+    rays are measured longest first (a diameter is at most its ray's length), the largest ball
+    measured is classified once no ray left can beat it, and the first one inside is the
+    largest inside, the same as classifying them all.
     """
     from OCP.BRepClass3d import BRepClass3d_SolidClassifier
     from OCP.IntCurvesFace import IntCurvesFace_ShapeIntersector
@@ -524,26 +530,32 @@ def _largest_ball(shape) -> float:
 
     best = 0.0
     for solid in _solids(shape):
-        classifier = BRepClass3d_SolidClassifier(solid)
         intersector = IntCurvesFace_ShapeIntersector()
         intersector.Load(solid, 1e-9)
-        rays = []
-        for point, inward in _seeds(solid):
+        rays = []  # (exit_at, seed order, centre)
+        for order, (point, inward) in enumerate(_seeds(solid)):
             exit_at = _ray_exit(intersector, point, inward)
-            if exit_at is not None:
-                rays.append((exit_at, point, inward))
-        # A ball's centre is exit_at / 2 from its seed, a point of the surface: its diameter is
-        # at most exit_at. Longest rays first, so the seeds that cannot beat the best ball are
-        # never classified or measured.
-        rays.sort(key=lambda ray: -ray[0])
-        for exit_at, point, inward in rays:
-            if exit_at <= best:
+            if exit_at is not None and exit_at > best:
+                rays.append((exit_at, order, point + 0.5 * exit_at * inward))
+        # The centre is exit_at / 2 from its seed, a point of the surface: its diameter is at
+        # most exit_at.
+        rays.sort(key=lambda ray: (-ray[0], ray[1]))
+        measured: list[tuple[float, int, np.ndarray]] = []  # (diameter, order, centre)
+        classifier = None
+        for k in range(len(rays) + 1):
+            beaten = rays[k][0] if k < len(rays) else best
+            while measured and measured[0][0] > best and measured[0][0] >= beaten:
+                diameter, _, centre = measured.pop(0)
+                if classifier is None:
+                    classifier = BRepClass3d_SolidClassifier(solid)
+                classifier.Perform(_pnt(centre), 1e-12)
+                if classifier.State() == TopAbs_IN:
+                    best = diameter
+            if k == len(rays) or rays[k][0] <= best:
                 break
-            centre = point + 0.5 * exit_at * inward
-            classifier.Perform(_pnt(centre), 1e-12)
-            if classifier.State() != TopAbs_IN:
-                continue
-            best = max(best, 2.0 * _distance_to_surface(solid, centre))
+            _, order, centre = rays[k]
+            measured.append((2.0 * _distance_to_surface(solid, centre), order, centre))
+            measured.sort(key=lambda ball: (-ball[0], ball[1]))
     return best
 
 
