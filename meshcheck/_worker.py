@@ -11,6 +11,9 @@ Messages from the parent::
     ("put", key, value)          keep ``value`` under ``key`` for later tasks
     ("run", function, needs, args)  call the named meshcheck function, reply with its result
 
+Its one optional argument names a function (``module:name``) it calls first, before it says
+it is ready: the imports its tasks will need, made while the parent loads the inputs.
+
 Replies: ``("ready",)`` once at start, then ``("ok", result)`` or ``("error", text)`` per task.
 The worker exits when its standard input closes (the parent finished or died).
 """
@@ -34,14 +37,18 @@ def main() -> None:
     os.dup2(2, 1)
     sys.stdout = sys.stderr
 
-    from meshcheck.execute import call
+    from meshcheck.execute import call, resolve
 
+    if len(sys.argv) > 1:  # the parent's prepare function (Executor.prepare): imports
+        resolve(sys.argv[1])()
+    replies = _Replies(send)
     store: dict = {}
-    send.send(("ready",))
+    replies.put(("ready",))
     while True:
         try:
             message = receive.recv()
         except (EOFError, OSError):
+            replies.close()
             return
         if message[0] == "put":
             store[message[1]] = message[2]
@@ -53,10 +60,43 @@ def main() -> None:
             import traceback
 
             reply = ("error", traceback.format_exc())
-        try:
-            send.send(reply)
-        except (BrokenPipeError, OSError):
+        if not replies.put(reply):
             return
+
+
+class _Replies:
+    """The replies to the parent, in order, written by a thread of their own.
+
+    A reply larger than the pipe's buffer (a verdict with its shared solid's triangles) blocks
+    its writer until the parent reads it, and the parent reads nothing while it runs a task
+    itself (``execute._LocalRun.run_here``): written from here, the next task the parent has
+    already sent would wait for it."""
+
+    def __init__(self, connection):
+        import queue
+        import threading
+
+        self.connection, self.queue, self.is_broken = connection, queue.Queue(), False
+        self.thread = threading.Thread(target=self._write, daemon=True)
+        self.thread.start()
+
+    def put(self, reply) -> bool:
+        """Queue ``reply``; False once the parent is gone (a write failed)."""
+        self.queue.put(reply)
+        return not self.is_broken
+
+    def close(self) -> None:
+        """Write the replies queued, then stop."""
+        self.queue.put(None)
+        self.thread.join()
+
+    def _write(self) -> None:
+        while (reply := self.queue.get()) is not None:
+            try:
+                self.connection.send(reply)
+            except (BrokenPipeError, OSError):
+                self.is_broken = True
+                return
 
 
 if __name__ == "__main__":

@@ -103,10 +103,18 @@ class Executor:
     #: Indices (into the current map's tasks) of the tasks running now, for progress lines.
     running: tuple[int, ...] = ()
 
+    #: The ``prepare`` functions every running worker has called.
+    prepared: frozenset[str] = frozenset()
+
     @property
     def is_started(self) -> bool:
         """True when worker processes are already running (a map then costs no start-up)."""
         return False
+
+    def prepare(self, function: str) -> None:
+        """Start the workers a map will want now, each calling ``function`` (``module:name``,
+        no arguments: imports) before it takes a task, while this process loads the inputs.
+        Nothing here, nor on a cluster."""
 
     def map(
         self,
@@ -183,15 +191,24 @@ def sleep_then_pid(store: dict, seconds: float):
     return os.getpid()
 
 
+def sleep_then_bulk(store: dict, seconds: float, size: int) -> tuple[int, float, bytes]:
+    """A task that notes when it starts, sleeps, then returns the id of its process, that
+    time and ``size`` bytes (for tests of replies larger than a pipe's buffer)."""
+    started = time.time()
+    time.sleep(seconds)
+    return os.getpid(), started, bytes(size)
+
+
 def exit_worker(store: dict, code: int):
     """A task that ends its process at once (for tests of lost workers)."""
     os._exit(code)
 
 
 class _Worker:
-    """One ``python -m meshcheck._worker`` process and its two pipe ends."""
+    """One ``python -m meshcheck._worker`` process and its two pipe ends; ``prepare``: a
+    function it calls before it says it is ready (``Executor.prepare``)."""
 
-    def __init__(self):
+    def __init__(self, prepare: str | None = None):
         import subprocess
         from multiprocessing.connection import Connection
 
@@ -203,7 +220,7 @@ class _Worker:
         package_root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
         env["PYTHONPATH"] = os.pathsep.join(p for p in (package_root, env.get("PYTHONPATH")) if p)
         self.process = subprocess.Popen(
-            [sys.executable, "-P", "-m", "meshcheck._worker"],
+            [sys.executable, "-P", "-m", "meshcheck._worker", *([prepare] if prepare else [])],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             env=env,
@@ -215,6 +232,7 @@ class _Worker:
         self.process.stdout.close()
         self.keys: set = set()
         self.task: int | None = None  # index of the task running, None when idle
+        self.queued: int | None = None  # index of the task sent to run after it (``run_here``)
         self.started = 0.0
         self.is_ready = False
 
@@ -268,6 +286,12 @@ class LocalPool(Executor):
     def is_started(self) -> bool:
         return bool(self.workers)
 
+    def prepare(self, function: str) -> None:
+        # One worker fewer than jobs: a map that lets this process help wants no more.
+        if not self.workers:
+            self.workers = [_Worker(function) for _ in range(self.jobs - 1)]
+            self.prepared = frozenset({function})
+
     #: Index of the task this process runs itself (``map(here=True)``), None otherwise.
     here_task: int | None = None
 
@@ -304,6 +328,7 @@ class LocalPool(Executor):
         workers keep dying before they start."""
         worker.kill()
         self.workers.remove(worker)
+        self.prepared = frozenset()  # its replacement calls no prepare function
         if not worker.is_ready:
             self.failed_starts += 1
             if self.failed_starts >= self.MAX_FAILED_STARTS:
@@ -320,6 +345,7 @@ class LocalPool(Executor):
             else:
                 worker.kill()
         self.workers = []
+        self.prepared = frozenset()
 
 
 class _LocalRun:
@@ -356,8 +382,22 @@ class _LocalRun:
         return self.results
 
     def run_here(self) -> None:
-        """Run the smallest pending task in this process (the workers take the largest first,
-        so the workers' messages wait at most a small task)."""
+        """Run the smallest pending task in this process (the workers take the largest first).
+
+        This process reads no message while it runs a task, so each busy worker is first sent
+        its next task as well: it starts it as soon as it finishes the one it runs, instead of
+        waiting idle for this one (which may be as long as its own when every task is large).
+        Only a task whose shared values the worker already holds is sent ahead: a worker reads
+        nothing while it runs a task, so a large value would block this process until it is done.
+        """
+        for worker in self.pool.workers:
+            if worker.task is None or worker.queued is not None:
+                continue
+            held = [i for i in self.pending if worker.keys.issuperset(self.tasks[i].needs)]
+            if len(self.pending) > 1 and held:
+                self.pending.remove(held[0])
+                self.pending.appendleft(held[0])
+                self.start(worker, queued=True)
         index = self.pending.pop()
         task = self.tasks[index]
         if self.store is None:
@@ -394,21 +434,30 @@ class _LocalRun:
             return
         if message[0] == "error":
             raise RuntimeError(f"a meshcheck worker failed:\n{message[1]}")
-        if message[0] == "ok":
+        if message[0] == "ready":
+            worker.is_ready = True
+        else:
             self.results[worker.task] = message[1]
             self.count_finished()
-        worker.task, worker.is_ready = None, True
-        if self.pending:
+            worker.task = None
+        if worker.queued is not None:  # already sent: it runs now
+            worker.task, worker.queued, worker.started = worker.queued, None, time.monotonic()
+        elif self.pending:
             self.start(worker)
 
     def lost(self, worker: _Worker) -> None:
+        if worker.queued is not None:  # sent, never started: another process takes it
+            self.pending.appendleft(worker.queued)
+            worker.queued = None
         self.pool.replace_lost(worker)
         if worker.task is not None:
             self.count_finished()  # results[task] stays None: the caller decides what it means
         if self.pending and len(self.pool.workers) < self.wanted:
             self.pool.workers.append(_Worker())
 
-    def start(self, worker: _Worker) -> None:
+    def start(self, worker: _Worker, *, queued: bool = False) -> None:
+        """Send ``worker`` the largest pending task: to run now, or ``queued`` after the one it
+        runs."""
         index = self.pending.popleft()
         task = self.tasks[index]
         try:
@@ -419,10 +468,14 @@ class _LocalRun:
             worker.send_end.send(("run", self.function, task.needs, task.args))
         except (BrokenPipeError, OSError):  # it died before taking the task: put it back
             self.pending.appendleft(index)
-            worker.task = None
+            if not queued:
+                worker.task = None
             self.lost(worker)
             return
-        worker.task, worker.started = index, time.monotonic()
+        if queued:
+            worker.queued = index
+        else:
+            worker.task, worker.started = index, time.monotonic()
 
 
 class DaskExecutor(Executor):

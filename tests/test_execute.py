@@ -98,6 +98,24 @@ def test_here_this_process_works_beside_one_worker_fewer():
     assert Executor().map("meshcheck.execute:echo", [Task((1,))], here=True) == [1]
 
 
+def test_a_worker_starts_its_next_task_while_this_process_runs_a_long_one():
+    """While this process runs a task it reads no reply; a worker whose reply is larger than
+    the pipe holds must still go on to its next task at once, not wait for it."""
+    tasks = [  # the worker takes the two larger tasks, this process the long small one
+        Task((0.5, 1 << 20), size=3),
+        Task((0.5, 1 << 20), size=2),
+        Task((2.0, 1 << 20), size=1),
+    ]
+    with LocalPool(2) as pool:
+        pool.map("meshcheck.execute:echo", [Task((0,))])  # started and ready
+        (pid, first, _), (_, second, _), (here, long_one, _) = pool.map(
+            "meshcheck.execute:sleep_then_bulk", tasks, here=True
+        )
+    assert here == os.getpid() != pid
+    assert second - first < 1.5  # not after this process's 2 s task: right after its first
+    assert second < long_one + 2.0
+
+
 def test_shared_values_travel_once_per_worker():
     shared = {"m": list(range(1000))}
     tasks = [Task(("m",), needs=("m",)) for _ in range(6)]
