@@ -43,6 +43,7 @@ from .execute import Executor, executor_for
 from .geometry import ConvexPack, Status, pack_convex, place_packs, query_pairs, support_points
 from .geometry.broadphase import candidate_pairs, group_pairs
 from .load import Body, Limits, load_assembly, local_geometries
+from .load.files import STEP_EXTENSIONS
 from .load.limits import check_candidate_pairs
 from .load.robot import Mechanism
 from .outcome import CheckResult
@@ -53,7 +54,13 @@ from .sweep import audit_srdf, mechanism_pieces, sweep_bodies, with_adjacent_app
 from .tolerances import part_sizes
 from .units import DEFAULT_UNIT
 from .verify import verify_classes
-from .verify.brep import decide_on_brep, largest_reach_margin, reach_margin, warn_unconfirmed
+from .verify.brep import (
+    PRELOAD,
+    decide_on_brep,
+    largest_reach_margin,
+    reach_margin,
+    warn_unconfirmed,
+)
 from .verify.clash_tests import (
     held_by_any,
     judged,
@@ -126,6 +133,8 @@ def check(
             executor_for(jobs=settings.jobs, scheduler=settings.scheduler) as executor,
         ):
             warnings.simplefilter("always", MeshcheckWarning)
+            if any(p.lower().endswith(STEP_EXTENSIONS) for p in paths):
+                executor.prepare(PRELOAD)  # workers import OpenCASCADE while the file is read
             caches = open_caches(settings.cache_dir)  # each cache once, the key read once
             with Progress("loading", 0) as bar:
                 limits = None

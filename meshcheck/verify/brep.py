@@ -95,6 +95,8 @@ FORMAT_VERSION = 2
 #: CPU an intersection of as1-oc-214.stp's coincident B-spline shanks and holes, a few
 #: milliseconds on analytic cylinders and planes (measured on the shared 2-core machine).
 PAIR_SECONDS = 0.15
+#: What a run with STEP files has its workers import while it reads them (``Executor.prepare``).
+PRELOAD = "meshcheck.verify.solids:preload"
 #: Seconds a worker spends before its first pair, loading OpenCASCADE and reading the products'
 #: BRep text: 1.2 s of CPU on the shared 2-core machine (``-j 2`` against ``-j 1`` on
 #: box_sides.STEP, the same run).
@@ -453,7 +455,7 @@ def _screened(bodies, pairs, near_surfaces, settings) -> list[_PairJob | None]:
 def _pays_in_workers(executor: Executor | None, pairs: int, seconds: float | None = None) -> bool:
     """Whether deciding ``pairs`` pairs (``seconds`` each, default ``PAIR_SECONDS``) in
     ``executor``'s workers saves more than their start and their loading OpenCASCADE
-    (``WORKER_SECONDS``) cost."""
+    (``WORKER_SECONDS``, unless they loaded it while the file was read: ``PRELOAD``) cost."""
     from .batch import POOL_SECONDS
 
     if executor is None or not pairs:
@@ -462,7 +464,9 @@ def _pays_in_workers(executor: Executor | None, pairs: int, seconds: float | Non
         return True
     if not _may_pay(executor):
         return False
-    start = WORKER_SECONDS + (0.0 if executor.is_started else POOL_SECONDS)
+    start = 0.0 if executor.is_started else POOL_SECONDS
+    if PRELOAD not in executor.prepared:
+        start += WORKER_SECONDS
     each = PAIR_SECONDS if seconds is None else seconds
     return pairs * each * (1.0 - 1.0 / executor.jobs) > start
 
