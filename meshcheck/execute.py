@@ -199,6 +199,11 @@ def sleep_then_bulk(store: dict, seconds: float, size: int) -> tuple[int, float,
     return os.getpid(), started, bytes(size)
 
 
+def is_imported(store: dict, module: str) -> bool:
+    """A task that says whether its process has imported ``module`` (for tests)."""
+    return module in sys.modules
+
+
 def exit_worker(store: dict, code: int):
     """A task that ends its process at once (for tests of lost workers)."""
     os._exit(code)

@@ -116,6 +116,19 @@ def test_a_worker_starts_its_next_task_while_this_process_runs_a_long_one():
     assert second < long_one + 2.0
 
 
+def test_prepared_workers_import_before_their_first_task():
+    """``prepare`` starts the workers a map with this process helping wants (jobs - 1), each
+    calling the function before it is ready; a worker started by a map calls none."""
+    ask = [Task(("OCP.BOPAlgo",))]
+    with LocalPool(2) as pool:
+        pool.prepare("meshcheck.verify.solids:preload")
+        assert len(pool.workers) == 1 and pool.prepared == {"meshcheck.verify.solids:preload"}
+        assert pool.map("meshcheck.execute:is_imported", ask) == [True]
+    with LocalPool(2) as pool:
+        assert pool.map("meshcheck.execute:is_imported", ask) == [False]
+        assert pool.prepared == frozenset()
+
+
 def test_shared_values_travel_once_per_worker():
     shared = {"m": list(range(1000))}
     tasks = [Task(("m",), needs=("m",)) for _ in range(6)]
