@@ -345,10 +345,10 @@ class LocalPool(Executor):
 
     def close(self) -> None:
         for worker in self.workers:
-            if worker.task is None:
+            if worker.task is None and worker.is_ready:
                 worker.stop()
-            else:
-                worker.kill()
+            else:  # busy, or still starting (a prepared worker importing for a run that
+                worker.kill()  # needed none of it: a warm run)
         self.workers = []
         self.prepared = frozenset()
 
