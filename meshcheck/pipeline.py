@@ -43,7 +43,6 @@ from .execute import Executor, executor_for
 from .geometry import ConvexPack, Status, pack_convex, place_packs, query_pairs, support_points
 from .geometry.broadphase import candidate_pairs, group_pairs
 from .load import Body, Limits, load_assembly, local_geometries
-from .load.files import STEP_EXTENSIONS
 from .load.limits import check_candidate_pairs
 from .load.robot import Mechanism
 from .outcome import CheckResult
@@ -55,9 +54,9 @@ from .tolerances import part_sizes
 from .units import DEFAULT_UNIT
 from .verify import verify_classes
 from .verify.brep import (
-    PRELOAD,
     decide_on_brep,
     largest_reach_margin,
+    prepare_workers,
     reach_margin,
     warn_unconfirmed,
 )
@@ -133,8 +132,7 @@ def check(
             executor_for(jobs=settings.jobs, scheduler=settings.scheduler) as executor,
         ):
             warnings.simplefilter("always", MeshcheckWarning)
-            if any(p.lower().endswith(STEP_EXTENSIONS) for p in paths):
-                executor.prepare(PRELOAD)  # workers import OpenCASCADE while the file is read
+            prepare_workers(executor, paths)  # OpenCASCADE loads while STEP files are read
             caches = open_caches(settings.cache_dir)  # each cache once, the key read once
             with Progress("loading", 0) as bar:
                 limits = None

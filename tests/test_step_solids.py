@@ -347,3 +347,18 @@ def test_the_solids_travel_to_workers_as_brep_text(tmp_path):
     shape = solids._shape(store, ("brep", "p"))
     assert solids.is_closed_solid(shape)
     assert solids._shape(store, ("brep", "p")) is shape  # read once per process
+
+
+def test_workers_start_loading_opencascade_for_large_step_files_only(tmp_path):
+    small, large = tmp_path / "small.step", tmp_path / "large.STP"
+    small.write_bytes(b"x" * 1000)
+    large.write_bytes(b"x" * brep.PREPARE_BYTES)
+    for paths, prepared in (
+        ([str(small), str(tmp_path / "missing.step")], False),  # the loader reports it
+        ([str(large)], True),
+    ):
+        with LocalPool(2) as pool:
+            brep.prepare_workers(pool, paths)
+            assert (len(pool.workers), pool.prepared) == (
+                (1, {brep.PRELOAD}) if prepared else (0, frozenset())
+            )

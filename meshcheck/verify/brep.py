@@ -66,6 +66,7 @@ it (``warn_unconfirmed``).
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import functools
 import json
@@ -95,8 +96,29 @@ FORMAT_VERSION = 2
 #: CPU an intersection of as1-oc-214.stp's coincident B-spline shanks and holes, a few
 #: milliseconds on analytic cylinders and planes (measured on the shared 2-core machine).
 PAIR_SECONDS = 0.15
-#: What a run with STEP files has its workers import while it reads them (``Executor.prepare``).
+#: What a run with large STEP files has its workers import while it reads them
+#: (``prepare_workers``).
 PRELOAD = "meshcheck.verify.solids:preload"
+#: STEP files of this many bytes together have their workers started as the run starts: the
+#: fastener-heavy exports (2.3-3.4 MB) spend 10-30 s of CPU on the B-rep, where the files below
+#: 1 MB (box_sides.STEP, the AS1 assemblies, a KiCad board) decide theirs in less than a
+#: worker's start-up, and a worker started for nothing costs 1.2 s of CPU.
+PREPARE_BYTES = 1 << 20
+
+
+def prepare_workers(executor: Executor, paths: Sequence[str]) -> None:
+    """Start ``executor``'s workers loading OpenCASCADE while this process reads the STEP
+    files among ``paths``, when they are large enough (``PREPARE_BYTES``) for their B-rep pairs
+    to repay it."""
+    size = 0
+    for path in paths:
+        if path.lower().endswith(STEP_EXTENSIONS):
+            with contextlib.suppress(OSError):  # the loader says what is wrong with it
+                size += os.path.getsize(path)
+    if size >= PREPARE_BYTES:
+        executor.prepare(PRELOAD)
+
+
 #: Seconds a worker spends before its first pair, loading OpenCASCADE and reading the products'
 #: BRep text: 1.2 s of CPU on the shared 2-core machine (``-j 2`` against ``-j 1`` on
 #: box_sides.STEP, the same run).
