@@ -119,7 +119,7 @@ def test_a_worker_starts_its_next_task_while_this_process_runs_a_long_one():
 def test_prepared_workers_import_before_their_first_task():
     """``prepare`` starts the workers a map with this process helping wants (jobs - 1), each
     calling the function before it is ready; a worker started by a map calls none."""
-    ask = [Task(("OCP.BOPAlgo",))]
+    ask = [Task(("OCP.OCP",))]  # the extension holding every OpenCASCADE module
     with LocalPool(2) as pool:
         pool.prepare("meshcheck.verify.solids:preload")
         assert len(pool.workers) == 1 and pool.prepared == {"meshcheck.verify.solids:preload"}

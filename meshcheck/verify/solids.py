@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import heapq
 import io
 import math
 
@@ -53,24 +54,10 @@ def brep_task(store: dict, item: tuple) -> PairVerdict | str:
 
 
 def preload() -> None:
-    """Import what ``brep_task`` needs (OpenCASCADE's bindings, 0.8 s of CPU): a worker started
-    while its parent reads a STEP file calls it before its first pair (``Executor.prepare``)."""
-    import importlib
-
-    for module in (
-        "OCP.BOPAlgo",
-        "OCP.BRep",
-        "OCP.BRepAlgoAPI",
-        "OCP.BRepClass3d",
-        "OCP.BRepExtrema",
-        "OCP.BRepGProp",
-        "OCP.BRepMesh",
-        "OCP.BRepTools",
-        "OCP.IntCurvesFace",
-        "OCP.TopoDS",
-        "meshcheck.verify.analytic",
-    ):
-        importlib.import_module(module)
+    """Import OpenCASCADE's bindings for ``brep_task`` (one extension: any of its modules loads
+    all of it, 0.8-1.0 s of CPU): a worker started while its parent reads a STEP file calls it
+    before its first pair (``Executor.prepare``)."""
+    import OCP.TopoDS  # noqa: F401
 
 
 def _shape(store: dict, product) -> object:
@@ -553,30 +540,32 @@ def _largest_ball(shape) -> float:
     for solid in _solids(shape):
         intersector = IntCurvesFace_ShapeIntersector()
         intersector.Load(solid, 1e-9)
-        rays = []  # (exit_at, seed order, centre)
+        rays = []  # (exit_at, seed order, centre), longest first
         for order, (point, inward) in enumerate(_seeds(solid)):
             exit_at = _ray_exit(intersector, point, inward)
+            # The centre is exit_at / 2 from its seed, a point of the surface: its diameter is
+            # at most exit_at, so a ray no longer than the best ball cannot beat it.
             if exit_at is not None and exit_at > best:
                 rays.append((exit_at, order, point + 0.5 * exit_at * inward))
-        # The centre is exit_at / 2 from its seed, a point of the surface: its diameter is at
-        # most exit_at.
         rays.sort(key=lambda ray: (-ray[0], ray[1]))
-        measured: list[tuple[float, int, np.ndarray]] = []  # (diameter, order, centre)
-        classifier = None
-        for k in range(len(rays) + 1):
-            beaten = rays[k][0] if k < len(rays) else best
-            while measured and measured[0][0] > best and measured[0][0] >= beaten:
-                diameter, _, centre = measured.pop(0)
-                if classifier is None:
-                    classifier = BRepClass3d_SolidClassifier(solid)
-                classifier.Perform(_pnt(centre), 1e-12)
-                if classifier.State() == TopAbs_IN:
-                    best = diameter
-            if k == len(rays) or rays[k][0] <= best:
+        measured: list = []  # heap of (-diameter, seed order, centre)
+        classifier, k = None, 0
+        while True:  # balls largest first: measure rays while one may hold a larger ball
+            while k < len(rays) and (not measured or -measured[0][0] < rays[k][0]):
+                _, order, centre = rays[k]
+                heapq.heappush(
+                    measured, (-2.0 * _distance_to_surface(solid, centre), order, centre)
+                )
+                k += 1
+            if not measured or -measured[0][0] <= best:
                 break
-            _, order, centre = rays[k]
-            measured.append((2.0 * _distance_to_surface(solid, centre), order, centre))
-            measured.sort(key=lambda ball: (-ball[0], ball[1]))
+            diameter, _, centre = heapq.heappop(measured)
+            if classifier is None:
+                classifier = BRepClass3d_SolidClassifier(solid)
+            classifier.Perform(_pnt(centre), 1e-12)
+            if classifier.State() == TopAbs_IN:
+                best = -diameter
+                break
     return best
 
 
