@@ -396,13 +396,12 @@ class _LocalRun:
         nothing while it runs a task, so a large value would block this process until it is done.
         """
         for worker in self.pool.workers:
-            if worker.task is None or worker.queued is not None:
+            if worker.task is None or worker.queued is not None or len(self.pending) < 2:
                 continue
-            held = [i for i in self.pending if worker.keys.issuperset(self.tasks[i].needs)]
-            if len(self.pending) > 1 and held:
-                self.pending.remove(held[0])
-                self.pending.appendleft(held[0])
-                self.start(worker, queued=True)
+            held = (i for i in self.pending if worker.keys.issuperset(self.tasks[i].needs))
+            index = next(held, None)
+            if index is not None:
+                self.start(worker, queued=True, index=index)
         index = self.pending.pop()
         task = self.tasks[index]
         if self.store is None:
@@ -460,10 +459,13 @@ class _LocalRun:
         if self.pending and len(self.pool.workers) < self.wanted:
             self.pool.workers.append(_Worker())
 
-    def start(self, worker: _Worker, *, queued: bool = False) -> None:
-        """Send ``worker`` the largest pending task: to run now, or ``queued`` after the one it
-        runs."""
-        index = self.pending.popleft()
+    def start(self, worker: _Worker, *, queued: bool = False, index: int | None = None) -> None:
+        """Send ``worker`` the largest pending task (or the pending task ``index``): to run now,
+        or ``queued`` after the one it runs."""
+        if index is None:
+            index = self.pending.popleft()
+        else:
+            self.pending.remove(index)
         task = self.tasks[index]
         try:
             for key in task.needs:
