@@ -338,7 +338,7 @@ def test_descent_finds_a_collision_sampling_misses(a, b):
     values = lower + (upper - lower) * np.random.default_rng(0).random((512, len(names)))
     ta, tb, _ = pair.placements(values)
     nearest = NearestCentres(8)
-    nearest.add(pair.distances(ta, tb, np.full(len(values), 1.0)), values)
+    nearest.add(pair.distances(ta, tb, np.full(len(values), 1.0))[0], values)
     found = descent_witness(pair, lower, upper, nearest.values, 512)
     assert found is not None and found.status == "sometimes"
     pose = dict(base, **found.witness)

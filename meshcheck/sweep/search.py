@@ -272,14 +272,14 @@ class LinkPair:
         return lowest - grown
 
     def distances(
-        self, ta: np.ndarray, tb: np.ndarray, reach: np.ndarray, *, pieces: bool = False
-    ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+        self, ta: np.ndarray, tb: np.ndarray, reach: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Lower bounds on the distance between the two links' surfaces at placements ``ta``,
         ``tb``: from the coarse pieces (``piece_distances``), and where those come within
         ``reach`` and the reach is below ``FINE_REACH`` of the smaller link's size, the real
         meshes' exact distance (``surface_distance``: its cost grows with the triangle pairs
-        within reach, so it waits for boxes small enough that it can close them). With
-        ``pieces``, also the pieces' bounds alone."""
+        within reach, so it waits for boxes small enough that it can close them); and the
+        pieces' bounds alone."""
         a, b = self.links[self.a], self.links[self.b]
         work = [0]
         coarse = piece_distances(
@@ -295,7 +295,7 @@ class LinkPair:
                 a, b, ta[e], tb[e], float(reach[e]), settle=True, work=work
             )
         self.work += work[0]
-        return (lowest, coarse) if pieces else lowest
+        return lowest, coarse
 
     def piece_distances(self, ta: np.ndarray, tb: np.ndarray, reach: float) -> np.ndarray:
         """The coarse pieces' signed distance bounds at placements ``ta``, ``tb`` (values above
@@ -513,7 +513,7 @@ def box_search(
         rates = pair.joint_rates(ta, tb, axes, half)
         w = combined_weights(pair.sides, rates, half.shape)
         bound = np.sum(half * w, axis=1) + pair.tolerance
-        lowest, coarse = pair.distances(ta, tb, bound, pieces=True)
+        lowest, coarse = pair.distances(ta, tb, bound)
         evaluated += len(centre)
         if not witnesses and np.any(lowest <= pair.tolerance):
             return pair.outcome(SweepStatus.UNDECIDED, evaluated)  # no proof can close that box
@@ -785,7 +785,7 @@ def sampled_witness(pair: LinkPair, lower: np.ndarray, upper: np.ndarray) -> Pai
     rng = np.random.default_rng(0)
     values = lower + (upper - lower) * rng.random((SAMPLES, len(lower)))
     ta, tb, _ = pair.placements(values)
-    lowest = pair.distances(ta, tb, np.full(SAMPLES, pair.tolerance))
+    lowest, _ = pair.distances(ta, tb, np.full(SAMPLES, pair.tolerance))
     order = np.argsort(lowest, kind="stable")[:SAMPLE_CHECKS]
     return first_witness(pair, values[order[lowest[order] <= pair.tolerance]], SAMPLES)
 
