@@ -218,3 +218,86 @@ def test_the_interpolation_error_is_within_its_bound(hull_pairs, key, size, seed
             interpolated = np.einsum("k,kni->ni", weights, copies)
             error += np.linalg.norm(exact - interpolated, axis=1).max()
         assert error <= grown[0] + 1e-9
+
+
+def pocket_wall(path) -> str:
+    """The three-link arm of ``arm`` before a wall with a wide pocket, as one mesh (so its one
+    convex piece, its hull, fills the pocket): a back plate whose face is 1 cm past the arm's
+    reach along x, and two jaws that stand out of it around the arm's tip, outside the sphere
+    the arm's points stay in (their nearest point is about 4.6 cm past it). Never: but the tip
+    lies inside the wall's hull near the straight pose, so only the real triangles prove it."""
+    back = trimesh.creation.box((0.1, 3.0, 2.0))
+    back.apply_translation((REACH + 0.01 + 0.05, 0.0, 0.0))
+    jaws = []
+    for side in (1.0, -1.0):
+        jaw = trimesh.creation.box((0.31, 0.2, 2.0))
+        jaw.apply_translation((REACH - 0.2 + 0.155, side * 1.3, 0.0))
+        jaws.append(jaw)
+    trimesh.util.concatenate([back, *jaws]).export(path / "wall.stl")
+    text = arm(REACH + 0.01)
+    return text.replace(
+        '<geometry><box size="0.1 2 2"/></geometry>',
+        '<geometry><mesh filename="wall.stl"/></geometry>',
+    ).replace(f'<origin xyz="{REACH + 0.01 + 0.05} 0 0"/><geometry><mesh', "<geometry><mesh")
+
+
+def test_a_tip_in_a_pocket_its_wall_hull_fills_is_proven_never_by_its_triangles(
+    tmp_path, monkeypatch
+):
+    """The wall's one convex piece (its hull) overlaps the arm's tip wherever the tip is near
+    its reach, so the pieces' corner test cannot close those boxes; the triangles' corner test
+    (``LinkPair.triangle_corner_bound``) does, within 6,000 boxes. Without it the pair is
+    undecided there (first order, the triangles need boxes 3 m per radian of the first joint
+    small)."""
+    urdf = tmp_path / "arm.urdf"
+    urdf.write_text(pocket_wall(tmp_path))
+    pair, (lower, upper), meshes = hull_pair(str(urdf), "l3", "wall")
+    straight = np.zeros(len(lower))
+    ta, tb, _ = pair.placements(straight[None, :])
+    assert pair.piece_distances(ta, tb, np.inf)[0] < 0.0  # the hull holds the tip
+    assert real_distance(pair, meshes, straight) == pytest.approx(REACH + 0.01 - 3.0, abs=1e-6)
+    monkeypatch.setattr(search, "MAX_BOXES", 6_000)
+    monkeypatch.setattr(search, "CORNER_AFTER", 0)
+    found = search.sweep_pair(pair, lower, upper, 0.001)
+    assert found.status == "never"
+    monkeypatch.setattr(search.LinkPair, "triangle_corner_bound", lambda *args: -np.inf)
+    again, *_ = hull_pair(str(urdf), "l3", "wall")
+    assert search.sweep_pair(again, lower, upper, 0.001).status == "undecided"
+
+
+@hypothesis_settings(max_examples=30, derandomize=True, deadline=None)
+@given(
+    st.sampled_from(sorted(PAIRS)),
+    st.floats(0.002, 0.2),
+    st.floats(0.1, 0.9),
+    st.integers(0, 2**32 - 1),
+)
+def test_a_box_the_triangles_corner_test_clears_is_clear_everywhere_in_it(
+    hull_pairs, key, size, share, seed
+):
+    """For a random box and a tolerance a random ``share`` of the real distance at its
+    centre, a box ``LinkPair.triangle_corner_bound`` certifies (above the tolerance) has
+    python-fcl's distance between the real meshes above the tolerance at its centre, its
+    corners and random poses within it; and when it does not certify, its value is some
+    triangle pair's (never above the real distance at the centre by more than the bound's
+    ``grown``)."""
+    import dataclasses
+
+    pair, (lower, upper), meshes = hull_pairs[key]
+    rng = np.random.default_rng(seed)
+    centre, half, lo, hi = random_box(rng, lower, upper, size)
+    exact = real_distance(pair, meshes, centre)
+    pair = dataclasses.replace(pair, tolerance=share * exact)
+    axes: dict = {}
+    ta, tb, _ = pair.placements(centre[None, :], axes)
+    rates = pair.joint_rates(ta, tb, axes, half[None, :])
+    chosen, grown, _ = pair.corner_plan(half[None, :], rates)
+    first = float(half @ pair.box_weights(ta, tb, axes, half[None, :])[0]) + pair.tolerance
+    bound = pair.triangle_corner_bound(lo, hi, chosen[0], float(grown[0]), ta[0], tb[0], first)
+    if bound > pair.tolerance:
+        poses = [centre, lo, hi, *(centre + half * rng.uniform(-1, 1, (3, len(lower))))]
+        poses.append(np.where(rng.random(len(lower)) < 0.5, lo, hi))
+        for values in poses:
+            assert real_distance(pair, meshes, values) > pair.tolerance
+    else:
+        assert bound <= exact + 1e-9

@@ -38,6 +38,7 @@ from .support import (
     place_packs,
     repeat_pack,
     support_points,
+    triangle_pack,
 )
 
 __all__ = [
@@ -57,4 +58,5 @@ __all__ = [
     "repeat_pack",
     "signed_distance",
     "support_points",
+    "triangle_pack",
 ]
