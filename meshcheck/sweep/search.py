@@ -171,6 +171,7 @@ class LinkPair:
 
     def __post_init__(self):
         self.chains = joints_below_common(self.robot, (self.a, self.b))
+        self.a_boxes = None  # link a's triangles' boxes, its frame (triangle_corner_bound)
 
     def placements(self, values: np.ndarray, axes: dict | None = None):
         """(ta, tb, poses): the links' placements at the rows of ``values`` in the frame of
@@ -312,21 +313,31 @@ class LinkPair:
         their distances, less ``grown``, bounds the links' distance over the box. A value at
         most the tolerance is not the least."""
         a, b = self.links[self.a], self.links[self.b]
+        if self.a_boxes is None:
+            self.a_boxes = triangle_boxes(a.vertices, a.faces)
         relative = np.linalg.solve(ta, tb)
         moved = b.vertices @ relative[:3, :3].T + relative[:3, 3]
-        pairs = box_pairs(
-            *triangle_boxes(a.vertices, a.faces), *triangle_boxes(moved, b.faces), first
+        (alo, ahi), (blo, bhi) = self.a_boxes, triangle_boxes(moved, b.faces)
+        self.work += (len(a.faces) + len(b.faces)) // 64
+        # only triangles within reach of the other link's box can pair
+        near_a = np.flatnonzero(
+            np.all((alo <= bhi.max(axis=0) + first) & (ahi >= blo.min(axis=0) - first), axis=1)
         )
-        self.work += len(pairs) + (len(a.faces) + len(b.faces)) // 64
+        near_b = np.flatnonzero(
+            np.all((blo <= ahi.max(axis=0) + first) & (bhi >= alo.min(axis=0) - first), axis=1)
+        )
+        pairs = box_pairs(alo[near_a], ahi[near_a], blo[near_b], bhi[near_b], first)
+        self.work += len(pairs)
         if len(pairs) == 0:
             return np.inf
         if len(pairs) > MAX_TRIANGLE_PAIRS:
             return -np.inf  # the box is split instead: its halves have fewer
         placed, counts = self.corner_placements(lo[None], hi[None], chosen[None])
-        packs = [
-            triangle_pack(link.vertices, link.faces[np.unique(rows)])
-            for link, rows in ((a, pairs[:, 0]), (b, pairs[:, 1]))
-        ]
+        packs = []
+        for link, near, rows in ((a, near_a, pairs[:, 0]), (b, near_b, pairs[:, 1])):
+            used = np.zeros(len(near), bool)
+            used[rows] = True
+            packs.append(triangle_pack(link.vertices, link.faces[near[used]]))
         reach = np.array([grown + self.tolerance])
         lowest, work = copied_distances(
             packs[0], packs[1], placed[0], counts[0], placed[1], counts[1], reach,
@@ -603,8 +614,12 @@ def box_search(
             # (the real meshes' may be) are left to split
             hopeful = coarse[rows] > grown + pair.tolerance
             # where the pieces' corner test is not tried or fails, the triangles' may close
-            # the box (their pieces overlap there, their real meshes need not)
+            # the box (their pieces overlap there, their real meshes need not); a box small
+            # enough for the triangles' goes to it alone: each triangle lies in its piece, so
+            # it closes every box the pieces' would (unless it pairs MAX_TRIANGLE_PAIRS)
+            near = pair.triangle_reach()
             fine_rows, fine_chosen, fine_grown = rows, chosen, grown
+            hopeful &= bound[rows] > near
             rows, chosen, grown = rows[hopeful], chosen[hopeful], grown[hopeful]
             for k in range(0, len(rows), CORNER_BATCH):  # the work checked between batches
                 if pair.work > allowance:
@@ -617,12 +632,13 @@ def box_search(
                 )  # fmt: skip
                 open_[some[corner > pair.tolerance]] = False
                 evaluated += CORNER_BOXES * len(some)
-            near = pair.triangle_reach()
             for r, c, g in zip(fine_rows, fine_chosen, fine_grown, strict=True):
                 if pair.work > allowance:
                     break
                 if not open_[r] or bound[r] > near:
                     continue
+                if coarse[r] < lowest[r] <= pair.tolerance:
+                    continue  # the triangles meet at the centre: no corner test can close it
                 bound_r = pair.triangle_corner_bound(blo[r], bhi[r], c, g, ta[r], tb[r], bound[r])
                 open_[r] = bound_r <= pair.tolerance
                 evaluated += CORNER_BOXES
