@@ -309,7 +309,7 @@ def _units(values) -> tuple[str | None, tuple]:
     default=None,
     metavar="N",
     help="Work the sweep may do: each pose of a link pair costs the joints that move it, each "
-    "pair of convex pieces measured costs 1 (default 400 million; config key sweep_budget). "
+    "pair of convex pieces measured costs 1 (default 1,000 million; config key sweep_budget). "
     "Pairs left over are undecided, never proven apart.",
 )
 @click.option(

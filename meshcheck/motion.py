@@ -26,7 +26,7 @@ DEFAULT_RESOLUTION = 1e-3
 #: that move it, a convex-piece pair measured 1; see ``sweep.search.WorkBudget``). The PR2's
 #: 1,431 link pairs need about two fifths of it (``bench/sweep.py --robot pr2`` prints the work);
 #: any input, however many links, stops there with the pairs left over undecided.
-DEFAULT_SWEEP_BUDGET = 400_000_000
+DEFAULT_SWEEP_BUDGET = 1_000_000_000
 #: The largest budget accepted (a bound a CI job can still rely on).
 MAX_SWEEP_BUDGET = 10**12
 

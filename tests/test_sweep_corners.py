@@ -104,6 +104,9 @@ PAIRS = {
     # under the arm
     "fingers": (PR2, "l_gripper_l_finger_tip_link", "l_gripper_r_finger_tip_link"),
     "torso": (PR2, "base_link", "l_forearm_link"),
+    # one arm's upper arm roll link against the other's elbow: no joint moves both, so each
+    # link's copies are over its own corner joints
+    "arms": (PR2, "l_upper_arm_roll_link", "r_elbow_flex_link"),
 }
 
 
@@ -124,13 +127,13 @@ def random_box(rng, lower: np.ndarray, upper: np.ndarray, size: float):
     return centre, half, centre - half, centre + half
 
 
-def corner_bound(pair: LinkPair, lo: np.ndarray, hi: np.ndarray) -> float:
+def corner_bound(pair: LinkPair, lo: np.ndarray, hi: np.ndarray, separate: bool = False) -> float:
     """The corner test's lower bound on the links' distance over the box ``lo..hi``."""
     centre, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
     axes: dict = {}
     ta, tb, _ = pair.placements(centre[None, :], axes)
     rates = pair.joint_rates(ta, tb, axes, half[None, :])
-    chosen, grown, _ = pair.corner_plan(half[None, :], rates)
+    chosen, grown, _ = pair.corner_plan(half[None, :], rates, separate=separate)
     return float(pair.corner_bounds(lo[None, :], hi[None, :], chosen, grown, settle=False)[0])
 
 
@@ -149,15 +152,19 @@ def real_distance(pair: LinkPair, meshes: dict, values: np.ndarray) -> float:
     st.sampled_from(sorted(PAIRS)),
     st.floats(0.002, 0.5),
     st.integers(0, 2**32 - 1),
+    st.booleans(),
 )
-def test_the_corner_bound_is_never_above_the_real_distance_in_its_box(hull_pairs, key, size, seed):
+def test_the_corner_bound_is_never_above_the_real_distance_in_its_box(
+    hull_pairs, key, size, seed, separate
+):
     """For a random box (each joint's half-width up to ``size`` of its range), the corner
-    test's bound is at most python-fcl's distance between the real meshes at the box's
+    test's bound (corners over the joints that move most, or with ``separate`` over each
+    link's own) is at most python-fcl's distance between the real meshes at the box's
     corners, its centre and random poses within it."""
     pair, (lower, upper), meshes = hull_pairs[key]
     rng = np.random.default_rng(seed)
     centre, half, lo, hi = random_box(rng, lower, upper, size)
-    bound = corner_bound(pair, lo, hi)
+    bound = corner_bound(pair, lo, hi, separate)
     poses = [centre, lo, hi, *(centre + half * rng.uniform(-1, 1, (3, len(lower))))]
     poses.append(np.where(rng.random(len(lower)) < 0.5, lo, hi))
     for values in poses:
@@ -186,8 +193,9 @@ def test_the_corner_bound_is_tight_on_small_boxes(hull_pairs):
     st.sampled_from(sorted(PAIRS)),
     st.floats(0.002, 0.5),
     st.integers(0, 2**32 - 1),
+    st.booleans(),
 )
-def test_the_interpolation_error_is_within_its_bound(hull_pairs, key, size, seed):
+def test_the_interpolation_error_is_within_its_bound(hull_pairs, key, size, seed, separate):
     """The lemma the corner test rests on, for every hull point of both links at random poses
     ``q`` of a random box: the point's distance from the multilinear interpolant of its
     corner positions (the chosen joints at their extremes, the others at the centre), summed
@@ -198,7 +206,7 @@ def test_the_interpolation_error_is_within_its_bound(hull_pairs, key, size, seed
     axes: dict = {}
     ta, tb, _ = pair.placements(centre[None, :], axes)
     rates = pair.joint_rates(ta, tb, axes, half[None, :])
-    chosen, grown, _ = pair.corner_plan(half[None, :], rates)
+    chosen, grown, _ = pair.corner_plan(half[None, :], rates, separate=separate)
     chosen = chosen[0]
     bits = (np.arange(2 ** len(chosen))[:, None] >> np.arange(len(chosen))) & 1
     corners = np.repeat(centre[None, :], len(bits), axis=0)
@@ -301,3 +309,25 @@ def test_a_box_the_triangles_corner_test_clears_is_clear_everywhere_in_it(
             assert real_distance(pair, meshes, values) > pair.tolerance
     else:
         assert bound <= exact + 1e-9
+
+
+def test_corners_over_each_links_own_joints_when_no_joint_moves_both(hull_pairs):
+    """Known answer: one arm's upper arm roll link against the other's elbow (three joints
+    and four, none shared): with ``separate`` the corner test takes all seven, each link's
+    copies over its own (8 and 16); without, the five that move most. A gripper's two
+    fingers, moved by one joint they share, are not such a pair."""
+    pair, (lower, upper), _ = hull_pairs["arms"]
+    assert pair.has_separate_sides()
+    centre, half = 0.5 * (lower + upper), 0.01 * (upper - lower)
+    axes: dict = {}
+    ta, tb, _ = pair.placements(centre[None, :], axes)
+    rates = pair.joint_rates(ta, tb, axes, half[None, :])
+    both, _, _ = pair.corner_plan(half[None, :], rates, separate=True)
+    assert sorted(both[0].tolist()) == list(range(7))
+    plain, _, _ = pair.corner_plan(half[None, :], rates)
+    assert plain.shape == (1, search.CORNER_JOINTS)
+    lo, hi = centre - half, centre + half
+    _, counts = pair.corner_placements(lo[None], hi[None], both)
+    assert [int(c[0]) for c in counts] == [8, 16]
+    fingers, _, _ = hull_pairs["fingers"]
+    assert not fingers.has_separate_sides()

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from collections import Counter
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -87,6 +87,13 @@ SKIP_WORK = 64
 #: each piece): each costs more per box, and each clears boxes ``h / 2`` times wider along its
 #: joint; on the PR2's palm and shoulder (5 joints) five needed a ninth of the boxes three did.
 CORNER_JOINTS = 5
+#: A pair undecided after ``MAX_BOXES`` whose links no free joint moves both (two arms, a
+#: head and an arm) is searched again, within this many boxes more, with each link's copies
+#: over its own corner joints: up to ``CORNER_JOINTS`` on each side, this many in all. From
+#: the first box, every such pair of the PR2 pays for the dearer copies (its sweep ran out of
+#: its work budget); only for those left undecided do they pay.
+SEPARATE_CORNER_JOINTS = 7
+SEPARATE_BOXES = 100_000
 #: What one box's corner test counts for against ``MAX_BOXES``: about its time in boxes
 #: evaluated at their centre alone (``bench/sweep.py --robot pr2 --pair
 #: l_gripper_palm_link:l_shoulder_lift_link``: 0.06 ms a box, 0.77 ms a corner test of 32 copies).
@@ -196,7 +203,9 @@ class LinkPair:
         """Each side's bound per term of its joints (``kinematics.joint_rates``)."""
         return joint_rates(self.sides, ta, tb, axes, half)
 
-    def corner_plan(self, half: np.ndarray, rates) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def corner_plan(
+        self, half: np.ndarray, rates, *, separate: bool = False
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Which joints of each box of half-widths ``half`` the corner test takes corners of,
         how far its bound falls below the hulls' distance, and the terms to split by.
 
@@ -204,7 +213,11 @@ class LinkPair:
         -------
         chosen : (E, m) int64
             The ``CORNER_JOINTS`` (at most) free joints that contribute most to each box's
-            first-order bound (``rates``, ``kinematics.joint_rates``).
+            first-order bound (``rates``, ``kinematics.joint_rates``); with ``separate``, when
+            no free joint moves both links, up to ``CORNER_JOINTS`` of each link's own
+            joints, ``SEPARATE_CORNER_JOINTS`` in all (each link's copies are over its own
+            corner joints only, so the copies grow as the sum of the two sides', not the
+            product).
         grown : (E,) float64
             ``G_a + G_b`` (``corner_bounds``).
         split : (E, n) float64
@@ -214,13 +227,38 @@ class LinkPair:
             side_bounds(side, r, half.shape) for side, r in zip(self.sides, rates, strict=True)
         ]
         first = bounds[0][0] + bounds[1][0]
-        m = min(CORNER_JOINTS, half.shape[1])
-        chosen = np.argsort(-(half * first), axis=1, kind="stable")[:, :m]
+        order = np.argsort(-(half * first), axis=1, kind="stable")
+        moves = self.moving_joints()
+        if not separate or np.any(moves[0] & moves[1]):
+            chosen = order[:, : min(CORNER_JOINTS, half.shape[1])]
+        else:  # each side's copies are over its own joints: up to CORNER_JOINTS on each
+            side = moves[1][order]  # (E, n): the joint moves link b
+            rank = np.where(side, np.cumsum(side, axis=1), np.cumsum(~side, axis=1))
+            keep = rank <= CORNER_JOINTS
+            m = min(SEPARATE_CORNER_JOINTS, int(keep[0].sum()))
+            chosen = np.take_along_axis(
+                order, np.argsort(~keep, axis=1, kind="stable")[:, :m], axis=1
+            )
         is_corner = np.zeros(half.shape, bool)
         np.put_along_axis(is_corner, chosen, True, axis=1)
         second = bounds[0][1] + bounds[1][1]
         split = np.where(is_corner, 0.5 * half * second, first)
         return chosen, np.sum(half * split, axis=1), split
+
+    def has_separate_sides(self) -> bool:
+        """Whether more free joints move the pair than one corner test takes and no free
+        joint moves both links (``corner_plan``'s ``separate``)."""
+        moves = self.moving_joints()
+        return len(self.names) > CORNER_JOINTS and not np.any(moves[0] & moves[1])
+
+    def moving_joints(self) -> tuple[np.ndarray, np.ndarray]:
+        """Which free joints move each link (relative to the pair's common ancestor)."""
+        out = []
+        for side in self.sides:
+            moves = np.zeros(len(self.names), bool)
+            moves[[term.lead for term in side.terms]] = True
+            out.append(moves)
+        return out[0], out[1]
 
     def corner_bounds(
         self, lo: np.ndarray, hi: np.ndarray, chosen: np.ndarray, grown: np.ndarray, *,
@@ -537,7 +575,9 @@ def sweep_pair(
     still open after ``ENVELOPE_AFTER`` boxes tries to prove it over its links' envelopes
     instead, the revolute joints at the ends of their chains taken out of the search
     (``envelope_proof``). A pair that would evaluate more than ``MAX_BOXES`` (and the
-    envelopes' ``ENVELOPE_BOXES``), or whose work
+    envelopes' ``ENVELOPE_BOXES``, and, for a pair no joint of which moves both links, a
+    second search within ``SEPARATE_BOXES`` with corners over each link's own joints), or
+    whose work
     (``LinkPair.work``) passes ``allowance`` (checked after each batch), is undecided.
     """
     allowance = np.inf if allowance is None else allowance
@@ -547,7 +587,17 @@ def sweep_pair(
     found = sampled_witness(pair, lower, upper)
     if found is not None:
         return found
-    return box_search(pair, lower, upper, resolution, allowance)
+    found = box_search(pair, lower, upper, resolution, allowance)
+    if found.status != SweepStatus.UNDECIDED or not pair.has_separate_sides():
+        return found
+    # again with corners on both links' own joints: each copy costs more, so only for a pair
+    # the first search could not decide (two arms, a head and an arm)
+    again = box_search(
+        pair, lower, upper, resolution, allowance, evaluated=0, witnesses=False,
+        max_boxes=SEPARATE_BOXES, separate=True, envelope=True,
+    )  # fmt: skip
+    boxes = found.boxes + again.boxes
+    return replace(again if again.status != SweepStatus.UNDECIDED else found, boxes=boxes)
 
 
 def box_search(
@@ -560,16 +610,21 @@ def box_search(
     evaluated: int = SAMPLES,
     witnesses: bool = True,
     max_boxes: int | None = None,
+    separate: bool = False,
+    envelope: bool | None = None,
 ) -> PairSweep:
     """``sweep_pair``'s search of the boxes, ``evaluated`` boxes counted already (an envelope's
     boxes are counted too, but apart from ``max_boxes`` and the descents' schedule). Without
     ``witnesses`` (an envelope's pair, ``envelope_proof``) it only proves: no pose is checked on
     the real meshes, and the first box centre where the pieces come within the tolerance, or
-    box at the resolution, leaves the pair undecided. ``max_boxes`` defaults to ``MAX_BOXES``."""
+    box at the resolution, leaves the pair undecided. ``max_boxes`` defaults to ``MAX_BOXES``.
+    ``separate`` takes each box's corners over each link's own joints (``corner_plan``);
+    ``envelope`` (default: ``witnesses``) lets an open pair try its links' envelopes."""
     max_boxes = MAX_BOXES if max_boxes is None else max_boxes
     lo, hi = lower[None, :].copy(), upper[None, :].copy()
     checks, unresolved, aside = 0, False, 0  # aside: the envelopes' boxes
-    nearest, descents, enveloped = NearestCentres(DESCENT_STARTS), 0, not witnesses
+    envelope = witnesses if envelope is None else envelope
+    nearest, descents, enveloped = NearestCentres(DESCENT_STARTS), 0, not envelope
     while len(lo):
         if witnesses and evaluated - aside >= DESCENT_AFTER * DESCENT_GROWTH**descents:
             starts = nearest.values
@@ -579,7 +634,9 @@ def box_search(
             descents += 1
         if not enveloped and evaluated >= ENVELOPE_AFTER and nearest.values is not None:
             enveloped = True
-            found, boxes = envelope_proof(pair, lower, upper, resolution, nearest, evaluated)
+            found, boxes = envelope_proof(
+                pair, lower, upper, resolution, nearest, evaluated, separate=separate
+            )
             if found is not None:
                 return found
             evaluated, aside = evaluated + boxes, boxes
@@ -606,7 +663,7 @@ def box_search(
         if evaluated - aside > CORNER_AFTER and np.any(open_):
             rows = np.flatnonzero(open_)
             picked = ([r[rows] for r in rates[0]], [r[rows] for r in rates[1]])
-            chosen, grown, split = pair.corner_plan(half[rows], picked)
+            chosen, grown, split = pair.corner_plan(half[rows], picked, separate=separate)
             w = w.copy()
             w[rows] = split  # halve_boxes cuts across the largest term of the bound in force
             # the hulls come no farther apart than the pieces at the centre, give or take
@@ -667,8 +724,9 @@ def box_search(
 
 
 def envelope_proof(
-    pair: LinkPair, lower, upper, resolution: float, nearest: NearestCentres, evaluated: int
-) -> tuple[PairSweep | None, int]:
+    pair: LinkPair, lower, upper, resolution: float, nearest: NearestCentres, evaluated: int,
+    *, separate: bool = False,
+) -> tuple[PairSweep | None, int]:  # fmt: skip
     """Never (or always) proven over the envelopes of the links' last joints
     (``envelope_pair``), within ``ENVELOPE_BOXES`` in all, else None; and the boxes it
     evaluated.
@@ -690,7 +748,7 @@ def envelope_proof(
         kept = sub.names
         found = box_search(
             sub, sub_lower, sub_upper, resolution, pair.allowance - pair.work, evaluated=0,
-            witnesses=False, max_boxes=ENVELOPE_BOXES - boxes,
+            witnesses=False, max_boxes=ENVELOPE_BOXES - boxes, separate=separate,
         )  # fmt: skip
         pair.work += sub.work
         boxes += found.boxes
