@@ -19,6 +19,7 @@ from __future__ import annotations
 from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -89,9 +90,9 @@ SKIP_WORK = 64
 CORNER_JOINTS = 5
 #: A pair undecided after ``MAX_BOXES`` whose links no free joint moves both (two arms, a
 #: head and an arm) is searched again, within this many boxes more, with each link's copies
-#: over its own corner joints: up to ``CORNER_JOINTS`` on each side, this many in all. From
-#: the first box, every such pair of the PR2 pays for the dearer copies (its sweep ran out of
-#: its work budget); only for those left undecided do they pay.
+#: over its own corner joints: up to ``CORNER_JOINTS`` on each side, this many in all. Only
+#: those left undecided pay for the dearer copies: the PR2 has hundreds of such pairs
+#: (casters, head, arms), most decided within the first search.
 SEPARATE_CORNER_JOINTS = 7
 SEPARATE_BOXES = 100_000
 #: What one box's corner test counts for against ``MAX_BOXES``: about its time in boxes
@@ -178,7 +179,6 @@ class LinkPair:
 
     def __post_init__(self):
         self.chains = joints_below_common(self.robot, (self.a, self.b))
-        self.a_boxes = None  # link a's triangles' boxes, its frame (triangle_corner_bound)
 
     def placements(self, values: np.ndarray, axes: dict | None = None):
         """(ta, tb, poses): the links' placements at the rows of ``values`` in the frame of
@@ -307,7 +307,7 @@ class LinkPair:
         """Each link's placements at the corners of the boxes ``lo..hi`` over the joints
         ``chosen`` (``corner_bounds``), its distinct corners first, and how many are distinct:
         ``([(E, K, 4, 4), (E, K, 4, 4)], [(E,), (E,)])``."""
-        sides, count, m = self.sides, len(lo), chosen.shape[1]
+        count, m = len(lo), chosen.shape[1]
         centre = 0.5 * (lo + hi)
         corners = np.arange(2**m)
         bits = (corners[:, None] >> np.arange(m)[None, :]) & 1  # (K, m)
@@ -318,9 +318,7 @@ class LinkPair:
         )
         ta, tb, _ = self.placements(values.reshape(-1, lo.shape[1]))
         placed, counts = [], []
-        for side, t in zip(sides, (ta, tb), strict=True):
-            moves = np.zeros(lo.shape[1], bool)
-            moves[[term.lead for term in side.terms]] = True
+        for moves, t in zip(self.moving_joints(), (ta, tb), strict=True):
             mask = moves[chosen]  # (E, m): the corner joints that move this side
             foreign = np.any((bits[None] == 1) & ~mask[:, None, :], axis=2)  # (E, K)
             order = np.argsort(foreign, axis=1, kind="stable")  # its distinct corners first
@@ -329,6 +327,13 @@ class LinkPair:
             counts.append(2 ** mask.sum(axis=1))
         return placed, counts
 
+    @cached_property
+    def a_boxes(self) -> tuple[np.ndarray, np.ndarray]:
+        """Link a's triangles' boxes in its own frame (``triangle_corner_bound``)."""
+        a = self.links[self.a]
+        return triangle_boxes(a.vertices, a.faces)
+
+    @cached_property
     def triangle_reach(self) -> float:
         """The largest first-order bound (plus the tolerance) of a box given the triangles'
         corner test: ``TRIANGLE_CORNER_REACH`` of the larger link's size (-inf when the pair
@@ -351,8 +356,6 @@ class LinkPair:
         their distances, less ``grown``, bounds the links' distance over the box. A value at
         most the tolerance is not the least."""
         a, b = self.links[self.a], self.links[self.b]
-        if self.a_boxes is None:
-            self.a_boxes = triangle_boxes(a.vertices, a.faces)
         relative = np.linalg.solve(ta, tb)
         moved = b.vertices @ relative[:3, :3].T + relative[:3, 3]
         (alo, ahi), (blo, bhi) = self.a_boxes, triangle_boxes(moved, b.faces)
@@ -674,7 +677,7 @@ def box_search(
             # the box (their pieces overlap there, their real meshes need not); a box small
             # enough for the triangles' goes to it alone: each triangle lies in its piece, so
             # it closes every box the pieces' would (unless it pairs MAX_TRIANGLE_PAIRS)
-            near = pair.triangle_reach()
+            near = pair.triangle_reach
             fine_rows, fine_chosen, fine_grown = rows, chosen, grown
             hopeful &= bound[rows] > near
             rows, chosen, grown = rows[hopeful], chosen[hopeful], grown[hopeful]
