@@ -77,6 +77,7 @@ def test_an_arm_just_short_of_a_wall_is_proven_never_by_its_corners(tmp_path, mo
     past = sweep_arm(tmp_path, REACH - 0.01)["l3", "wall"]
     assert past.status == "sometimes" and past.verdict == "interference"
     monkeypatch.setattr(search, "CORNER_JOINTS", 0)
+    monkeypatch.setattr(search, "SEPARATE_SIDE_JOINTS", 0)
     assert sweep_arm(tmp_path, REACH + 0.01)["l3", "wall"].status == "undecided"
 
 
@@ -254,7 +255,7 @@ def test_a_tip_in_a_pocket_its_wall_hull_fills_is_proven_never_by_its_triangles(
 ):
     """The wall's one convex piece (its hull) overlaps the arm's tip wherever the tip is near
     its reach, so the pieces' corner test cannot close those boxes; the triangles' corner test
-    (``LinkPair.triangle_corner_bound``) does, within 6,000 boxes. Without it the pair is
+    (``LinkPair.triangle_corner_bounds``) does, within 6,000 boxes. Without it the pair is
     undecided there (first order, the triangles need boxes 3 m per radian of the first joint
     small)."""
     urdf = tmp_path / "arm.urdf"
@@ -268,7 +269,11 @@ def test_a_tip_in_a_pocket_its_wall_hull_fills_is_proven_never_by_its_triangles(
     monkeypatch.setattr(search, "CORNER_AFTER", 0)
     found = search.sweep_pair(pair, lower, upper, 0.001)
     assert found.status == "never"
-    monkeypatch.setattr(search.LinkPair, "triangle_corner_bound", lambda *args: -np.inf)
+    monkeypatch.setattr(
+        search.LinkPair,
+        "triangle_corner_bounds",
+        lambda self, lo, *args: (np.full(len(lo), -np.inf), len(lo)),
+    )
     again, *_ = hull_pair(str(urdf), "l3", "wall")
     assert search.sweep_pair(again, lower, upper, 0.001).status == "undecided"
 
@@ -284,7 +289,7 @@ def test_a_box_the_triangles_corner_test_clears_is_clear_everywhere_in_it(
     hull_pairs, key, size, share, seed
 ):
     """For a random box and a tolerance a random ``share`` of the real distance at its
-    centre, a box ``LinkPair.triangle_corner_bound`` certifies (above the tolerance) has
+    centre, a box ``LinkPair.triangle_corner_bounds`` certifies (above the tolerance) has
     python-fcl's distance between the real meshes above the tolerance at its centre, its
     corners and random poses within it."""
     import dataclasses
@@ -299,7 +304,10 @@ def test_a_box_the_triangles_corner_test_clears_is_clear_everywhere_in_it(
     rates = pair.joint_rates(ta, tb, axes, half[None, :])
     chosen, grown, _ = pair.corner_plan(half[None, :], rates)
     first = float(half @ pair.box_weights(ta, tb, axes, half[None, :])[0]) + pair.tolerance
-    bound = pair.triangle_corner_bound(lo, hi, chosen[0], float(grown[0]), ta[0], tb[0], first)
+    (bound,), measured = pair.triangle_corner_bounds(
+        lo[None], hi[None], chosen, grown, ta, tb, np.array([first])
+    )
+    assert measured == 1
     if bound > pair.tolerance:  # both ways happen among the examples
         poses = [centre, lo, hi, *(centre + half * rng.uniform(-1, 1, (3, len(lower))))]
         poses.append(np.where(rng.random(len(lower)) < 0.5, lo, hi))

@@ -1,12 +1,20 @@
 """The sweep's compiled kernels against plain numpy and the batch GJK: piece distances at many
-placements (``geometry.placed_distances``) and the lever arms of the motion bound
-(``geometry.farthest_from_lines``); and the work budget's accounting."""
+placements (``geometry.placed_distances``), the lever arms of the motion bound
+(``geometry.farthest_from_lines``) and the chains' placements at many poses
+(``geometry.chains``, against an independent forward kinematics); and the work budget's
+accounting."""
 
 from __future__ import annotations
 
+import functools
+import os
+
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from robot_oracle import link_poses, read_robot
+from test_sweep import PR2
 
 from meshcheck.geometry import (
     concat_packs,
@@ -15,7 +23,11 @@ from meshcheck.geometry import (
     placed_distances,
     query_pairs,
 )
+from meshcheck.geometry.chains import chain_placements
 from meshcheck.geometry.gjk import Status
+from meshcheck.geometry.triangles import near_triangle_pairs
+from meshcheck.load.robot import MOVABLE, chain_transforms
+from meshcheck.load.urdf import parse_robot
 from meshcheck.sweep.search import PAIR_WORK, WorkBudget
 
 
@@ -156,3 +168,84 @@ def test_placed_surface_distance_agrees_with_every_triangle_pair(seed, reach, se
             assert abs(got - exact) <= 1e-12
     else:
         assert got > reach
+
+
+@functools.cache
+def _pr2():
+    """The PR2 as meshcheck reads it and as the independent reading does."""
+    with open(PR2, "rb") as f:
+        robot = parse_robot(PR2, f.read())
+    package = {"moveit_resources_pr2_description": os.path.dirname(os.path.dirname(PR2))}
+    return robot, read_robot(PR2, package)
+
+
+@settings(max_examples=10, derandomize=True, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_chain_transforms_place_every_link_and_axis_as_a_pose_by_pose_reading(seed):
+    """Every PR2 link (turns, the torso's slide, mimic fingers) and every movable joint's axis
+    line above it, at five random poses in one call, against the independent reading's forward
+    kinematics (``robot_oracle``: scipy's rotations, one pose at a time)."""
+    robot, oracle = _pr2()
+    rng = np.random.default_rng(seed)
+    drawn = [
+        {j.name: rng.uniform(max(j.lower, -np.pi), min(j.upper, np.pi)) for j in oracle.movable}
+        for _ in range(5)
+    ]
+    expected = [link_poses(oracle, values) for values in drawn]
+    by_child = {j.child: j for j in oracle.joints.values()}
+    scale = 1000.0
+    for link in robot.links:
+        chain = robot.chain(link)
+        poses = {}
+        for joint in chain:
+            if joint.type in MOVABLE:
+                leader, multiplier, offset = oracle.joints[joint.name].mimic or (joint.name, 1, 0)
+                poses[joint.name] = np.array([multiplier * v[leader] + offset for v in drawn])
+        axes: dict = {}
+        placed = chain_transforms(chain, poses, scale, len(drawn), axes)
+        for e, links in enumerate(expected):
+            want = links[link].copy()
+            want[:3, 3] *= scale
+            np.testing.assert_allclose(placed[e], want, atol=1e-9)
+            for name, (points, directions) in axes.items():
+                joint = oracle.joints[name]
+                frame = links[joint.parent] @ joint.origin
+                np.testing.assert_allclose(points[e], frame[:3, 3] * scale, atol=1e-9)
+                np.testing.assert_allclose(directions[e], frame[:3, :3] @ joint.axis, atol=1e-12)
+        assert set(axes) == {j.name for j in chain if j.type in MOVABLE}
+        assert link == robot.root or by_child[link].name == chain[-1].name
+
+
+def test_chain_placements_refuse_unknown_kinds_and_mismatched_shapes():
+    one = np.eye(4)[None]
+    with pytest.raises(ValueError, match="kinds"):
+        chain_placements(one, [2], [[0, 0, 1.0]], np.eye(4), [[0.5]], 1.0)
+    with pytest.raises(ValueError, match="shapes"):
+        chain_placements(one, [0, 0], [[0, 0, 1.0]] * 2, np.eye(4), [[0.5, 0.5]], 1.0)
+    with pytest.raises(ValueError, match="columns"):
+        chain_placements(one, [0], [[0, 0, 1.0]], np.eye(4), [[0.5, 0.5]], 1.0)
+    placed, points, _ = chain_placements(
+        np.zeros((0, 4, 4)), np.zeros(0), np.zeros((0, 3)), np.eye(4), np.zeros((3, 0)), 2.0
+    )
+    assert placed.shape == (3, 4, 4) and points.shape == (3, 0, 3)
+    np.testing.assert_array_equal(placed, np.broadcast_to(np.eye(4), (3, 4, 4)))
+
+
+@settings(max_examples=25, derandomize=True, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), reach=st.floats(0.0, 1.0))
+def test_near_triangle_pairs_are_every_pair_whose_boxes_come_within_reach(seed, reach):
+    """Against every triangle pair's boxes compared by numpy, ``b`` placed by numpy."""
+    rng = np.random.default_rng(seed)
+    va, vb = rng.normal(size=(30, 3)), rng.normal(size=(25, 3)) * 0.7
+    fa, fb = rng.integers(0, 30, (40, 3)), rng.integers(0, 25, (35, 3))
+    relative = np.eye(4)
+    relative[:3, :3], relative[:3, 3] = _rotation(rng), rng.normal(size=3)
+    found = near_triangle_pairs(va, fa, vb, fb, relative, reach)
+    placed = vb @ relative[:3, :3].T + relative[:3, 3]
+    alo, ahi = va[fa].min(axis=1), va[fa].max(axis=1)
+    blo, bhi = placed[fb].min(axis=1), placed[fb].max(axis=1)
+    gap = np.maximum(alo[:, None] - bhi[None], blo[None] - ahi[:, None])  # (40, 35, 3)
+    expected = np.argwhere(np.all(gap <= reach, axis=2))
+    assert sorted(map(tuple, found.tolist())) == sorted(map(tuple, expected.tolist()))
+    with pytest.raises(ValueError, match="finite"):
+        near_triangle_pairs(va, fa, vb, fb, np.full((4, 4), np.nan), reach)

@@ -18,6 +18,7 @@ __all__ = [
     "box_pairs",
     "closest_points_on_triangles",
     "inscribed_ball",
+    "near_triangle_pairs",
     "pair_distances",
     "placed_surface_distance",
     "point_distances",
@@ -84,6 +85,41 @@ def box_pairs(alo, ahi, blo, bhi, reach: float) -> np.ndarray:
         Index into the first set, index into the second.
     """
     return _kernels.box_pairs(_f8(alo), _f8(ahi), _f8(blo), _f8(bhi), float(reach))
+
+
+def near_triangle_pairs(va, fa, vb, fb, relative, reach: float) -> np.ndarray:
+    """The triangle pairs of two meshes, ``b`` placed in ``a``'s frame by ``relative``, whose
+    boxes come within ``reach`` of each other along every axis (``box_pairs``, with ``b``'s
+    triangles placed and only those near the other mesh's box paired).
+
+    Parameters
+    ----------
+    va, vb : (n, 3) float64
+        Vertices, each mesh's own frame.
+    fa, fb : (m, 3) int64
+    relative : (4, 4) float64
+        ``b``'s frame into ``a``'s; ``ValueError`` when not finite.
+    reach : float
+
+    Returns
+    -------
+    pairs : (k, 2) int64
+        Face of ``a``, face of ``b``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> tri = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    >>> up = np.eye(4)
+    >>> up[2, 3] = 0.5
+    >>> near_triangle_pairs(tri, [[0, 1, 2]], tri, [[0, 1, 2]], up, 0.5).tolist()
+    [[0, 0]]
+    >>> near_triangle_pairs(tri, [[0, 1, 2]], tri, [[0, 1, 2]], up, 0.4).tolist()
+    []
+    """
+    return _kernels.near_triangle_pairs(
+        _f8(va), _i8(fa), _f8(vb), _i8(fb), _f8(relative), float(reach)
+    )
 
 
 def placed_surface_distance(

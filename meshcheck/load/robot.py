@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import ConfigError
+from ..geometry.chains import SLIDE, TURN, chain_placements
 from ..results import RobotPose
 
 if TYPE_CHECKING:
@@ -313,23 +314,6 @@ def adjacent_links(robot: Robot) -> set[frozenset[str]]:
 # Many poses at once (the sweep's)
 
 
-def joint_motions(joint: Joint, values: np.ndarray) -> np.ndarray:
-    """(E, 4, 4) motions of one joint at E values (Rodrigues, vectorised)."""
-    out = np.zeros((len(values), 4, 4))
-    out[:, 3, 3] = 1.0
-    if joint.type == "prismatic":
-        out[:, 0, 0] = out[:, 1, 1] = out[:, 2, 2] = 1.0
-        out[:, :3, 3] = values[:, None] * joint.axis
-        return out
-    k = cross_matrix(joint.axis)
-    out[:, :3, :3] = (
-        np.eye(3)
-        + np.sin(values)[:, None, None] * k
-        + (1.0 - np.cos(values))[:, None, None] * (k @ k)
-    )
-    return out
-
-
 def chain_transforms(
     chain: list[Joint], poses: dict, scale: float, count: int, axes: dict | None = None
 ) -> np.ndarray:
@@ -337,19 +321,27 @@ def chain_transforms(
     ``count`` poses (``{joint: (E,) values}``, ``sweep.search.chain_poses``), lengths times
     ``scale``; with ``axes``, each movable
     joint's axis line at each pose goes there, ``{name: ((E, 3) point on it, lengths times
-    scale, (E, 3) unit direction)}``."""
-    placed = np.broadcast_to(np.eye(4), (count, 4, 4))
+    scale, (E, 3) unit direction)}``. One compiled loop (``geometry.chains``)."""
+    before, kinds, directions, names = [], [], [], []
     fixed = np.eye(4)  # origins (and held joints) since the last motion, folded into one matrix
     for joint in chain:
         fixed = fixed @ joint.origin
         if joint.type in MOVABLE:
-            placed = placed @ fixed
-            if axes is not None:
-                axes[joint.name] = (placed[:, :3, 3] * scale, placed[:, :3, :3] @ joint.axis)
-            placed = placed @ joint_motions(joint, poses[joint.name])
+            before.append(fixed)
+            kinds.append(SLIDE if joint.type == "prismatic" else TURN)
+            directions.append(joint.axis)
+            names.append(joint.name)
             fixed = np.eye(4)
-    placed = placed @ fixed
-    placed[:, :3, 3] *= scale
+    values = np.empty((count, len(names)))
+    for k, name in enumerate(names):
+        values[:, k] = poses[name]
+    placed, points, lines = chain_placements(
+        np.reshape(before, (-1, 4, 4)), kinds, np.reshape(directions, (-1, 3)), fixed, values,
+        scale,
+    )  # fmt: skip
+    if axes is not None:
+        for k, name in enumerate(names):
+            axes[name] = (points[:, k], lines[:, k])
     return placed
 
 
@@ -366,7 +358,6 @@ __all__ = [
     "chain_transforms",
     "cross_matrix",
     "default_value",
-    "joint_motions",
     "joint_values",
     "link_transforms",
     "rotation",

@@ -6,7 +6,7 @@ point can move within the box (``kinematics.box_weights``), either certifies the
 of contact or, for a pair that has needed many boxes, the hulls of the links' pieces at the
 box's corners, less the interpolation's second-order error (``LinkPair.corner_bounds``), may,
 and where the pieces cannot (they overlap where the real meshes pass close), the real meshes'
-triangles at the corners the same way (``LinkPair.triangle_corner_bound``); else the box is
+triangles at the corners the same way (``LinkPair.triangle_corner_bounds``); else the box is
 halved. A pair still open after many boxes may be proven over its links'
 envelopes, the joints at the ends of their chains turned through their ranges instead of
 searched (``envelope_proof``, ``envelope.envelope``). Witnesses are looked for before the proof
@@ -24,7 +24,7 @@ from functools import cached_property
 import numpy as np
 
 from ..geometry import copied_distances, triangle_pack
-from ..geometry.triangles import box_pairs, triangle_boxes
+from ..geometry.triangles import near_triangle_pairs
 from ..load import Body
 from ..load.robot import MOVABLE, ROTARY, Joint, Robot, chain_transforms
 from ..results import PairSweep, SweepStatus, Verdict
@@ -94,6 +94,7 @@ CORNER_JOINTS = 5
 #: those left undecided pay for the dearer copies: the PR2 has hundreds of such pairs
 #: (casters, head, arms), most decided within the first search.
 SEPARATE_CORNER_JOINTS = 7
+SEPARATE_SIDE_JOINTS = CORNER_JOINTS
 SEPARATE_BOXES = 100_000
 #: What one box's corner test counts for against ``MAX_BOXES``: about its time in boxes
 #: evaluated at their centre alone (``bench/sweep.py --robot pr2 --pair
@@ -108,7 +109,7 @@ CORNER_BATCH = 32
 CORNER_AFTER = 4096
 
 #: A box whose pieces' corner test fails (or is not tried: they overlap at its centre) gets
-#: the real triangles' (``LinkPair.triangle_corner_bound``) when its first-order bound is at
+#: the real triangles' (``LinkPair.triangle_corner_bounds``) when its first-order bound is at
 #: most this fraction of the larger link's size and at most ``MAX_TRIANGLE_PAIRS`` triangle
 #: pairs come within that bound at its centre; larger boxes are split first (a box as large
 #: as a link pairs most of both links' triangles). It counts as ``CORNER_BOXES`` boxes: one
@@ -193,6 +194,13 @@ class LinkPair:
         tb = chain_transforms(self.chains[1], poses, self.scale, count, axes)
         return ta, tb, poses
 
+    def side_placements(self, values: np.ndarray, k: int) -> np.ndarray:
+        """Link ``k``'s (0: ``a``) placements alone at the rows of ``values``
+        (``placements``)."""
+        poses = chain_poses(self.robot, self.base, self.names, values, self.chains[k : k + 1])
+        self.work += len(values) * max(len(self.names), 1)
+        return chain_transforms(self.chains[k], poses, self.scale, len(values))
+
     def box_weights(self, ta, tb, axes: dict, half: np.ndarray) -> np.ndarray:
         """(E, n) bounds on how fast a unit change of each free joint moves any point of the
         two links within the boxes of half-widths ``half`` about ``ta``, ``tb``
@@ -234,7 +242,7 @@ class LinkPair:
         else:  # each side's copies are over its own joints: up to CORNER_JOINTS on each
             side = moves[1][order]  # (E, n): the joint moves link b
             rank = np.where(side, np.cumsum(side, axis=1), np.cumsum(~side, axis=1))
-            keep = rank <= CORNER_JOINTS
+            keep = rank <= SEPARATE_SIDE_JOINTS
             m = min(SEPARATE_CORNER_JOINTS, int(keep[0].sum()))
             chosen = np.take_along_axis(
                 order, np.argsort(~keep, axis=1, kind="stable")[:, :m], axis=1
@@ -305,33 +313,29 @@ class LinkPair:
 
     def corner_placements(self, lo: np.ndarray, hi: np.ndarray, chosen: np.ndarray):
         """Each link's placements at the corners of the boxes ``lo..hi`` over the joints
-        ``chosen`` (``corner_bounds``), its distinct corners first, and how many are distinct:
-        ``([(E, K, 4, 4), (E, K, 4, 4)], [(E,), (E,)])``."""
+        ``chosen`` (``corner_bounds``) that move it, and how many there are:
+        ``([(E, K, 4, 4), (E, K, 4, 4)], [(E,), (E,)])``. The corners that differ only in
+        joints not moving a link place it alike, so each link is placed at its own corners
+        only (the others are identity, past its count)."""
         count, m = len(lo), chosen.shape[1]
         centre = 0.5 * (lo + hi)
-        corners = np.arange(2**m)
-        bits = (corners[:, None] >> np.arange(m)[None, :]) & 1  # (K, m)
-        values = np.repeat(centre[:, None, :], len(corners), axis=1)
-        rows, cols = np.arange(count)[:, None, None], chosen[:, None, :]
-        values[rows, corners[None, :, None], cols] = np.where(
-            bits[None] == 1, hi[rows, cols], lo[rows, cols]
-        )
-        ta, tb, _ = self.placements(values.reshape(-1, lo.shape[1]))
+        bits = (np.arange(2**m)[:, None] >> np.arange(m)[None, :]) & 1 == 1  # (K, m)
         placed, counts = [], []
-        for moves, t in zip(self.moving_joints(), (ta, tb), strict=True):
+        for k, moves in enumerate(self.moving_joints()):
             mask = moves[chosen]  # (E, m): the corner joints that move this side
-            foreign = np.any((bits[None] == 1) & ~mask[:, None, :], axis=2)  # (E, K)
-            order = np.argsort(foreign, axis=1, kind="stable")  # its distinct corners first
-            t = t.reshape(count, len(corners), 4, 4)
-            placed.append(np.take_along_axis(t, order[:, :, None, None], axis=1))
-            counts.append(2 ** mask.sum(axis=1))
+            own = ~np.any(bits[None] & ~mask[:, None, :], axis=2)  # (E, K): its corners
+            rows, corner = np.nonzero(own)  # each box's own corners, in order
+            values = centre[rows]
+            cols = chosen[rows]
+            values[np.arange(len(rows))[:, None], cols] = np.where(
+                bits[corner], hi[rows[:, None], cols], lo[rows[:, None], cols]
+            )
+            per_box = own.sum(axis=1)
+            out = np.broadcast_to(np.eye(4), (count, int(per_box.max()), 4, 4)).copy()
+            out[rows, np.cumsum(own, axis=1)[own] - 1] = self.side_placements(values, k)
+            placed.append(out)
+            counts.append(per_box)
         return placed, counts
-
-    @cached_property
-    def a_boxes(self) -> tuple[np.ndarray, np.ndarray]:
-        """Link a's triangles' boxes in its own frame (``triangle_corner_bound``)."""
-        a = self.links[self.a]
-        return triangle_boxes(a.vertices, a.faces)
 
     @cached_property
     def triangle_reach(self) -> float:
@@ -344,48 +348,58 @@ class LinkPair:
         size = max(np.ptp(a.points, axis=0).max(), np.ptp(b.points, axis=0).max())
         return TRIANGLE_CORNER_REACH * float(size)
 
-    def triangle_corner_bound(
-        self, lo: np.ndarray, hi: np.ndarray, chosen: np.ndarray, grown: float,
-        ta: np.ndarray, tb: np.ndarray, first: float,
-    ) -> float:  # fmt: skip
-        """``corner_bounds`` of one box ``lo..hi`` on the real meshes' triangles, for a box whose
-        convex pieces overlap: each triangle stands for itself, as a piece does there. Triangle
-        pairs farther apart than ``first`` (the box's first-order bound plus the tolerance) at
-        the centre placements ``ta``, ``tb`` are clear over the box already; the others'
-        copies at the corners are measured (``geometry.copied_distances``), and the least of
-        their distances, less ``grown``, bounds the links' distance over the box. A value at
-        most the tolerance is not the least."""
+    def triangle_corner_bounds(
+        self, lo: np.ndarray, hi: np.ndarray, chosen: np.ndarray, grown: np.ndarray,
+        ta: np.ndarray, tb: np.ndarray, first: np.ndarray, allowance: float = np.inf,
+    ) -> tuple[np.ndarray, int]:  # fmt: skip
+        """``corner_bounds`` of the boxes ``lo..hi`` on the real meshes' triangles, for boxes
+        whose convex pieces overlap: each triangle stands for itself, as a piece does there.
+        In each box, triangle pairs farther apart than ``first`` (the box's first-order bound
+        plus the tolerance) at the centre placements ``ta``, ``tb`` are clear over the box
+        already; the others' copies at the corners are measured
+        (``geometry.copied_distances``), and the least of their distances, less ``grown``,
+        bounds the links' distance over the box. A value at most the tolerance is not the
+        least; -inf for a box pairing more than ``MAX_TRIANGLE_PAIRS`` triangles (split it
+        instead: its halves pair fewer) and for the boxes left once the work passes
+        ``allowance`` (checked between boxes). Returns the bounds and how many boxes were
+        measured."""
+        out = np.full(len(lo), -np.inf)
+        if len(lo) == 0:
+            return out, 0
         a, b = self.links[self.a], self.links[self.b]
-        relative = np.linalg.solve(ta, tb)
-        moved = b.vertices @ relative[:3, :3].T + relative[:3, 3]
-        (alo, ahi), (blo, bhi) = self.a_boxes, triangle_boxes(moved, b.faces)
-        self.work += (len(a.faces) + len(b.faces)) // 64
-        # only triangles within reach of the other link's box can pair
-        near_a = np.flatnonzero(
-            np.all((alo <= bhi.max(axis=0) + first) & (ahi >= blo.min(axis=0) - first), axis=1)
-        )
-        near_b = np.flatnonzero(
-            np.all((blo <= ahi.max(axis=0) + first) & (bhi >= alo.min(axis=0) - first), axis=1)
-        )
-        pairs = box_pairs(alo[near_a], ahi[near_a], blo[near_b], bhi[near_b], first)
-        self.work += len(pairs)
-        if len(pairs) == 0:
-            return np.inf
-        if len(pairs) > MAX_TRIANGLE_PAIRS:
-            return -np.inf  # the box is split instead: its halves have fewer
-        placed, counts = self.corner_placements(lo[None], hi[None], chosen[None])
-        packs = []
-        for link, near, rows in ((a, near_a, pairs[:, 0]), (b, near_b, pairs[:, 1])):
-            used = np.zeros(len(near), bool)
-            used[rows] = True
-            packs.append(triangle_pack(link.vertices, link.faces[near[used]]))
-        reach = np.array([grown + self.tolerance])
-        lowest, work = copied_distances(
-            packs[0], packs[1], placed[0], counts[0], placed[1], counts[1], reach,
-            np.zeros(len(packs[0].starts) - 1), np.zeros(len(packs[1].starts) - 1), settle=True,
-        )  # fmt: skip
-        self.work += work
-        return float(lowest[0]) - grown
+        placed, counts = self.corner_placements(lo, hi, chosen)
+        measured = 0
+        for e in range(len(lo)):
+            if self.work > allowance:
+                break
+            measured += 1
+            relative = np.linalg.solve(ta[e], tb[e])
+            if not np.all(np.isfinite(relative)):
+                continue
+            self.work += (len(a.faces) + len(b.faces)) // 64
+            pairs = near_triangle_pairs(
+                a.vertices, a.faces, b.vertices, b.faces, relative, first[e]
+            )
+            self.work += len(pairs)
+            if len(pairs) == 0:
+                out[e] = np.inf
+                continue
+            if len(pairs) > MAX_TRIANGLE_PAIRS:
+                continue
+            packs = []
+            for link, rows in ((a, pairs[:, 0]), (b, pairs[:, 1])):
+                used = np.zeros(len(link.faces), bool)
+                used[rows] = True
+                packs.append(triangle_pack(link.vertices, link.faces[used]))
+            lowest, work = copied_distances(
+                packs[0], packs[1], placed[0][e : e + 1], counts[0][e : e + 1],
+                placed[1][e : e + 1], counts[1][e : e + 1], grown[e : e + 1] + self.tolerance,
+                np.zeros(len(packs[0].starts) - 1), np.zeros(len(packs[1].starts) - 1),
+                settle=True,
+            )  # fmt: skip
+            self.work += work
+            out[e] = float(lowest[0]) - grown[e]
+        return out, measured
 
     def distances(
         self, ta: np.ndarray, tb: np.ndarray, reach: np.ndarray
@@ -568,7 +582,7 @@ def sweep_pair(
     less a second-order bound) and, when that fails too, is halved across the joint with the
     largest term of that bound; a box the pieces' corner test does not close, whose bound is
     small enough (``TRIANGLE_CORNER_REACH``), gets the same test on the real meshes' triangles
-    (``LinkPair.triangle_corner_bound``). Centres where pieces overlap are
+    (``LinkPair.triangle_corner_bounds``). Centres where pieces overlap are
     re-checked on the real meshes, nearest first: one that interferes or touches is the witness
     of ``sometimes``; after ``DESCENT_AFTER`` boxes, and each time they grow by
     ``DESCENT_GROWTH`` after that, a descent from the nearest centres so far looks for one
@@ -692,16 +706,19 @@ def box_search(
                 )  # fmt: skip
                 open_[some[corner > pair.tolerance]] = False
                 evaluated += CORNER_BOXES * len(some)
-            for r, c, g in zip(fine_rows, fine_chosen, fine_grown, strict=True):
-                if pair.work > allowance:
-                    break
-                if not open_[r] or bound[r] > near:
-                    continue
-                if coarse[r] < lowest[r] <= pair.tolerance:
-                    continue  # the triangles meet at the centre: no corner test can close it
-                bound_r = pair.triangle_corner_bound(blo[r], bhi[r], c, g, ta[r], tb[r], bound[r])
-                open_[r] = bound_r <= pair.tolerance
-                evaluated += CORNER_BOXES
+            # (a box whose triangles meet at its centre: no corner test can close it)
+            pick = open_[fine_rows] & (bound[fine_rows] <= near)
+            pick &= ~(
+                (coarse[fine_rows] < lowest[fine_rows]) & (lowest[fine_rows] <= pair.tolerance)
+            )
+            if np.any(pick) and pair.work <= allowance:
+                some = fine_rows[pick]
+                corner, measured = pair.triangle_corner_bounds(
+                    blo[some], bhi[some], fine_chosen[pick], fine_grown[pick], ta[some],
+                    tb[some], bound[some], allowance,
+                )  # fmt: skip
+                open_[some[corner > pair.tolerance]] = False
+                evaluated += CORNER_BOXES * measured
         if not np.any(open_):
             continue
         blo, bhi, half, w = blo[open_], bhi[open_], half[open_], w[open_]

@@ -440,6 +440,46 @@ PyObject* hull_levers_py(PyObject*, PyObject* args) {
     return out.release();
 }
 
+// chain_placements(before (J, 4, 4), kinds (J,), axes (J, 3), after (4, 4), values (E, J),
+// scale) -> (placed (E, 4, 4), points (E, J, 3), directions (E, J, 3))
+PyObject* chain_placements_py(PyObject*, PyObject* args) {
+    PyObject *bo, *ko, *ao, *fo, *vo;
+    double scale;
+    if (!PyArg_ParseTuple(args, "OOOOOd", &bo, &ko, &ao, &fo, &vo, &scale)) return nullptr;
+    Array before, kinds, axes, after, values, out, points, directions;
+    if (!as_array(bo, NPY_DOUBLE, 3, 0, "before", before) ||
+        !as_array(ko, NPY_INT64, 1, 0, "kinds", kinds) ||
+        !as_array(ao, NPY_DOUBLE, 2, 3, "axes", axes) ||
+        !as_array(fo, NPY_DOUBLE, 2, 4, "after", after) ||
+        !as_array(vo, NPY_DOUBLE, 2, kinds.len(), "values", values))
+        return nullptr;
+    npy_intp joints = kinds.len(), count = values.len(0);
+    if (before.len(0) != joints || before.len(1) != 4 || before.len(2) != 4 ||
+        axes.len() != joints || after.len() != 4) {
+        PyErr_SetString(PyExc_ValueError, "chain_placements: array shapes do not match");
+        return nullptr;
+    }
+    for (npy_intp j = 0; j < joints; ++j) {
+        if (kinds.i8()[j] != 0 && kinds.i8()[j] != 1) {
+            PyErr_SetString(PyExc_ValueError, "kinds: expected 0 (turn) or 1 (slide)");
+            return nullptr;
+        }
+    }
+    npy_intp placed_dims[3] = {count, 4, 4}, line_dims[3] = {count, joints, 3};
+    out.a = reinterpret_cast<PyArrayObject*>(PyArray_SimpleNew(3, placed_dims, NPY_DOUBLE));
+    if (out.a == nullptr) return nullptr;
+    points.a = reinterpret_cast<PyArrayObject*>(PyArray_SimpleNew(3, line_dims, NPY_DOUBLE));
+    if (points.a == nullptr) return nullptr;
+    directions.a = reinterpret_cast<PyArrayObject*>(PyArray_SimpleNew(3, line_dims, NPY_DOUBLE));
+    if (directions.a == nullptr) return nullptr;
+    {
+        const NoGil released;
+        chain_placements(before.f8(), kinds.i8(), axes.f8(), after.f8(), values.f8(), count,
+                         joints, scale, out.f8(), points.f8(), directions.f8());
+    }
+    return Py_BuildValue("NNN", out.release(), points.release(), directions.release());
+}
+
 // placed_surface_distance(va, fa, vb, fb, relative (4, 4), reach, settle) -> (distance, pairs)
 PyObject* placed_surface_distance_py(PyObject*, PyObject* args) {
     PyObject *vao, *fao, *vbo, *fbo, *to;
@@ -504,6 +544,43 @@ PyObject* box_pairs_py(PyObject*, PyObject* args) {
     res.a = reinterpret_cast<PyArrayObject*>(PyArray_SimpleNew(2, dims, NPY_INT64));
     if (res.a == nullptr) return nullptr;
     std::copy(out.begin(), out.end(), res.i8());
+    return res.release();
+}
+
+// near_triangle_pairs(va, fa, vb, fb, relative (4, 4), reach) -> pairs (k, 2)
+PyObject* near_triangle_pairs_py(PyObject*, PyObject* args) {
+    PyObject *vao, *fao, *vbo, *fbo, *to;
+    double reach;
+    if (!PyArg_ParseTuple(args, "OOOOOd", &vao, &fao, &vbo, &fbo, &to, &reach)) return nullptr;
+    Array va, fa, vb, fb, t, res;
+    if (!as_array(vao, NPY_DOUBLE, 2, 3, "va", va) || !faces_of(fao, va.len(), "fa", fa) ||
+        !as_array(vbo, NPY_DOUBLE, 2, 3, "vb", vb) || !faces_of(fbo, vb.len(), "fb", fb) ||
+        !as_array(to, NPY_DOUBLE, 2, 4, "relative", t))
+        return nullptr;
+    if (t.len() != 4) {
+        PyErr_SetString(PyExc_ValueError, "relative: expected a (4, 4) array");
+        return nullptr;
+    }
+    for (int c = 0; c < 12; ++c) {
+        if (!std::isfinite(t.f8()[c])) {
+            PyErr_SetString(PyExc_ValueError, "relative: not finite");
+            return nullptr;
+        }
+    }
+    if (std::isnan(reach)) {
+        PyErr_SetString(PyExc_ValueError, "reach: not a number");
+        return nullptr;
+    }
+    NearTriangles near;
+    {
+        const NoGil released;
+        near_triangle_pairs(va.f8(), fa.i8(), fa.len(), vb.f8(), vb.len(), fb.i8(), fb.len(),
+                            t.f8(), reach, near);
+    }
+    npy_intp dims[2] = {static_cast<npy_intp>(near.pairs.size() / 2), 2};
+    res.a = reinterpret_cast<PyArrayObject*>(PyArray_SimpleNew(2, dims, NPY_INT64));
+    if (res.a == nullptr) return nullptr;
+    std::copy(near.pairs.begin(), near.pairs.end(), res.i8());
     return res.release();
 }
 
@@ -828,9 +905,11 @@ PyMethodDef METHODS[] = {
     {"placed_distances", guarded<placed_distances_py>, METH_VARARGS, nullptr},
     {"copied_distances", guarded<copied_distances_py>, METH_VARARGS, nullptr},
     {"hull_levers", guarded<hull_levers_py>, METH_VARARGS, nullptr},
+    {"chain_placements", guarded<chain_placements_py>, METH_VARARGS, nullptr},
     {"placed_surface_distance", guarded<placed_surface_distance_py>, METH_VARARGS, nullptr},
     {"triangle_boxes", guarded<triangle_boxes_py>, METH_VARARGS, nullptr},
     {"box_pairs", guarded<box_pairs_py>, METH_VARARGS, nullptr},
+    {"near_triangle_pairs", guarded<near_triangle_pairs_py>, METH_VARARGS, nullptr},
     {"pair_distances", guarded<pair_distances_py>, METH_VARARGS, nullptr},
     {"triangle_distance", guarded<triangle_distance_py>, METH_VARARGS, nullptr},
     {"winding_numbers", guarded<per_point<winding_number_fn>>, METH_VARARGS, nullptr},

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 #include <vector>
 
 #include "epa.hpp"
@@ -169,6 +170,59 @@ inline PlacedWorkDone placed_distances(const PlacedBatch& t, int64_t count) {
 
 namespace meshcheck {
 
+// A kinematic chain's last link at `count` poses: for each of its `joints` movable joints, the
+// fixed transform before it (`before[j]`, (4, 4): its origin and any fixed joints since the
+// previous movable one), then its motion at `values[e, j]`: a turn by that angle about the unit
+// `axes[j]` (Rodrigues: I + sin K + (1 - cos) K K, K the axis's cross matrix) when `kinds[j]`
+// is 0, a slide along it by that length when 1; `after` (4, 4) closes the chain. Lengths are
+// the chain's own; `out[e]` (4, 4) has its translation times `scale`, and `points[e, j]`
+// (times `scale`) and `directions[e, j]` are joint j's axis line at pose e, in the chain's
+// root frame.
+inline void chain_placements(const double* before, const int64_t* kinds, const double* axes,
+                             const double* after, const double* values, int64_t count,
+                             int64_t joints, double scale, double* out, double* points,
+                             double* directions) {
+    auto times = [](const double* x, const double* y, double* z) {  // z = x y, all (4, 4)
+        for (int r = 0; r < 4; ++r)
+            for (int c = 0; c < 4; ++c) {
+                double sum = 0.0;
+                for (int k = 0; k < 4; ++k) sum += x[4 * r + k] * y[4 * k + c];
+                z[4 * r + c] = sum;
+            }
+    };
+    for (int64_t e = 0; e < count; ++e) {
+        double placed[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1}, next[16];
+        for (int64_t j = 0; j < joints; ++j) {
+            times(placed, before + 16 * j, next);
+            const double* u = axes + 3 * j;
+            double* point = points + 3 * (e * joints + j);
+            double* direction = directions + 3 * (e * joints + j);
+            for (int r = 0; r < 3; ++r) {
+                point[r] = next[4 * r + 3] * scale;
+                direction[r] = next[4 * r] * u[0] + next[4 * r + 1] * u[1] + next[4 * r + 2] * u[2];
+            }
+            const double q = values[e * joints + j];
+            double motion[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+            if (kinds[j] == 1) {
+                for (int r = 0; r < 3; ++r) motion[4 * r + 3] = q * u[r];
+            } else {
+                const double K[9] = {0.0, -u[2], u[1], u[2], 0.0, -u[0], -u[1], u[0], 0.0};
+                const double s = std::sin(q), c = 1.0 - std::cos(q);
+                for (int r = 0; r < 3; ++r)
+                    for (int k = 0; k < 3; ++k) {
+                        double kk = 0.0;
+                        for (int m = 0; m < 3; ++m) kk += K[3 * r + m] * K[3 * m + k];
+                        motion[4 * r + k] = (r == k ? 1.0 : 0.0) + s * K[3 * r + k] + c * kk;
+                    }
+            }
+            times(next, motion, placed);
+        }
+        double* T = out + 16 * e;
+        times(placed, after, T);
+        for (int r = 0; r < 3; ++r) T[4 * r + 3] *= scale;
+    }
+}
+
 // levers[e, t]: the largest distance of the hull points (k rows, a link's frame), placed by
 // placed[e] (4, 4), from the line through points[e, t] along the unit directions[e, t].
 inline void hull_levers(const double* hull, int64_t k, const double* placed, const double* points,
@@ -207,28 +261,29 @@ inline void hull_levers(const double* hull, int64_t k, const double* placed, con
 
 namespace meshcheck {
 
-// The distance between two meshes, b placed in a's frame by T (4, 4), exact when at most
-// reach (else a value above it, inf when no triangle pair's boxes come within reach): only a's
-// triangles near b's box, and b's near theirs, are paired (a hierarchy over b's), and the pairs
-// are measured nearest boxes first. With settle, the first pair within reach answers. `work`
-// gets the triangle pairs measured.
-inline double placed_surface_distance(const double* va, const int64_t* fa, int64_t ma,
-                                      const double* vb, int64_t nb, const int64_t* fb,
-                                      int64_t mb, const double* T, double reach, bool settle,
-                                      int64_t& work) {
-    for (int c = 0; c < 12; ++c)
-        if (!std::isfinite(T[c])) return -INF;
-    if (std::isnan(reach)) return -INF;
-    std::vector<double> placed(3 * nb);
+// The triangle pairs of two meshes, b placed in a's frame by T (4, 4), whose boxes come within
+// reach of each other along every axis: only a's triangles near b's whole box, and b's near
+// theirs, are paired (box_pairs, a hierarchy over b's). `pairs` gets (face of a, face of b);
+// `placed` b's vertices in a's frame; `alo`..`bhi` every triangle's box (b's placed).
+struct NearTriangles {
+    std::vector<double> placed, alo, ahi, blo, bhi;
+    std::vector<int64_t> pairs;
+};
+
+inline void near_triangle_pairs(const double* va, const int64_t* fa, int64_t ma,
+                                const double* vb, int64_t nb, const int64_t* fb, int64_t mb,
+                                const double* T, double reach, NearTriangles& out) {
+    out.placed.resize(3 * nb);
     for (int64_t p = 0; p < nb; ++p) {
         const double* q = vb + 3 * p;
         for (int r = 0; r < 3; ++r)
-            placed[3 * p + r] =
+            out.placed[3 * p + r] =
                 q[0] * T[4 * r] + q[1] * T[4 * r + 1] + q[2] * T[4 * r + 2] + T[4 * r + 3];
     }
-    std::vector<double> alo(3 * ma), ahi(3 * ma), blo(3 * mb), bhi(3 * mb);
-    triangle_boxes(va, fa, ma, alo.data(), ahi.data());
-    triangle_boxes(placed.data(), fb, mb, blo.data(), bhi.data());
+    out.alo.resize(3 * ma), out.ahi.resize(3 * ma), out.blo.resize(3 * mb), out.bhi.resize(3 * mb);
+    triangle_boxes(va, fa, ma, out.alo.data(), out.ahi.data());
+    triangle_boxes(out.placed.data(), fb, mb, out.blo.data(), out.bhi.data());
+    out.pairs.clear();
     auto span = [](const std::vector<double>& lo, const std::vector<double>& hi,
                    const std::vector<int64_t>& rows, double* slo, double* shi) {
         for (int c = 0; c < 3; ++c) slo[c] = INF, shi[c] = -INF;
@@ -241,37 +296,57 @@ inline double placed_surface_distance(const double* va, const int64_t* fa, int64
     std::vector<int64_t> all_b(mb), near_a, near_b;
     for (int64_t j = 0; j < mb; ++j) all_b[j] = j;
     double slo[3], shi[3];
-    span(blo, bhi, all_b, slo, shi);
+    span(out.blo, out.bhi, all_b, slo, shi);
     for (int64_t i = 0; i < ma; ++i)
-        if (boxes_near(&alo[3 * i], &ahi[3 * i], slo, shi, reach)) near_a.push_back(i);
-    span(alo, ahi, near_a, slo, shi);
+        if (boxes_near(&out.alo[3 * i], &out.ahi[3 * i], slo, shi, reach)) near_a.push_back(i);
+    span(out.alo, out.ahi, near_a, slo, shi);
     for (int64_t j = 0; j < mb; ++j)
-        if (boxes_near(&blo[3 * j], &bhi[3 * j], slo, shi, reach)) near_b.push_back(j);
-    if (near_a.empty() || near_b.empty()) return INF;
-    std::vector<double> clo(3 * near_b.size()), chi(3 * near_b.size());
-    for (size_t k = 0; k < near_b.size(); ++k)
-        for (int c = 0; c < 3; ++c) {
-            clo[3 * k + c] = blo[3 * near_b[k] + c];
-            chi[3 * k + c] = bhi[3 * near_b[k] + c];
-        }
-    std::vector<int64_t> pairs;
-    std::vector<double> plo(3 * near_a.size()), phi(3 * near_a.size());
-    for (size_t k = 0; k < near_a.size(); ++k)
-        for (int c = 0; c < 3; ++c) {
-            plo[3 * k + c] = alo[3 * near_a[k] + c];
-            phi[3 * k + c] = ahi[3 * near_a[k] + c];
-        }
+        if (boxes_near(&out.blo[3 * j], &out.bhi[3 * j], slo, shi, reach)) near_b.push_back(j);
+    if (near_a.empty() || near_b.empty()) return;
+    auto boxes_of = [](const std::vector<double>& lo, const std::vector<double>& hi,
+                       const std::vector<int64_t>& rows, std::vector<double>& slo,
+                       std::vector<double>& shi) {
+        slo.resize(3 * rows.size()), shi.resize(3 * rows.size());
+        for (size_t k = 0; k < rows.size(); ++k)
+            for (int c = 0; c < 3; ++c) {
+                slo[3 * k + c] = lo[3 * rows[k] + c];
+                shi[3 * k + c] = hi[3 * rows[k] + c];
+            }
+    };
+    std::vector<double> plo, phi, clo, chi;
+    boxes_of(out.alo, out.ahi, near_a, plo, phi);
+    boxes_of(out.blo, out.bhi, near_b, clo, chi);
     box_pairs(plo.data(), phi.data(), static_cast<int64_t>(near_a.size()), clo.data(),
-              chi.data(), static_cast<int64_t>(near_b.size()), reach, pairs);
+              chi.data(), static_cast<int64_t>(near_b.size()), reach, out.pairs);
+    for (size_t q = 0; q < out.pairs.size(); q += 2) {
+        out.pairs[q] = near_a[out.pairs[q]];
+        out.pairs[q + 1] = near_b[out.pairs[q + 1]];
+    }
+}
+
+// The distance between two meshes, b placed in a's frame by T (4, 4), exact when at most
+// reach (else a value above it, inf when no triangle pair's boxes come within reach): the
+// triangle pairs near each other (near_triangle_pairs) are measured nearest boxes first. With
+// settle, the first pair within reach answers. `work` gets the triangle pairs measured.
+inline double placed_surface_distance(const double* va, const int64_t* fa, int64_t ma,
+                                      const double* vb, int64_t nb, const int64_t* fb,
+                                      int64_t mb, const double* T, double reach, bool settle,
+                                      int64_t& work) {
+    for (int c = 0; c < 12; ++c)
+        if (!std::isfinite(T[c])) return -INF;
+    if (std::isnan(reach)) return -INF;
+    NearTriangles near;
+    near_triangle_pairs(va, fa, ma, vb, nb, fb, mb, T, reach, near);
+    const std::vector<int64_t>& pairs = near.pairs;
     size_t count = pairs.size() / 2;
     if (count == 0) return INF;
     std::vector<double> gap(count);
     std::vector<size_t> order(count);
     for (size_t q = 0; q < count; ++q) {
-        const double* l0 = &plo[3 * pairs[2 * q]];
-        const double* h0 = &phi[3 * pairs[2 * q]];
-        const double* l1 = &clo[3 * pairs[2 * q + 1]];
-        const double* h1 = &chi[3 * pairs[2 * q + 1]];
+        const double* l0 = &near.alo[3 * pairs[2 * q]];
+        const double* h0 = &near.ahi[3 * pairs[2 * q]];
+        const double* l1 = &near.blo[3 * pairs[2 * q + 1]];
+        const double* h1 = &near.bhi[3 * pairs[2 * q + 1]];
         double sq = 0.0;
         for (int c = 0; c < 3; ++c) {
             double g = std::max({l0[c] - h1[c], l1[c] - h0[c], 0.0});
@@ -285,8 +360,8 @@ inline double placed_surface_distance(const double* va, const int64_t* fa, int64
                          [&](size_t x, size_t y) { return gap[x] < gap[y]; });
     double best = INF;
     for (size_t q : order) {
-        Tri ta = triangle(va, fa, near_a[pairs[2 * q]]);
-        Tri tb = triangle(placed.data(), fb, near_b[pairs[2 * q + 1]]);
+        Tri ta = triangle(va, fa, pairs[2 * q]);
+        Tri tb = triangle(near.placed.data(), fb, pairs[2 * q + 1]);
         V3 x, y;
         bool crossing;
         double d = triangle_distance(ta, tb, x, y, crossing);
