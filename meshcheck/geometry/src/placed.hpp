@@ -182,16 +182,27 @@ inline void chain_placements(const double* before, const int64_t* kinds, const d
                              const double* after, const double* values, int64_t count,
                              int64_t joints, double scale, double* out, double* points,
                              double* directions) {
-    auto times = [](const double* x, const double* y, double* z) {  // z = x y, all (4, 4)
-        for (int r = 0; r < 4; ++r)
-            for (int c = 0; c < 4; ++c) {
-                double sum = 0.0;
-                for (int k = 0; k < 4; ++k) sum += x[4 * r + k] * y[4 * k + c];
-                z[4 * r + c] = sum;
-            }
+    // Rigid motions as their top three rows (3, 4): z = x y, summed in the order a (4, 4)
+    // product would (its bottom row 0 0 0 1 adds only exact zeros and ones).
+    auto times = [](const double* x, const double* y, double* z) {
+        for (int r = 0; r < 3; ++r) {
+            for (int c = 0; c < 3; ++c)
+                z[4 * r + c] = x[4 * r] * y[c] + x[4 * r + 1] * y[4 + c] + x[4 * r + 2] * y[8 + c];
+            z[4 * r + 3] = x[4 * r] * y[3] + x[4 * r + 1] * y[7] + x[4 * r + 2] * y[11] +
+                           x[4 * r + 3];
+        }
     };
+    std::vector<double> squares(9 * joints);  // K K of each turning joint's cross matrix K
+    for (int64_t j = 0; j < joints; ++j) {
+        const double* u = axes + 3 * j;
+        const double K[9] = {0.0, -u[2], u[1], u[2], 0.0, -u[0], -u[1], u[0], 0.0};
+        for (int r = 0; r < 3; ++r)
+            for (int k = 0; k < 3; ++k)
+                squares[9 * j + 3 * r + k] =
+                    K[3 * r] * K[k] + K[3 * r + 1] * K[3 + k] + K[3 * r + 2] * K[6 + k];
+    }
     for (int64_t e = 0; e < count; ++e) {
-        double placed[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1}, next[16];
+        double placed[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}, next[12];
         for (int64_t j = 0; j < joints; ++j) {
             times(placed, before + 16 * j, next);
             const double* u = axes + 3 * j;
@@ -202,24 +213,25 @@ inline void chain_placements(const double* before, const int64_t* kinds, const d
                 direction[r] = next[4 * r] * u[0] + next[4 * r + 1] * u[1] + next[4 * r + 2] * u[2];
             }
             const double q = values[e * joints + j];
-            double motion[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+            double motion[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
             if (kinds[j] == 1) {
                 for (int r = 0; r < 3; ++r) motion[4 * r + 3] = q * u[r];
             } else {
                 const double K[9] = {0.0, -u[2], u[1], u[2], 0.0, -u[0], -u[1], u[0], 0.0};
+                const double* kk = &squares[9 * j];
                 const double s = std::sin(q), c = 1.0 - std::cos(q);
                 for (int r = 0; r < 3; ++r)
-                    for (int k = 0; k < 3; ++k) {
-                        double kk = 0.0;
-                        for (int m = 0; m < 3; ++m) kk += K[3 * r + m] * K[3 * m + k];
-                        motion[4 * r + k] = (r == k ? 1.0 : 0.0) + s * K[3 * r + k] + c * kk;
-                    }
+                    for (int k = 0; k < 3; ++k)
+                        motion[4 * r + k] =
+                            (r == k ? 1.0 : 0.0) + s * K[3 * r + k] + c * kk[3 * r + k];
             }
             times(next, motion, placed);
         }
         double* T = out + 16 * e;
         times(placed, after, T);
         for (int r = 0; r < 3; ++r) T[4 * r + 3] *= scale;
+        T[12] = T[13] = T[14] = 0.0;
+        T[15] = 1.0;
     }
 }
 
