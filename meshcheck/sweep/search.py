@@ -89,13 +89,17 @@ SKIP_WORK = 64
 #: joint; on the PR2's palm and shoulder (5 joints) five needed a ninth of the boxes three did.
 CORNER_JOINTS = 5
 #: A pair undecided after ``MAX_BOXES`` whose links no free joint moves both (two arms, a
-#: head and an arm) is searched again, within this many boxes more, with each link's copies
-#: over its own corner joints: up to ``CORNER_JOINTS`` on each side, this many in all. Only
-#: those left undecided pay for the dearer copies: the PR2 has hundreds of such pairs
-#: (casters, head, arms), most decided within the first search.
-SEPARATE_CORNER_JOINTS = 7
-SEPARATE_SIDE_JOINTS = CORNER_JOINTS
-SEPARATE_BOXES = 100_000
+#: head and an arm) is searched again, within ``SEPARATE_BOXES`` more, with each link's
+#: copies over its own corner joints: up to ``SEPARATE_SIDE_JOINTS`` on each side,
+#: ``SEPARATE_CORNER_JOINTS`` in all (the copies grow as the sum of the sides', 4 + 64 for
+#: the PR2's head and a wrist, 8 joints all at corners, so only second-order error is left).
+#: Only those left undecided pay for the dearer copies: the PR2 has hundreds of such pairs
+#: (casters, head, arms), most decided within the first search; its head mount and Kinect
+#: against a forearm or wrist need 380,000 to 470,000 boxes (bench/sweep.py --robot pr2
+#: --pair).
+SEPARATE_CORNER_JOINTS = 8
+SEPARATE_SIDE_JOINTS = 6
+SEPARATE_BOXES = 500_000
 #: What one box's corner test counts for against ``MAX_BOXES``: about its time in boxes
 #: evaluated at their centre alone (``bench/sweep.py --robot pr2 --pair
 #: l_gripper_palm_link:l_shoulder_lift_link``: 0.06 ms a box, 0.77 ms a corner test of 32 copies).
