@@ -5,6 +5,8 @@ real meshes' distance (python-fcl) anywhere in random boxes of the panda's and t
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 import trimesh
@@ -335,3 +337,27 @@ def test_corners_over_each_links_own_joints_when_no_joint_moves_both(hull_pairs)
     assert [int(c[0]) for c in counts] == [8, 16]
     fingers, _, _ = hull_pairs["fingers"]
     assert not fingers.has_separate_sides()
+
+
+def test_the_second_search_gives_its_envelopes_their_own_box_cap(hull_pairs, monkeypatch):
+    """A pair of separate chains left undecided by its first search (here by a cap of 600
+    boxes, envelopes tried from 200) is searched again with corners over each link's own joints, and its envelopes
+    get ``SEPARATE_ENVELOPE_BOXES``, not the first search's ``ENVELOPE_BOXES``: the PR2's
+    arms, whose roll links pass 7-8 mm apart, are proven only over the envelopes of both roll
+    joints, in 73,000 to 90,000 boxes of them (``bench/sweep.py --robot pr2 --pair``)."""
+    pair, (lower, upper), _ = hull_pairs["arms"]
+    pair = dataclasses.replace(pair, tolerance=1e-5, envelopes={})
+    monkeypatch.setattr(search, "MAX_BOXES", 600)
+    monkeypatch.setattr(search, "ENVELOPE_AFTER", 200)
+    monkeypatch.setattr(search, "SEPARATE_BOXES", 2000)
+    monkeypatch.setattr(search, "ENVELOPE_BOXES", 100)
+    monkeypatch.setattr(search, "SEPARATE_ENVELOPE_BOXES", 200)
+    caps, proof = [], search.envelope_proof
+
+    def recorded(*args, **kwargs):
+        caps.append((kwargs["separate"], kwargs["max_boxes"]))
+        return proof(*args, **kwargs)
+
+    monkeypatch.setattr(search, "envelope_proof", recorded)
+    found = search.sweep_pair(pair, lower, upper, 1e-4)
+    assert caps == [(False, 100), (True, 200)], found

@@ -92,14 +92,18 @@ CORNER_JOINTS = 5
 #: head and an arm) is searched again, within ``SEPARATE_BOXES`` more, with each link's
 #: copies over its own corner joints: up to ``SEPARATE_SIDE_JOINTS`` on each side,
 #: ``SEPARATE_CORNER_JOINTS`` in all (the copies grow as the sum of the sides', 4 + 64 for
-#: the PR2's head and a wrist, 8 joints all at corners, so only second-order error is left).
-#: Only those left undecided pay for the dearer copies: the PR2 has hundreds of such pairs
-#: (casters, head, arms), most decided within the first search; its head mount and Kinect
-#: against a forearm or wrist need 380,000 to 470,000 boxes (bench/sweep.py --robot pr2
-#: --pair).
+#: the PR2's head and a wrist, 8 joints all at corners, so only second-order error is left);
+#: its envelopes (``envelope_proof``) may take ``SEPARATE_ENVELOPE_BOXES``. Only those left
+#: undecided pay for the dearer copies: the PR2 has hundreds of such pairs (casters, head,
+#: arms), most decided within the first search. On the PR2 (bench/sweep.py --robot pr2
+#: --pair), the head mount and the Kinect against a forearm or wrist need 450,000 to 520,000
+#: boxes of the second search; one arm's shoulder lift or upper arm roll link against the
+#: other's forearm roll link, with both roll joints in envelopes, 73,000 to 90,000 of its
+#: envelopes' boxes.
 SEPARATE_CORNER_JOINTS = 8
 SEPARATE_SIDE_JOINTS = 6
 SEPARATE_BOXES = 500_000
+SEPARATE_ENVELOPE_BOXES = 131_072
 #: What one box's corner test counts for against ``MAX_BOXES``: about its time in boxes
 #: evaluated at their centre alone (``bench/sweep.py --robot pr2 --pair
 #: l_gripper_palm_link:l_shoulder_lift_link``: 0.06 ms a box, 0.77 ms a corner test of 32 copies).
@@ -597,9 +601,9 @@ def sweep_pair(
     instead, the revolute joints at the ends of their chains taken out of the search
     (``envelope_proof``). A pair that would evaluate more than ``MAX_BOXES`` (and the
     envelopes' ``ENVELOPE_BOXES``, and, for a pair no joint of which moves both links, a
-    second search within ``SEPARATE_BOXES`` with corners over each link's own joints), or
-    whose work
-    (``LinkPair.work``) passes ``allowance`` (checked after each batch), is undecided.
+    second search within ``SEPARATE_BOXES`` with corners over each link's own joints and
+    envelopes within ``SEPARATE_ENVELOPE_BOXES``), or whose work (``LinkPair.work``) passes
+    ``allowance`` (checked after each batch), is undecided.
     """
     allowance = np.inf if allowance is None else allowance
     pair.allowance = allowance
@@ -616,6 +620,7 @@ def sweep_pair(
     again = box_search(
         pair, lower, upper, resolution, allowance, evaluated=0, witnesses=False,
         max_boxes=SEPARATE_BOXES, separate=True, envelope=True,
+        envelope_boxes=SEPARATE_ENVELOPE_BOXES,
     )  # fmt: skip
     boxes = found.boxes + again.boxes
     return replace(again if again.status != SweepStatus.UNDECIDED else found, boxes=boxes)
@@ -633,6 +638,7 @@ def box_search(
     max_boxes: int | None = None,
     separate: bool = False,
     envelope: bool | None = None,
+    envelope_boxes: int | None = None,
 ) -> PairSweep:
     """``sweep_pair``'s search of the boxes, ``evaluated`` boxes counted already (an envelope's
     boxes are counted too, but apart from ``max_boxes`` and the descents' schedule). Without
@@ -640,8 +646,10 @@ def box_search(
     the real meshes, and the first box centre where the pieces come within the tolerance, or
     box at the resolution, leaves the pair undecided. ``max_boxes`` defaults to ``MAX_BOXES``.
     ``separate`` takes each box's corners over each link's own joints (``corner_plan``);
-    ``envelope`` (default: ``witnesses``) lets an open pair try its links' envelopes."""
+    ``envelope`` (default: ``witnesses``) lets an open pair try its links' envelopes, within
+    ``envelope_boxes`` (default ``ENVELOPE_BOXES``)."""
     max_boxes = MAX_BOXES if max_boxes is None else max_boxes
+    envelope_boxes = ENVELOPE_BOXES if envelope_boxes is None else envelope_boxes
     lo, hi = lower[None, :].copy(), upper[None, :].copy()
     checks, unresolved, aside = 0, False, 0  # aside: the envelopes' boxes
     envelope = witnesses if envelope is None else envelope
@@ -656,8 +664,9 @@ def box_search(
         if not enveloped and evaluated >= ENVELOPE_AFTER and nearest.values is not None:
             enveloped = True
             found, boxes = envelope_proof(
-                pair, lower, upper, resolution, nearest, evaluated, separate=separate
-            )
+                pair, lower, upper, resolution, nearest, evaluated, separate=separate,
+                max_boxes=envelope_boxes,
+            )  # fmt: skip
             if found is not None:
                 return found
             evaluated, aside = evaluated + boxes, boxes
@@ -749,19 +758,20 @@ def box_search(
 
 def envelope_proof(
     pair: LinkPair, lower, upper, resolution: float, nearest: NearestCentres, evaluated: int,
-    *, separate: bool = False,
+    *, separate: bool = False, max_boxes: int | None = None,
 ) -> tuple[PairSweep | None, int]:  # fmt: skip
     """Never (or always) proven over the envelopes of the links' last joints
-    (``envelope_pair``), within ``ENVELOPE_BOXES`` in all, else None; and the boxes it
-    evaluated.
+    (``envelope_pair``), within ``max_boxes`` in all (default ``ENVELOPE_BOXES``), else None;
+    and the boxes it evaluated.
 
     The envelopes may first reach as far beyond the links as ``ENVELOPE_SHARE`` of the
     smallest distance at the box centres so far less the tolerance (a pair that comes close
     somewhere keeps the joints that bring it there); when their search fails, with half that,
     and so on, each time other joints go."""
+    max_boxes = ENVELOPE_BOXES if max_boxes is None else max_boxes
     margin = ENVELOPE_SHARE * max(float(nearest.lowest.min()) - pair.tolerance, 0.0)
     boxes, kept = 0, None
-    while boxes < ENVELOPE_BOXES and margin > 0.0:
+    while boxes < max_boxes and margin > 0.0:
         made = envelope_pair(pair, lower, upper, margin)
         if made is None:
             break
@@ -772,7 +782,7 @@ def envelope_proof(
         kept = sub.names
         found = box_search(
             sub, sub_lower, sub_upper, resolution, pair.allowance - pair.work, evaluated=0,
-            witnesses=False, max_boxes=ENVELOPE_BOXES - boxes, separate=separate,
+            witnesses=False, max_boxes=max_boxes - boxes, separate=separate,
         )  # fmt: skip
         pair.work += sub.work
         boxes += found.boxes
