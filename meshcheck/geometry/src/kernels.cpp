@@ -480,6 +480,20 @@ PyObject* chain_placements_py(PyObject*, PyObject* args) {
     return Py_BuildValue("NNN", out.release(), points.release(), directions.release());
 }
 
+// Two meshes and the (4, 4) placement of the second in the first's frame.
+bool placed_meshes(PyObject* vao, PyObject* fao, PyObject* vbo, PyObject* fbo, PyObject* to,
+                   Array& va, Array& fa, Array& vb, Array& fb, Array& t) {
+    if (!as_array(vao, NPY_DOUBLE, 2, 3, "va", va) || !faces_of(fao, va.len(), "fa", fa) ||
+        !as_array(vbo, NPY_DOUBLE, 2, 3, "vb", vb) || !faces_of(fbo, vb.len(), "fb", fb) ||
+        !as_array(to, NPY_DOUBLE, 2, 4, "relative", t))
+        return false;
+    if (t.len() != 4) {
+        PyErr_SetString(PyExc_ValueError, "relative: expected a (4, 4) array");
+        return false;
+    }
+    return true;
+}
+
 // placed_surface_distance(va, fa, vb, fb, relative (4, 4), reach, settle) -> (distance, pairs)
 PyObject* placed_surface_distance_py(PyObject*, PyObject* args) {
     PyObject *vao, *fao, *vbo, *fbo, *to;
@@ -488,14 +502,7 @@ PyObject* placed_surface_distance_py(PyObject*, PyObject* args) {
     if (!PyArg_ParseTuple(args, "OOOOOdp", &vao, &fao, &vbo, &fbo, &to, &reach, &settle))
         return nullptr;
     Array va, fa, vb, fb, t;
-    if (!as_array(vao, NPY_DOUBLE, 2, 3, "va", va) || !faces_of(fao, va.len(), "fa", fa) ||
-        !as_array(vbo, NPY_DOUBLE, 2, 3, "vb", vb) || !faces_of(fbo, vb.len(), "fb", fb) ||
-        !as_array(to, NPY_DOUBLE, 2, 4, "relative", t))
-        return nullptr;
-    if (t.len() != 4) {
-        PyErr_SetString(PyExc_ValueError, "relative: expected a (4, 4) array");
-        return nullptr;
-    }
+    if (!placed_meshes(vao, fao, vbo, fbo, to, va, fa, vb, fb, t)) return nullptr;
     int64_t work = 0;
     double d;
     {
@@ -553,14 +560,7 @@ PyObject* near_triangle_pairs_py(PyObject*, PyObject* args) {
     double reach;
     if (!PyArg_ParseTuple(args, "OOOOOd", &vao, &fao, &vbo, &fbo, &to, &reach)) return nullptr;
     Array va, fa, vb, fb, t, res;
-    if (!as_array(vao, NPY_DOUBLE, 2, 3, "va", va) || !faces_of(fao, va.len(), "fa", fa) ||
-        !as_array(vbo, NPY_DOUBLE, 2, 3, "vb", vb) || !faces_of(fbo, vb.len(), "fb", fb) ||
-        !as_array(to, NPY_DOUBLE, 2, 4, "relative", t))
-        return nullptr;
-    if (t.len() != 4) {
-        PyErr_SetString(PyExc_ValueError, "relative: expected a (4, 4) array");
-        return nullptr;
-    }
+    if (!placed_meshes(vao, fao, vbo, fbo, to, va, fa, vb, fb, t)) return nullptr;
     for (int c = 0; c < 12; ++c) {
         if (!std::isfinite(t.f8()[c])) {
             PyErr_SetString(PyExc_ValueError, "relative: not finite");
