@@ -341,10 +341,11 @@ def test_corners_over_each_links_own_joints_when_no_joint_moves_both(hull_pairs)
 
 def test_the_second_search_gives_its_envelopes_their_own_box_cap(hull_pairs, monkeypatch):
     """A pair of separate chains left undecided by its first search (here by a cap of 600
-    boxes, envelopes tried from 200) is searched again with corners over each link's own joints, and its envelopes
-    get ``SEPARATE_ENVELOPE_BOXES``, not the first search's ``ENVELOPE_BOXES``: the PR2's
-    arms, whose roll links pass 7-8 mm apart, are proven only over the envelopes of both roll
-    joints, in 73,000 to 90,000 boxes of them (``bench/sweep.py --robot pr2 --pair``)."""
+    boxes, envelopes tried from 200) is searched again with corners over each link's own
+    joints, and its envelopes get ``SEPARATE_ENVELOPE_BOXES``, not the first search's
+    ``ENVELOPE_BOXES``: the PR2's arms, whose roll links pass 7-8 mm apart, are proven only
+    over the envelopes of both roll joints, and only within the second search's cap
+    (``bench/sweep.py --robot pr2``)."""
     pair, (lower, upper), _ = hull_pairs["arms"]
     pair = dataclasses.replace(pair, tolerance=1e-5, envelopes={})
     monkeypatch.setattr(search, "MAX_BOXES", 600)

@@ -96,10 +96,10 @@ CORNER_JOINTS = 5
 #: its envelopes (``envelope_proof``) may take ``SEPARATE_ENVELOPE_BOXES``. Only those left
 #: undecided pay for the dearer copies: the PR2 has hundreds of such pairs (casters, head,
 #: arms), most decided within the first search. On the PR2 (bench/sweep.py --robot pr2
-#: --pair), the head mount and the Kinect against a forearm or wrist need 450,000 to 520,000
-#: boxes of the second search; one arm's shoulder lift or upper arm roll link against the
-#: other's forearm roll link, with both roll joints in envelopes, 73,000 to 90,000 of its
-#: envelopes' boxes.
+#: --rows), the head mount and the Kinect against a forearm or wrist take 625,000 to 702,000
+#: boxes all told; one arm's shoulder lift or upper arm roll link against the other's forearm
+#: roll link, proven over the envelopes of both roll joints in the second search (not within
+#: the first search's ``ENVELOPE_BOXES``), 254,000 to 273,000.
 SEPARATE_CORNER_JOINTS = 8
 SEPARATE_SIDE_JOINTS = 6
 SEPARATE_BOXES = 500_000
@@ -230,7 +230,7 @@ class LinkPair:
         chosen : (E, m) int64
             The ``CORNER_JOINTS`` (at most) free joints that contribute most to each box's
             first-order bound (``rates``, ``kinematics.joint_rates``); with ``separate``, when
-            no free joint moves both links, up to ``CORNER_JOINTS`` of each link's own
+            no free joint moves both links, up to ``SEPARATE_SIDE_JOINTS`` of each link's own
             joints, ``SEPARATE_CORNER_JOINTS`` in all (each link's copies are over its own
             corner joints only, so the copies grow as the sum of the two sides', not the
             product).
@@ -247,7 +247,7 @@ class LinkPair:
         moves = self.moving_joints()
         if not separate or np.any(moves[0] & moves[1]):
             chosen = order[:, : min(CORNER_JOINTS, half.shape[1])]
-        else:  # each side's copies are over its own joints: up to CORNER_JOINTS on each
+        else:  # each side's copies are over its own joints: up to SEPARATE_SIDE_JOINTS each
             side = moves[1][order]  # (E, n): the joint moves link b
             rank = np.where(side, np.cumsum(side, axis=1), np.cumsum(~side, axis=1))
             keep = rank <= SEPARATE_SIDE_JOINTS
