@@ -26,7 +26,7 @@ from meshcheck.geometry import (
 from meshcheck.geometry.chains import chain_placements
 from meshcheck.geometry.gjk import Status
 from meshcheck.geometry.triangles import near_triangle_pairs
-from meshcheck.load.robot import MOVABLE, chain_transforms
+from meshcheck.load.robot import MOVABLE, chain_transforms, fold_chain
 from meshcheck.load.urdf import parse_robot
 from meshcheck.sweep.search import PAIR_WORK, WorkBudget
 
@@ -202,7 +202,7 @@ def test_chain_transforms_place_every_link_and_axis_as_a_pose_by_pose_reading(se
                 leader, multiplier, offset = oracle.joints[joint.name].mimic or (joint.name, 1, 0)
                 poses[joint.name] = np.array([multiplier * v[leader] + offset for v in drawn])
         axes: dict = {}
-        placed = chain_transforms(chain, poses, scale, len(drawn), axes)
+        placed = chain_transforms(fold_chain(chain), poses, scale, len(drawn), axes)
         for e, links in enumerate(expected):
             want = links[link].copy()
             want[:3, 3] *= scale

@@ -12,7 +12,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -314,14 +314,21 @@ def adjacent_links(robot: Robot) -> set[frozenset[str]]:
 # Many poses at once (the sweep's)
 
 
-def chain_transforms(
-    chain: list[Joint], poses: dict, scale: float, count: int, axes: dict | None = None
-) -> np.ndarray:
-    """(E, 4, 4) placements of a chain's last link (``Robot.chain``) in the root frame for
-    ``count`` poses (``{joint: (E,) values}``, ``sweep.search.chain_poses``), lengths times
-    ``scale``; with ``axes``, each movable
-    joint's axis line at each pose goes there, ``{name: ((E, 3) point on it, lengths times
-    scale, (E, 3) unit direction)}``. One compiled loop (``geometry.chains``)."""
+class FoldedChain(NamedTuple):
+    """A chain (``Robot.chain``) as ``geometry.chains.chain_placements`` reads it: its movable
+    joints, with the fixed transforms between them folded into one matrix each
+    (``fold_chain``). It depends on the chain alone, so a caller placing one chain many times
+    folds it once."""
+
+    names: tuple[str, ...]
+    before: np.ndarray  # (J, 4, 4): the origins (and held joints) before each movable joint
+    kinds: np.ndarray  # (J,): TURN or SLIDE
+    axes: np.ndarray  # (J, 3): each movable joint's unit axis
+    after: np.ndarray  # (4, 4): the origins after the last one
+
+
+def fold_chain(chain: list[Joint]) -> FoldedChain:
+    """``chain``'s ``FoldedChain``."""
     before, kinds, directions, names = [], [], [], []
     fixed = np.eye(4)  # origins (and held joints) since the last motion, folded into one matrix
     for joint in chain:
@@ -332,15 +339,31 @@ def chain_transforms(
             directions.append(joint.axis)
             names.append(joint.name)
             fixed = np.eye(4)
-    values = np.empty((count, len(names)))
-    for k, name in enumerate(names):
+    return FoldedChain(
+        tuple(names),
+        np.reshape(before, (-1, 4, 4)),
+        np.asarray(kinds, dtype=np.int64),
+        np.reshape(directions, (-1, 3)),
+        fixed,
+    )
+
+
+def chain_transforms(
+    chain: FoldedChain, poses: dict, scale: float, count: int, axes: dict | None = None
+) -> np.ndarray:
+    """(E, 4, 4) placements of a chain's last link (``fold_chain`` of ``Robot.chain``) in the
+    root frame for ``count`` poses (``{joint: (E,) values}``, ``sweep.search.chain_poses``),
+    lengths times ``scale``; with ``axes``, each movable joint's axis line at each pose goes
+    there, ``{name: ((E, 3) point on it, lengths times scale, (E, 3) unit direction)}``. One
+    compiled loop (``geometry.chains``)."""
+    values = np.empty((count, len(chain.names)))
+    for k, name in enumerate(chain.names):
         values[:, k] = poses[name]
     placed, points, lines = chain_placements(
-        np.reshape(before, (-1, 4, 4)), kinds, np.reshape(directions, (-1, 3)), fixed, values,
-        scale,
-    )  # fmt: skip
+        chain.before, chain.kinds, chain.axes, chain.after, values, scale
+    )
     if axes is not None:
-        for k, name in enumerate(names):
+        for k, name in enumerate(chain.names):
             axes[name] = (points[:, k], lines[:, k])
     return placed
 
@@ -351,6 +374,7 @@ __all__ = [
     "MOVABLE",
     "ROTARY",
     "Collision",
+    "FoldedChain",
     "Joint",
     "Mechanism",
     "Robot",
@@ -358,6 +382,7 @@ __all__ = [
     "chain_transforms",
     "cross_matrix",
     "default_value",
+    "fold_chain",
     "joint_values",
     "link_transforms",
     "rotation",

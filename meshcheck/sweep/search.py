@@ -26,7 +26,7 @@ import numpy as np
 from ..geometry import copied_distances, triangle_pack
 from ..geometry.triangles import near_triangle_pairs
 from ..load import Body
-from ..load.robot import MOVABLE, ROTARY, Joint, Robot, chain_transforms
+from ..load.robot import MOVABLE, ROTARY, Joint, Robot, chain_transforms, fold_chain
 from ..results import PairSweep, SweepStatus, Verdict
 from ..verify.pair import verify_pair
 from .distances import LinkGeometry, piece_distances, surface_distance
@@ -188,6 +188,7 @@ class LinkPair:
 
     def __post_init__(self):
         self.chains = joints_below_common(self.robot, (self.a, self.b))
+        self.folded = tuple(fold_chain(chain) for chain in self.chains)
 
     def placements(self, values: np.ndarray, axes: dict | None = None):
         """(ta, tb, poses): the links' placements at the rows of ``values`` in the frame of
@@ -198,8 +199,8 @@ class LinkPair:
         poses = chain_poses(self.robot, self.base, self.names, values, self.chains)
         count = len(values)
         self.work += count * max(len(self.names), 1)
-        ta = chain_transforms(self.chains[0], poses, self.scale, count, axes)
-        tb = chain_transforms(self.chains[1], poses, self.scale, count, axes)
+        ta = chain_transforms(self.folded[0], poses, self.scale, count, axes)
+        tb = chain_transforms(self.folded[1], poses, self.scale, count, axes)
         return ta, tb, poses
 
     def side_placements(self, values: np.ndarray, k: int) -> np.ndarray:
@@ -207,7 +208,7 @@ class LinkPair:
         (``placements``)."""
         poses = chain_poses(self.robot, self.base, self.names, values, self.chains[k : k + 1])
         self.work += len(values) * max(len(self.names), 1)
-        return chain_transforms(self.chains[k], poses, self.scale, len(values))
+        return chain_transforms(self.folded[k], poses, self.scale, len(values))
 
     def box_weights(self, ta, tb, axes: dict, half: np.ndarray) -> np.ndarray:
         """(E, n) bounds on how fast a unit change of each free joint moves any point of the
@@ -244,7 +245,7 @@ class LinkPair:
         ]
         first = bounds[0][0] + bounds[1][0]
         order = np.argsort(-(half * first), axis=1, kind="stable")
-        moves = self.moving_joints()
+        moves = self.moving_joints
         if not separate or np.any(moves[0] & moves[1]):
             chosen = order[:, : min(CORNER_JOINTS, half.shape[1])]
         else:  # each side's copies are over its own joints: up to SEPARATE_SIDE_JOINTS each
@@ -264,9 +265,10 @@ class LinkPair:
     def has_separate_sides(self) -> bool:
         """Whether more free joints move the pair than one corner test takes and no free
         joint moves both links (``corner_plan``'s ``separate``)."""
-        moves = self.moving_joints()
+        moves = self.moving_joints
         return len(self.names) > CORNER_JOINTS and not np.any(moves[0] & moves[1])
 
+    @cached_property
     def moving_joints(self) -> tuple[np.ndarray, np.ndarray]:
         """Which free joints move each link (relative to the pair's common ancestor)."""
         out = []
@@ -329,7 +331,7 @@ class LinkPair:
         centre = 0.5 * (lo + hi)
         bits = (np.arange(2**m)[:, None] >> np.arange(m)[None, :]) & 1 == 1  # (K, m)
         placed, counts = [], []
-        for k, moves in enumerate(self.moving_joints()):
+        for k, moves in enumerate(self.moving_joints):
             mask = moves[chosen]  # (E, m): the corner joints that move this side
             own = ~np.any(bits[None] & ~mask[:, None, :], axis=2)  # (E, K): its corners
             rows, corner = np.nonzero(own)  # each box's own corners, in order
@@ -864,7 +866,7 @@ def axis_in_link(pair: LinkPair, k: int, name: str, base: dict) -> tuple[np.ndar
     chain = pair.chains[k]
     poses = {j.name: np.array([base[j.name]]) for j in chain if j.type in MOVABLE}
     axes: dict = {}
-    placed = chain_transforms(chain, poses, pair.scale, 1, axes)[0]
+    placed = chain_transforms(pair.folded[k], poses, pair.scale, 1, axes)[0]
     point, direction = axes[name]
     inverse = np.linalg.inv(placed)
     return inverse[:3, :3] @ point[0] + inverse[:3, 3], placed[:3, :3].T @ direction[0]
