@@ -130,7 +130,7 @@ def test_a_face_left_without_triangles_is_meshed_again_with_its_seams_closed():
     mesh, deviation = product_mesh(plate, "plate", 1.0, deflection, angular=0.5)
     assert follows_edges(chamfer)
     assert is_closed(mesh)
-    # meshed with twice the deflection inside: its measured distance is what is reported
+    # meshed coarser inside than on its edges: its measured distance is what is reported
     assert deviation == face_deviation(chamfer) and 0 < deviation <= 2 * deflection
     # the chords lie within the deflection of the faces: the volume within their area times it
     area = 2 * (100 - np.pi * 1.7**2) + 40 * 3 + 2 * np.pi * 1.7 * 3 + 2 * np.pi * 2.0 * 0.43
