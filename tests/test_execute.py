@@ -121,14 +121,16 @@ def test_prepared_workers_import_before_their_first_task():
     calling the function before it is ready; a worker started by a map calls none."""
     ask = [Task(("OCP.OCP",))]  # the extension holding every OpenCASCADE module
     with LocalPool(2) as pool:
-        pool.prepare("meshcheck.verify.solids:preload")
-        assert len(pool.workers) == 1 and pool.prepared == {"meshcheck.verify.solids:preload"}
+        pool.prepare("meshcheck.load.step.tessellate:preload")
+        assert len(pool.workers) == 1 and pool.prepared == {
+            "meshcheck.load.step.tessellate:preload"
+        }
         assert pool.map("meshcheck.execute:is_imported", ask) == [True]
     with LocalPool(2) as pool:
         assert pool.map("meshcheck.execute:is_imported", ask) == [False]
         assert pool.prepared == frozenset()
     pool = LocalPool(2)
-    pool.prepare("meshcheck.verify.solids:preload")
+    pool.prepare("meshcheck.load.step.tessellate:preload")
     started = time.monotonic()
     pool.close()  # not used (a warm run): not waited for while it imports
     assert time.monotonic() - started < 0.5

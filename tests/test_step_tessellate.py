@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from step_writer import box, cut, cylinder, write_step
 
+from meshcheck.execute import Task
 from meshcheck.load import load_bodies
 from meshcheck.load.step import read_step
 from meshcheck.load.step.tessellate import (
@@ -208,3 +209,74 @@ def test_a_product_meshed_again_coarser_holds_its_own_deflection(tmp_path, monke
         assert assembly.deflection == 0.02  # the file's: the largest
     bodies = {b.name.rsplit("#", 1)[1]: b.deflection for b in load_bodies([path])}
     assert bodies == {"plate": 0.02, "pin": 0.005}
+
+
+# --------------------------------------------------------------------------------------------
+# Products meshed in workers
+
+
+def four_products(path) -> str:
+    """A plate with two holes, a pin in one and a chamfered plate beside it, a block on top:
+    four products, more than a two-job pool has processes."""
+    plate = cut(box((-30, -10, 0), (30, 10, 6)), cylinder(2.5, -1, 7, -20, 0), cylinder(2, -1, 7))
+    products = {
+        "plate": plate,
+        "pin": cylinder(2.5, -6.0, 12.0, -20, 0),
+        "chamfered": chamfered_plate(),
+        "block": box((10, -5, 6), (20, 5, 9)),
+    }
+    instances = [(name, EYE) for name in products]
+    return write_step(path, products, instances)
+
+
+def test_products_meshed_in_prepared_workers_are_the_ones_meshed_here(tmp_path):
+    from meshcheck.execute import LocalPool
+    from meshcheck.load.step import tessellate
+
+    path = four_products(tmp_path / "four.step")
+    here = read_step(path)
+    with LocalPool(2) as pool:
+        pool.prepare(tessellate.PREPARE)  # what a run with a large STEP file does
+        assert tessellate._meshes_in_workers(pool, 4)
+        mapped, real_map = [], pool.map
+
+        def map_and_note(function, tasks, **kwargs):
+            mapped.append((function, len(tasks)))
+            return real_map(function, tasks, **kwargs)
+
+        pool.map = map_and_note
+        there = read_step(path, executor=pool)
+        pool.map = real_map
+        assert mapped == [("meshcheck.load.step.tessellate:mesh_task", 4)]
+        ran_in = pool.map("meshcheck.execute:is_imported", [Task(("OCP.OCP",))])
+    assert ran_in == [True]  # the worker loaded OpenCASCADE before its first task
+    assert [n for n, _, _ in here.items] == [n for n, _, _ in there.items]
+    for (_, a, pa), (_, b, pb) in zip(here.items, there.items, strict=True):
+        assert np.array_equal(a.vertices, b.vertices) and np.array_equal(a.faces, b.faces)
+        assert np.array_equal(pa, pb) and a.metadata == b.metadata
+    assert here.deflection == there.deflection
+
+
+def test_a_pool_without_opencascade_loaded_meshes_nothing_in_its_workers():
+    from meshcheck.execute import Executor, LocalPool
+    from meshcheck.load.step import tessellate
+
+    with LocalPool(2) as pool:  # not prepared: a small file's run
+        assert not tessellate._meshes_in_workers(pool, 4)
+    assert not tessellate._meshes_in_workers(Executor(), 4)
+    assert not tessellate._meshes_in_workers(None, 4)
+
+
+def test_a_product_that_cannot_be_meshed_is_an_input_error_naming_it(tmp_path, monkeypatch):
+    from meshcheck.errors import InputError
+    from meshcheck.load.step import tessellate
+
+    path = four_products(tmp_path / "four.step")
+
+    def product_mesh(shape, name, to_unit, deflection, *, angular):
+        raise InputError(name, "vertices have NaN or infinite coordinates")
+
+    monkeypatch.setattr(tessellate, "product_mesh", product_mesh)
+    with pytest.raises(InputError) as caught:
+        read_step(path)
+    assert caught.value.path == f"{path}#block"  # the first product in name order

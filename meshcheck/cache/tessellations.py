@@ -19,9 +19,9 @@ from ..units import METRES
 from .store import Store, checksum, npz_sizes_agree, package_version
 
 # Bump when an entry's layout or the meaning of its meshes changes (the welding, the naming):
-# 6 faces mended from four deflections inside, 5 a deflection per product, 4 each solid welded on
-# its own, 3 welded along shared edges, 2 XCAF.
-FORMAT_VERSION = 6
+# 7 each product meshed from its BRep text, 6 faces mended from four deflections inside, 5 a
+# deflection per product, 4 each solid welded on its own, 3 welded along shared edges, 2 XCAF.
+FORMAT_VERSION = 7
 #: A tessellation cache entry larger than this is a miss (an assembly's is megabytes).
 MAX_TESSELLATION_BYTES = 1 << 30
 

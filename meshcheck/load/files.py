@@ -138,7 +138,11 @@ def is_multi(path: str, items: Sequence) -> bool:
 
 
 def read(
-    path: str, budget: Budget, step: StepOptions, cache: TessellationCache | None = None
+    path: str,
+    budget: Budget,
+    step: StepOptions,
+    cache: TessellationCache | None = None,
+    executor=None,
 ) -> FileRead:
     """Read and clean one file, checked against and counted in ``budget``.
 
@@ -150,19 +154,25 @@ def read(
     step : StepOptions
     cache : cache.TessellationCache, optional
         The run's STEP tessellations.
+    executor : execute.Executor, optional
+        The run's executor, for a STEP file's products (``step.read_step``).
 
     Raises
     ------
     InputError
         The file cannot be checked (see ``meshcheck.load``).
     """
-    out = _read(path, budget, step, cache)
+    out = _read(path, budget, step, cache, executor)
     budget.take(path, out.triangles, len(out.items))
     return out
 
 
 def _read(
-    path: str, budget: Budget, step: StepOptions, cache: TessellationCache | None = None
+    path: str,
+    budget: Budget,
+    step: StepOptions,
+    cache: TessellationCache | None = None,
+    executor=None,
 ) -> FileRead:
     """``read`` without taking from the budget (its checks still run)."""
     if not os.path.exists(path):
@@ -192,7 +202,9 @@ def _read(
         # A reader takes (path, bytes, budget) and returns (node, mesh, placement) items and the
         # unit the file declares (None: undeclared). A STEP reader plugs in here the same way.
         if ext in STEP_EXTENSIONS:
-            items, declared, deflection, solids = _read_step(path, data, step, budget, cache)
+            items, declared, deflection, solids = _read_step(
+                path, data, step, budget, cache, executor
+            )
         elif ext in URDF_EXTENSIONS:
             from .urdf import read_urdf
 
@@ -264,7 +276,12 @@ def _stl_head_check(path: str, budget: Budget):
 
 
 def _read_step(
-    path: str, data: bytes, options: StepOptions, budget: Budget, cache: TessellationCache | None
+    path: str,
+    data: bytes,
+    options: StepOptions,
+    budget: Budget,
+    cache: TessellationCache | None,
+    executor=None,
 ):
     """(items, declared unit, deflection in that unit, exact solids) of a STEP file."""
     from .step import read_step
@@ -280,6 +297,7 @@ def _read_step(
             unit=dict(options.given_units).get(path),
             cache=cache,
             max_triangles=budget.limits.max_triangles - budget.triangles,
+            executor=executor,
         )
     except ValueError as exc:
         raise InputError(path, str(exc)) from None
@@ -333,7 +351,7 @@ def read_files(
     if not (local and parallel and in_workers):
         out = []
         for done, path in enumerate(paths, start=1):
-            out.append(read(path, budget, step, cache))
+            out.append(read(path, budget, step, cache, executor))
             if progress is not None:
                 progress(done, total)
         return out
@@ -366,7 +384,7 @@ def read_files(
         if k in outcome:
             out.append(_replay(path, budget, outcome[k]))
         else:  # a main-process format, or its worker died: read it here
-            out.append(read(path, budget, step, cache))
+            out.append(read(path, budget, step, cache, executor))
             done = min(done + 1, total)
             if progress is not None:
                 progress(done, total)

@@ -83,6 +83,7 @@ from ..errors import InputError, MeshcheckWarning
 from ..execute import Executor, Task
 from ..load import Body
 from ..load.files import STEP_EXTENSIONS
+from ..load.step.tessellate import PREPARE
 from ..progress import Progress
 from ..results import Finding, Location, PairVerdict, Solid, Verdict
 from ..settings import Settings
@@ -97,8 +98,8 @@ FORMAT_VERSION = 2
 #: milliseconds on analytic cylinders and planes (measured on the shared 2-core machine).
 PAIR_SECONDS = 0.15
 #: What a run with large STEP files has its workers import while it reads them
-#: (``prepare_workers``).
-PRELOAD = "meshcheck.verify.solids:preload"
+#: (``prepare_workers``): OpenCASCADE, for the products' meshes and the B-rep pairs.
+PRELOAD = PREPARE
 #: STEP files of this many bytes together have their workers started as the run starts: the
 #: fastener-heavy exports (2.3-3.4 MB) spend 10-30 s of CPU on the B-rep, where the files below
 #: 1 MB (box_sides.STEP, the AS1 assemblies, a KiCad board) decide theirs in less than a
@@ -108,8 +109,8 @@ PREPARE_BYTES = 1 << 20
 
 def prepare_workers(executor: Executor, paths: Sequence[str]) -> None:
     """Start ``executor``'s workers loading OpenCASCADE while this process reads the STEP
-    files among ``paths``, when they are large enough (``PREPARE_BYTES``) for their B-rep pairs
-    to repay it."""
+    files among ``paths``, when they are large enough (``PREPARE_BYTES``) for their products'
+    meshes and B-rep pairs to repay it."""
     size = 0
     for path in paths:
         if path.lower().endswith(STEP_EXTENSIONS):

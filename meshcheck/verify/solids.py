@@ -53,13 +53,6 @@ def brep_task(store: dict, item: tuple) -> PairVerdict | str:
         return str(exc)
 
 
-def preload() -> None:
-    """Import OpenCASCADE's bindings for ``brep_task`` (one extension: any of its modules loads
-    all of it, 0.8-1.0 s of CPU): a worker started while its parent reads a STEP file calls it
-    before its first pair (``Executor.prepare``)."""
-    import OCP.TopoDS  # noqa: F401
-
-
 def _shape(store: dict, product) -> object:
     """The product's solid from its BRep text in ``store``, read once per process, its
     analytic B-spline faces and edges rebuilt on planes, cylinders, circles and lines

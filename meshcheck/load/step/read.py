@@ -4,8 +4,8 @@ ones, as read (kept, or read when the verify stage first asks for them)."""
 from __future__ import annotations
 
 import hashlib
-import io
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import trimesh
@@ -18,11 +18,15 @@ from .document import read_document
 from .tessellate import (
     DEFAULT_ANGULAR_DEFLECTION,
     MAX_STEP_TRIANGLES,
+    brep_text,
     placed_meshes,
     tessellate,
     with_copied_topology,
 )
 from .units import declared_unit, deflection_mm, warn_no_unit
+
+if TYPE_CHECKING:
+    from ...execute import Executor
 
 
 class StepSolids:
@@ -119,16 +123,9 @@ class StepSolids:
         """
         product = self.product(node)
         if product not in self._texts:
-            from OCP.BRepTools import BRepTools
-            from OCP.TopTools import TopTools_FormatVersion
-
             if self._named is None:
                 self._named = dict(named_instances(self._document()))
-            shape = self._named[node].product
-            stream = io.BytesIO()
-            version = TopTools_FormatVersion.TopTools_FormatVersion_VERSION_1
-            BRepTools.Write_s(shape, stream, False, False, version)
-            self._texts[product] = stream.getvalue()
+            self._texts[product] = brep_text(self._named[node].product)
         return self._texts[product]
 
     def _document(self) -> list[Instance]:
@@ -190,6 +187,7 @@ def read_step(
     angular_deflection: float | None = None,
     cache: TessellationCache | None = None,
     max_triangles: int | None = None,
+    executor: Executor | None = None,
 ) -> StepAssembly:
     """Tessellate the solids of a STEP file, in the unit the file declares.
 
@@ -217,6 +215,9 @@ def read_step(
     max_triangles : int, optional
         Triangles the file may be tessellated into (distinct products once); default and upper
         bound ``MAX_STEP_TRIANGLES``.
+    executor : execute.Executor, optional
+        The run's executor: its workers mesh the products when they loaded OpenCASCADE while
+        the file was read (``tessellate``); the same triangles as here.
 
     Returns
     -------
@@ -254,7 +255,9 @@ def read_step(
     instances = None
     if found is None or found.unit != unit:
         instances = read_document(data, path)
-        found = _tessellation(instances, path, wanted_mm, angular, budget, unit, ratio)
+        found = _tessellation(
+            instances, path, wanted_mm, angular, budget, unit, ratio, executor=executor
+        )
         if cache is not None:
             cache.put(key, found)
     if declared is None and real_unit is None:
@@ -271,16 +274,17 @@ def _tessellation(
     budget: int,
     unit: str,
     ratio: float,
+    executor: Executor | None = None,
 ) -> Tessellation:
     """The instances meshed (``tessellate``), closed and named, in the file's ``unit``; the
     mesher works on a copy of their topology (``with_copied_topology``), the instances stay as
     read."""
-    scale = METRES[unit]  # metres per file unit
+    to_unit = 1e-3 / METRES[unit]  # file units per mm
     meshed = with_copied_topology(instances)
-    used_mm = tessellate(meshed, path, wanted_mm, angular, budget, unit, ratio)
-    items, deflection = placed_meshes(
-        meshed, path, 1e-3 / scale, used_mm * 1e-3 / scale, angular=angular
+    meshes, used_mm = tessellate(
+        meshed, path, wanted_mm, angular, budget, unit, ratio, executor=executor
     )
+    items, deflection = placed_meshes(meshed, meshes, path, to_unit, used_mm * to_unit)
     return Tessellation(items, unit, deflection, angular)
 
 

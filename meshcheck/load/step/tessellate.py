@@ -1,10 +1,15 @@
 """OpenCASCADE's solids -> closed triangle meshes, within a deflection of the CAD faces.
 
-``BRepMesh_IncrementalMesh``, one thread. The chords of a curved face lie inside it, by at most the
-linear deflection: a pin in a hole, both faceted, shows a gap up to one deflection wider (or an
-overlap up to two deflections shallower) than the CAD model. The default,
-``DEFAULT_DEFLECTION_MM``, keeps a 0.1 mm clearance within 0.01 mm and a 0.2 mm interference within
-0.03 mm (tests/test_step.py); the value used is ``StepAssembly.deflection``, in the file's unit.
+``BRepMesh_IncrementalMesh``, one thread per product. Each distinct product is meshed from its
+BRep text (``mesh_task``), in this process or, for a large file whose workers loaded OpenCASCADE
+while it was read (``PREPARE``), in them too: the same text gives the same triangles wherever it
+is meshed, so the tessellation does not depend on ``-j``.
+
+The chords of a curved face lie inside it, by at most the linear deflection: a pin in a hole, both
+faceted, shows a gap up to one deflection wider (or an overlap up to two deflections shallower)
+than the CAD model. The default, ``DEFAULT_DEFLECTION_MM``, keeps a 0.1 mm clearance within
+0.01 mm and a 0.2 mm interference within 0.03 mm (tests/test_step.py); the value used is
+``StepAssembly.deflection``, in the file's unit.
 
 A deflection is honoured only when it can be with bounded time and memory: it must be at least
 ``MIN_DEFLECTION_MM`` (ten times OpenCASCADE's own confusion distance; finer triangles would
@@ -33,6 +38,8 @@ deflection its product's parts hold (the file's is the largest).
 from __future__ import annotations
 
 import dataclasses
+import io
+from typing import TYPE_CHECKING
 
 import numpy as np
 import trimesh
@@ -42,6 +49,9 @@ from ...mesh import is_closed
 from ...units import METRES
 from .assembly import Instance, UniqueNames, order_key
 from .document import captured_output
+
+if TYPE_CHECKING:
+    from ...execute import Executor
 
 # Linear deflection used when none is given: the largest distance between a curved face and its
 # triangles. 0.005 mm keeps a measured 0.1 mm clearance within 0.01 mm (a pin and its hole are
@@ -72,6 +82,9 @@ MEND_INTERIOR_FACTORS = (4, 8, 16)
 # Triangles one STEP file may be tessellated into (every distinct product once), unless the run's
 # budget (``--max-triangles``) has less left: a million triangles take about 200 MB here.
 MAX_STEP_TRIANGLES = 5_000_000
+#: What a run with large STEP files has its workers import while it reads them (``preload``;
+#: ``meshcheck.verify.brep.prepare_workers``).
+PREPARE = "meshcheck.load.step.tessellate:preload"
 
 
 def tessellate(
@@ -82,14 +95,29 @@ def tessellate(
     budget: int,
     unit: str,
     default_scale: float = 1.0,
-) -> float:
+    *,
+    executor: Executor | None = None,
+) -> tuple[dict[str, tuple[trimesh.Trimesh, float]], float]:
     """Mesh every distinct product at ``deflection_mm`` (None: the default for their size,
     ``DEFAULT_DEFLECTION_MM`` times ``default_scale``, OpenCASCADE's millimetres per real one)
-    once its cost is known to fit ``budget`` triangles; return the deflection used, mm."""
+    once its cost is known to fit ``budget`` triangles.
+
+    Each product is meshed from its BRep text (``mesh_task``), here or, when ``executor``'s
+    workers have loaded OpenCASCADE (``PREPARE``), in them: the same triangles either way.
+
+    Returns
+    -------
+    meshes : dict
+        By product key: the product's closed mesh (file units) and the largest distance, mm,
+        between a face meshed again and its triangles (``product_mesh``).
+    deflection_mm : float
+        The deflection used, mm.
+    """
     from OCP.BRepMesh import BRepMesh_IncrementalMesh
     from OCP.BRepTools import BRepTools
 
-    products = list({i.product_key: i.product for i in instances}.values())
+    by_key = {i.product_key: i.product for i in instances}
+    products = list(by_key.values())
     diagonal = max(shape_diagonal(shape) for shape in products)
     deflection_mm = _honoured_deflection(deflection_mm, diagonal, path, unit, default_scale)
     to_unit = 1e-3 / METRES[unit]
@@ -99,23 +127,125 @@ def tessellate(
     coarse = max(deflection_mm, 1e-3 * diagonal)
     with captured_output():
         estimate = 0.0
-        for shape in products:
+        counts = {}  # coarse triangles by product key: what meshing each fine costs, roughly
+        for key, shape in by_key.items():
             BRepTools.Clean_s(shape)  # from no triangulation, whatever meshed it before
             BRepMesh_IncrementalMesh(shape, coarse, False, angular, False)
-            estimate += _triangle_count(shape) * coarse / deflection_mm
+            counts[key] = _triangle_count(shape)
+            estimate += counts[key] * coarse / deflection_mm
         if estimate > budget:
-            fits = coarse * max(1.0, sum(map(_triangle_count, products)) / budget)
+            fits = coarse * max(1.0, sum(counts.values()) / budget)
             raise InputError(
                 path,
                 f"STEP deflection {deflection_mm * to_unit:.3g} {unit} would make about "
                 f"{estimate:.3g} triangles (budget {budget}): use {fits * to_unit:.3g} {unit} "
                 "or more, or raise --max-triangles",
             )
-        if coarse != deflection_mm:
-            for shape in products:
-                BRepTools.Clean_s(shape)
-                BRepMesh_IncrementalMesh(shape, deflection_mm, False, angular, False)
-    return deflection_mm
+    meshes = _meshed_products(instances, counts, path, deflection_mm, angular, to_unit, executor)
+    return meshes, deflection_mm
+
+
+def _meshed_products(
+    instances: list[Instance],
+    costs: dict[str, int],
+    path: str,
+    deflection_mm: float,
+    angular: float,
+    to_unit: float,
+    executor: Executor | None,
+) -> dict[str, tuple[trimesh.Trimesh, float]]:
+    """``tessellate``'s meshes: one ``mesh_task`` per distinct product, each named after its
+    first instance in name order, the costliest first (``costs``: by product key)."""
+    from ...execute import Executor, Task
+
+    deflection = deflection_mm * to_unit
+    named: dict[str, Instance] = {}
+    for inst in sorted(instances, key=order_key):
+        named.setdefault(inst.product_key, inst)
+    keys = list(named)
+    # The texts travel as shared values, not in the tasks: a task sent ahead to a busy worker
+    # would block this process on a large one until that worker finished (``LocalPool``).
+    texts = {("step-product", key): brep_text(named[key].product) for key in keys}
+    sizes = [costs[key] for key in keys]
+    in_workers = _meshes_in_workers(executor, len(keys))
+    if in_workers and len(keys) > executor.jobs:
+        # The workers start on the largest products and this process on the smallest
+        # (``LocalPool.map``): the largest after the workers' goes last, so this process starts
+        # on it instead of leaving two large ones to one worker (the Bowden module's plates).
+        sizes[sorted(range(len(keys)), key=lambda k: -sizes[k])[executor.jobs - 1]] = -1
+    tasks = [
+        Task(
+            (("step-product", key), f"{path}#{named[key].name}", to_unit, deflection, angular),
+            needs=(("step-product", key),),
+            size=size,
+        )
+        for key, size in zip(keys, sizes, strict=True)
+    ]
+    runner = executor if in_workers else Executor()
+    function = "meshcheck.load.step.tessellate:mesh_task"
+    results = runner.map(function, tasks, shared=texts, here=True)
+    out = {}
+    for key, task, result in zip(keys, tasks, results, strict=True):
+        if result is None:  # its worker died: mesh it here (a bug then shows its traceback)
+            result = Executor().map(function, [task], shared=texts)[0]
+        if isinstance(result[0], str):  # (part name, reason): the product cannot be meshed
+            raise InputError(*result)
+        vertices, faces, deviation = result
+        out[key] = (trimesh.Trimesh(vertices, faces, process=False), deviation)
+    return out
+
+
+def _meshes_in_workers(executor: Executor | None, products: int) -> bool:
+    """Whether products are meshed in ``executor``'s workers: local ones that loaded
+    OpenCASCADE while the file was read (``PREPARE``), and more than one product."""
+    return (
+        executor is not None
+        and not executor.is_distributed
+        and PREPARE in executor.prepared
+        and products > 1
+    )
+
+
+def brep_text(shape) -> bytes:
+    """``shape`` as OpenCASCADE's BRep text, without triangulation: what ``mesh_task`` and the
+    verify stage's workers read a product from."""
+    from OCP.BRepTools import BRepTools
+    from OCP.TopTools import TopTools_FormatVersion
+
+    stream = io.BytesIO()
+    version = TopTools_FormatVersion.TopTools_FormatVersion_VERSION_1
+    BRepTools.Write_s(shape, stream, False, False, version)
+    return stream.getvalue()
+
+
+def mesh_task(
+    store: dict, text: tuple, name: str, to_unit: float, deflection: float, angular: float
+) -> tuple[np.ndarray, np.ndarray, float] | tuple[str, str]:
+    """Mesh one product read from its BRep text (``brep_text``, ``store[text]``) at
+    ``deflection`` (file units) and ``angular``, closed (``product_mesh``): its vertices (file
+    units), faces and the largest distance, mm, of a face meshed again; or ``(name, reason)``
+    when it cannot be."""
+    from OCP.BRep import BRep_Builder
+    from OCP.BRepMesh import BRepMesh_IncrementalMesh
+    from OCP.BRepTools import BRepTools
+    from OCP.TopoDS import TopoDS_Shape
+
+    shape = TopoDS_Shape()
+    BRepTools.Read_s(shape, io.BytesIO(store[text]), BRep_Builder())
+    with captured_output():
+        BRepMesh_IncrementalMesh(shape, deflection / to_unit, False, angular, False)
+    try:
+        mesh, deviation = product_mesh(shape, name, to_unit, deflection, angular=angular)
+    except InputError as exc:
+        return exc.path, exc.reason
+    return np.asarray(mesh.vertices), np.asarray(mesh.faces), deviation
+
+
+def preload() -> None:
+    """What a worker of a run with large STEP files imports while the files are read
+    (``PREPARE``): OpenCASCADE's bindings (one extension, 0.7-1.0 s of CPU) for the B-rep and
+    the mesher, and trimesh with this module for ``mesh_task``."""
+    import OCP.TopoDS  # noqa: F401
 
 
 def _honoured_deflection(
@@ -253,36 +383,31 @@ def face_arrays(shape) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def placed_meshes(
     instances: list[Instance],
+    meshes: dict[str, tuple[trimesh.Trimesh, float]],
     path: str,
     to_unit: float,
     deflection: float,
-    *,
-    angular: float = DEFAULT_ANGULAR_DEFLECTION,
 ) -> tuple[list[tuple[str, trimesh.Trimesh, np.ndarray]], float]:
     """(unique product name, closed local mesh, transform) per solid instance, file units; and
     the deflection the meshes hold, file units: ``deflection``, or more when a face meshed
-    again (``mend_faces``) lies farther from its triangles. Each product's mesh keeps its own
-    in ``mesh.metadata["deflection"]``."""
-    meshes: dict[str, trimesh.Trimesh] = {}  # one closed mesh per product
+    again (``mend_faces``) lies farther from its triangles. ``meshes`` are ``tessellate``'s;
+    each product's mesh keeps its own deflection in ``mesh.metadata["deflection"]``."""
     items = []
     unique = UniqueNames()
     held = deflection
+    for mesh, deviation_mm in meshes.values():
+        mesh.metadata["deflection"] = max(deflection, deviation_mm * to_unit)
+        held = max(held, mesh.metadata["deflection"])
     for inst in sorted(instances, key=order_key):
-        if inst.product_key not in meshes:
-            mesh, deviation_mm = product_mesh(
-                inst.product, f"{path}#{inst.name}", to_unit, deflection, angular=angular
-            )
-            mesh.metadata["deflection"] = max(deflection, deviation_mm * to_unit)
-            meshes[inst.product_key] = mesh
-            held = max(held, mesh.metadata["deflection"])
+        mesh = meshes[inst.product_key][0]
         transform = inst.matrix.copy()
         transform[:3, 3] *= to_unit
         if not np.all(np.isfinite(transform)):
             raise InputError(
                 f"{path}#{inst.name}", "placement transform holds NaN or infinite values"
             )
-        if len(meshes[inst.product_key].faces):
-            items.append((unique(inst.name), meshes[inst.product_key], transform))
+        if len(mesh.faces):
+            items.append((unique(inst.name), mesh, transform))
         else:
             unique(inst.name)  # names in step with placed_solids
     if not items:
