@@ -234,7 +234,16 @@ def test_products_meshed_in_prepared_workers_are_the_ones_meshed_here(tmp_path):
     from meshcheck.load.step import tessellate
 
     path = four_products(tmp_path / "four.step")
-    here = read_step(path)
+    other = write_step(  # a second file: its product labels are the first one's
+        tmp_path / "other.step",
+        {
+            "plate": box((0, 0, 0), (9, 9, 1)),
+            "pin": cylinder(1.0, 1, 4),
+            "cap": box((0, 0, 4), (2, 2, 5)),
+        },
+        [("plate", EYE), ("pin", EYE), ("cap", EYE)],
+    )
+    here, other_here = read_step(path), read_step(other)
     with LocalPool(2) as pool:
         pool.prepare(tessellate.PREPARE)  # what a run with a large STEP file does
         assert tessellate._meshes_in_workers(pool, 4)
@@ -246,15 +255,17 @@ def test_products_meshed_in_prepared_workers_are_the_ones_meshed_here(tmp_path):
 
         pool.map = map_and_note
         there = read_step(path, executor=pool)
+        other_there = read_step(other, executor=pool)  # the same workers, what they were sent
         pool.map = real_map
-        assert mapped == [("meshcheck.load.step.tessellate:mesh_task", 4)]
+        assert mapped == [("meshcheck.load.step.tessellate:mesh_task", n) for n in (4, 3)]
         ran_in = pool.map("meshcheck.execute:is_imported", [Task(("OCP.OCP",))])
     assert ran_in == [True]  # the worker loaded OpenCASCADE before its first task
-    assert [n for n, _, _ in here.items] == [n for n, _, _ in there.items]
-    for (_, a, pa), (_, b, pb) in zip(here.items, there.items, strict=True):
-        assert np.array_equal(a.vertices, b.vertices) and np.array_equal(a.faces, b.faces)
-        assert np.array_equal(pa, pb) and a.metadata == b.metadata
-    assert here.deflection == there.deflection
+    for one, two in ((here, there), (other_here, other_there)):
+        assert [n for n, _, _ in one.items] == [n for n, _, _ in two.items]
+        for (_, a, pa), (_, b, pb) in zip(one.items, two.items, strict=True):
+            assert np.array_equal(a.vertices, b.vertices) and np.array_equal(a.faces, b.faces)
+            assert np.array_equal(pa, pb) and a.metadata == b.metadata
+        assert one.deflection == two.deflection
 
 
 def test_a_pool_without_opencascade_loaded_meshes_nothing_in_its_workers():

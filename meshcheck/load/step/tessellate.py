@@ -38,6 +38,7 @@ deflection its product's parts hold (the file's is the largest).
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import io
 from typing import TYPE_CHECKING
 
@@ -164,8 +165,10 @@ def _meshed_products(
         named.setdefault(inst.product_key, inst)
     keys = list(named)
     # The texts travel as shared values, not in the tasks: a task sent ahead to a busy worker
-    # would block this process on a large one until that worker finished (``LocalPool``).
-    texts = {("step-product", key): brep_text(named[key].product) for key in keys}
+    # would block this process on a large one until that worker finished (``LocalPool``). A
+    # worker keeps what it was sent for the next map (another file's products): by content.
+    texts = {key: brep_text(named[key].product) for key in keys}
+    shared = {_text_key(text): text for text in texts.values()}
     sizes = [costs[key] for key in keys]
     in_workers = _meshes_in_workers(executor, len(keys))
     if in_workers and len(keys) > executor.jobs:
@@ -173,26 +176,28 @@ def _meshed_products(
         # (``LocalPool.map``): the largest after the workers' goes last, so this process starts
         # on it instead of leaving two large ones to one worker (the Bowden module's plates).
         sizes[sorted(range(len(keys)), key=lambda k: -sizes[k])[executor.jobs - 1]] = -1
-    tasks = [
-        Task(
-            (("step-product", key), f"{path}#{named[key].name}", to_unit, deflection, angular),
-            needs=(("step-product", key),),
-            size=size,
-        )
-        for key, size in zip(keys, sizes, strict=True)
-    ]
+    tasks = []
+    for key, size in zip(keys, sizes, strict=True):
+        text = _text_key(texts[key])
+        args = (text, f"{path}#{named[key].name}", to_unit, deflection, angular)
+        tasks.append(Task(args, needs=(text,), size=size))
     runner = executor if in_workers else Executor()
     function = "meshcheck.load.step.tessellate:mesh_task"
-    results = runner.map(function, tasks, shared=texts, here=True)
+    results = runner.map(function, tasks, shared=shared, here=True)
     out = {}
     for key, task, result in zip(keys, tasks, results, strict=True):
         if result is None:  # its worker died: mesh it here (a bug then shows its traceback)
-            result = Executor().map(function, [task], shared=texts)[0]
+            result = Executor().map(function, [task], shared=shared)[0]
         if isinstance(result[0], str):  # (part name, reason): the product cannot be meshed
             raise InputError(*result)
         vertices, faces, deviation = result
         out[key] = (trimesh.Trimesh(vertices, faces, process=False), deviation)
     return out
+
+
+def _text_key(text: bytes) -> tuple[str, str]:
+    """The key of a product's BRep text in a task's store: its content's digest."""
+    return ("step-product", hashlib.sha256(text).hexdigest())
 
 
 def _meshes_in_workers(executor: Executor | None, products: int) -> bool:
