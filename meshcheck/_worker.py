@@ -42,12 +42,12 @@ def main() -> None:
     if len(sys.argv) > 1:  # the parent's prepare function (Executor.prepare): imports
         resolve(sys.argv[1])()
     replies = _Replies(send)
+    messages = _Messages(receive)
     store: dict = {}
     replies.put(("ready",))
     while True:
-        try:
-            message = receive.recv()
-        except (EOFError, OSError):
+        message = messages.get()
+        if message is None:  # the parent closed the stream, or is gone
             replies.close()
             return
         if message[0] == "put":
@@ -62,6 +62,35 @@ def main() -> None:
             reply = ("error", traceback.format_exc())
         if not replies.put(reply):
             return
+
+
+class _Messages:
+    """The parent's messages, read by a thread of their own as they come.
+
+    The parent sends a busy worker its next task, with the shared values it needs, before it
+    runs one of its own (``execute._LocalRun.run_here``), and reads no reply until that one is
+    done: a value larger than the pipe's buffer, read only when this worker finished its task,
+    would block the parent that long."""
+
+    def __init__(self, connection):
+        import queue
+        import threading
+
+        self.connection, self.queue = connection, queue.Queue()
+        threading.Thread(target=self._read, daemon=True).start()
+
+    def get(self):
+        """The next message, in order; None once the stream is closed."""
+        return self.queue.get()
+
+    def _read(self) -> None:
+        while True:
+            try:
+                message = self.connection.recv()
+            except (EOFError, OSError):
+                self.queue.put(None)
+                return
+            self.queue.put(message)
 
 
 class _Replies:

@@ -199,6 +199,14 @@ def sleep_then_bulk(store: dict, seconds: float, size: int) -> tuple[int, float,
     return os.getpid(), started, bytes(size)
 
 
+def sleep_then_shared(store: dict, seconds: float, key) -> tuple[int, float, int]:
+    """A task that notes when it starts, sleeps, then returns the id of its process, that
+    time and the length of a shared value (for tests of values larger than a pipe's buffer)."""
+    started = time.time()
+    time.sleep(seconds)
+    return os.getpid(), started, len(store[key])
+
+
 def is_imported(store: dict, module: str) -> bool:
     """A task that says whether its process has imported ``module`` (for tests)."""
     return module in sys.modules
@@ -390,18 +398,15 @@ class _LocalRun:
         """Run the smallest pending task in this process (the workers take the largest first).
 
         This process reads no message while it runs a task, so each busy worker is first sent
-        its next task as well: it starts it as soon as it finishes the one it runs, instead of
-        waiting idle for this one (which may be as long as its own when every task is large).
-        Only a task whose shared values the worker already holds is sent ahead: a worker reads
-        nothing while it runs a task, so a large value would block this process until it is done.
+        its next task as well, with the shared values it needs: it starts it as soon as it
+        finishes the one it runs, instead of waiting idle for this one (which may be as long as
+        its own when every task is large). A worker reads its messages as they come, while it
+        runs a task (``_worker._Messages``), so a large value does not block this process.
         """
         for worker in self.pool.workers:
             if worker.task is None or worker.queued is not None or len(self.pending) < 2:
                 continue
-            held = (i for i in self.pending if worker.keys.issuperset(self.tasks[i].needs))
-            index = next(held, None)
-            if index is not None:
-                self.start(worker, queued=True, index=index)
+            self.start(worker, queued=True)
         index = self.pending.pop()
         task = self.tasks[index]
         if self.store is None:

@@ -116,6 +116,28 @@ def test_a_worker_starts_its_next_task_while_this_process_runs_a_long_one():
     assert second < long_one + 2.0
 
 
+def test_a_busy_worker_is_sent_its_next_task_and_its_large_values_without_waiting():
+    """Before this process runs a task it sends each busy worker its next one, with shared
+    values larger than a pipe holds: the worker reads them while it works, so neither it nor
+    this process waits for the other."""
+    shared = {key: bytes(4 << 20) for key in ("a", "b", "c")}
+    tasks = [  # the worker takes the two larger tasks, this process the long small one
+        Task((1.5, "a"), needs=("a",), size=3),
+        Task((0.5, "b"), needs=("b",), size=2),
+        Task((3.0, "c"), needs=("c",), size=1),
+    ]
+    with LocalPool(2) as pool:
+        pool.map("meshcheck.execute:echo", [Task((0,))])  # started and ready
+        begun = time.time()
+        (pid, first, _), (_, second, _), (here, long_one, size) = pool.map(
+            "meshcheck.execute:sleep_then_shared", tasks, shared=shared, here=True
+        )
+    assert here == os.getpid() != pid and size == 4 << 20
+    assert long_one - begun < 1.0  # not held up until the worker read its next task's value
+    assert second - first < 2.3  # the worker's second task right after its first (1.5 s), not
+    # after this process's 3 s one
+
+
 def test_prepared_workers_import_before_their_first_task():
     """``prepare`` starts the workers a map with this process helping wants (jobs - 1), each
     calling the function before it is ready; a worker started by a map calls none."""
