@@ -527,9 +527,11 @@ def _decide_all(bodies, jobs: list[_PairJob], executor) -> dict[str, PairVerdict
                 ),
             ),
             needs=job.products,
-            size=len(jobs) - n,
+            # The solids' BRep texts, roughly what intersecting them costs: the workers start
+            # on the costliest pairs, this process takes the cheapest (``LocalPool.map``).
+            size=len(shared[job.products[0]]) + len(shared[job.products[1]]),
         )
-        for n, job in enumerate(jobs)
+        for job in jobs
     ]
     # This process's solids, read once and kept from one map here to the next.
     shared[SHAPES] = {}
