@@ -286,6 +286,10 @@ def bench_one(path: str, jobs: int, repeat: int, has_cascadio: bool) -> dict:
                 seconds, cpu_seconds, done = timed(cmd, env)
                 if done.returncode not in ((0, 1) if name in ("cold", "warm") else (0,)):
                     raise SystemExit(f"{name} failed on {path}:\n{done.stderr[-2000:]}")
+                if name not in ("cold", "warm"):  # the peer's pairs past the ones it made
+                    _, _, estimated = done.stdout.strip().partition("\nestimated ")
+                    seconds += float(estimated or 0.0)  # at its rate
+                    cpu_seconds += float(estimated or 0.0)
                 best[name] = min(best.get(name, seconds), seconds)
                 cpu[name] = min(cpu.get(name, cpu_seconds), cpu_seconds)
                 if name in ("cold", "warm"):
@@ -300,12 +304,7 @@ def bench_one(path: str, jobs: int, repeat: int, has_cascadio: bool) -> dict:
                         )
                     )
                 else:
-                    text, _, estimated = done.stdout.strip().partition("\nestimated ")
-                    found[name] = text
-                    if estimated:  # the peer's pairs past the ones it made, at its rate
-                        seconds += float(estimated)
-                        best[name] = seconds if attempt == 0 else min(best[name], seconds)
-                        cpu[name] += float(estimated)
+                    found[name] = done.stdout.strip().partition("\nestimated ")[0]
             if reports[0] != reports[1]:
                 raise SystemExit(f"{path}: the warm report differs from the cold one")
     return {"seconds": best, "cpu": cpu, "found": found}
