@@ -77,7 +77,7 @@ MIN_RELATIVE_DEFLECTION = 1e-6
 # fewer nodes inside the face, which the chamfer cones that fail need (four to sixteen times;
 # their triangles then measured within a third of the deflection, and the distance measured is
 # what the product holds). A failed try costs more than meshing the face: twice the deflection
-# failed on every face that needed mending in the real exports measured (17 faces of 8 products;
+# failed on every face that needed mending in the real exports measured (23 faces of 8 products;
 # 0.6-0.7 s for each Bowden module plate), so the list starts at four.
 MEND_INTERIOR_FACTORS = (4, 8, 16)
 # Triangles one STEP file may be tessellated into (every distinct product once), unless the run's
