@@ -360,5 +360,5 @@ def test_workers_start_loading_opencascade_for_large_step_files_only(tmp_path):
         with LocalPool(2) as pool:
             brep.prepare_workers(pool, paths)
             assert (len(pool.workers), pool.prepared) == (
-                (1, {brep.PRELOAD}) if prepared else (0, frozenset())
+                (1, {brep.PREPARE}) if prepared else (0, frozenset())
             )

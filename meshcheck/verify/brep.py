@@ -97,9 +97,6 @@ FORMAT_VERSION = 2
 #: CPU an intersection of as1-oc-214.stp's coincident B-spline shanks and holes, a few
 #: milliseconds on analytic cylinders and planes (measured on the shared 2-core machine).
 PAIR_SECONDS = 0.15
-#: What a run with large STEP files has its workers import while it reads them
-#: (``prepare_workers``): OpenCASCADE, for the products' meshes and the B-rep pairs.
-PRELOAD = PREPARE
 #: STEP files of this many bytes together have their workers started as the run starts: the
 #: fastener-heavy exports (2.3-3.4 MB) spend 10-30 s of CPU on the B-rep, where the files below
 #: 1 MB (box_sides.STEP, the AS1 assemblies, a KiCad board) decide theirs in less than a
@@ -117,7 +114,7 @@ def prepare_workers(executor: Executor, paths: Sequence[str]) -> None:
             with contextlib.suppress(OSError):  # the loader says what is wrong with it
                 size += os.path.getsize(path)
     if size >= PREPARE_BYTES:
-        executor.prepare(PRELOAD)
+        executor.prepare(PREPARE)
 
 
 #: Seconds a worker spends before its first pair, loading OpenCASCADE and reading the products'
@@ -478,7 +475,7 @@ def _screened(bodies, pairs, near_surfaces, settings) -> list[_PairJob | None]:
 def _pays_in_workers(executor: Executor | None, pairs: int, seconds: float | None = None) -> bool:
     """Whether deciding ``pairs`` pairs (``seconds`` each, default ``PAIR_SECONDS``) in
     ``executor``'s workers saves more than their start and their loading OpenCASCADE
-    (``WORKER_SECONDS``, unless they loaded it while the file was read: ``PRELOAD``) cost."""
+    (``WORKER_SECONDS``, unless they loaded it while the file was read: ``PREPARE``) cost."""
     from .batch import POOL_SECONDS
 
     if executor is None or not pairs:
@@ -488,7 +485,7 @@ def _pays_in_workers(executor: Executor | None, pairs: int, seconds: float | Non
     if not _may_pay(executor):
         return False
     start = 0.0 if executor.is_started else POOL_SECONDS
-    if PRELOAD not in executor.prepared:
+    if PREPARE not in executor.prepared:
         start += WORKER_SECONDS
     each = PAIR_SECONDS if seconds is None else seconds
     return pairs * each * (1.0 - 1.0 / executor.jobs) > start

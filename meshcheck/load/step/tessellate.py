@@ -38,13 +38,13 @@ deflection its product's parts hold (the file's is the largest).
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import io
 from typing import TYPE_CHECKING
 
 import numpy as np
 import trimesh
 
+from ...cache.store import checksum
 from ...errors import InputError
 from ...mesh import is_closed
 from ...units import METRES
@@ -168,7 +168,8 @@ def _meshed_products(
     # would block this process on a large one until that worker finished (``LocalPool``). A
     # worker keeps what it was sent for the next map (another file's products): by content.
     texts = {key: brep_text(named[key].product) for key in keys}
-    shared = {_text_key(text): text for text in texts.values()}
+    stored = {key: ("step-product", checksum(text).hex()) for key, text in texts.items()}
+    shared = {stored[key]: text for key, text in texts.items()}
     sizes = [costs[key] for key in keys]
     in_workers = _meshes_in_workers(executor, len(keys))
     if in_workers and len(keys) > executor.jobs:
@@ -178,9 +179,8 @@ def _meshed_products(
         sizes[sorted(range(len(keys)), key=lambda k: -sizes[k])[executor.jobs - 1]] = -1
     tasks = []
     for key, size in zip(keys, sizes, strict=True):
-        text = _text_key(texts[key])
-        args = (text, f"{path}#{named[key].name}", to_unit, deflection, angular)
-        tasks.append(Task(args, needs=(text,), size=size))
+        args = (stored[key], f"{path}#{named[key].name}", to_unit, deflection, angular)
+        tasks.append(Task(args, needs=(stored[key],), size=size))
     runner = executor if in_workers else Executor()
     function = "meshcheck.load.step.tessellate:mesh_task"
     results = runner.map(function, tasks, shared=shared, here=True)
@@ -193,11 +193,6 @@ def _meshed_products(
         vertices, faces, deviation = result
         out[key] = (trimesh.Trimesh(vertices, faces, process=False), deviation)
     return out
-
-
-def _text_key(text: bytes) -> tuple[str, str]:
-    """The key of a product's BRep text in a task's store: its content's digest."""
-    return ("step-product", hashlib.sha256(text).hexdigest())
 
 
 def _meshes_in_workers(executor: Executor | None, products: int) -> bool:
