@@ -1,11 +1,11 @@
 """Findings against a previous JSON report: each one ``new`` or ``active``, and the ``resolved``.
 
 A finding is *active* when the baseline report holds a finding with the same stable ID
-(``Finding.id``: the sorted part names and the two meshes' content, and the clash test's name)
-and the same status; any other finding is *new*, so a pair that was touching and now interferes
-is new. A baseline finding whose ID no current finding has is *resolved*. The baseline file comes
-from outside (a CI artifact): it is read with a size limit and checked field by field, and every
-problem is one ``ConfigError`` naming the file.
+(``Finding.id``: the sorted part names, the two parts' geometry and placements, and the clash
+test's name) and the same status; any other finding is *new*, so a pair that was touching and
+now interferes is new. A baseline finding whose ID no current finding has is *resolved*. The
+baseline file comes from outside (a CI artifact): it is read with a size limit and checked field
+by field, and every problem is one ``ConfigError`` naming the file.
 
 Examples
 --------

@@ -580,7 +580,8 @@ def finding_id(
     name_a, name_b : str
         The parts' names.
     digest_a, digest_b : str
-        Digests of their frame-local geometry (``Body.digest``).
+        Digests of their frame-local geometry (``Body.id_digest``: the mesh's, or a STEP
+        solid's B-rep product's).
     placement_a, placement_b : (4, 4) float64, optional
         Frame -> world transforms (``Body.transform``); None hashes as no placement. Moving a
         glTF node, a 3MF item or a STEP instance changes the ID, as editing an STL does.

@@ -302,6 +302,30 @@ def test_bolts_in_plate_through_the_loader(files):
     assert len(statuses) == 3
 
 
+def test_finding_ids_follow_the_solids_not_their_triangles(files, tmp_path):
+    # A STEP part's ID hashes its product's B-rep and its placement: another deflection (or
+    # mesher) changes every triangle but no part, so baselines and approvals by ID still hold.
+    bolt = fuse(cylinder(5.0, 10.0, 14.0), cylinder(3.0, -4.0, 10.0))
+    doubled = write_step(tmp_path / "doubled.step", {"bolt": bolt}, [("bolt", EYE), ("bolt", EYE)])
+
+    def ids(path, *options):
+        args = [path, "--no-cache", "--format", "json", "-j", "1", *options]
+        result = CliRunner().invoke(main, args)
+        assert result.exit_code in (0, 1), result.output  # touching passes, a duplicate fails
+        results = json.loads(result.stdout)["results"]
+        return {(r["a"], r["b"], r["status"]): r["id"] for r in results}
+
+    for path, found in ((files["bolts"], 3), (str(doubled), 1)):
+        fine, coarse = ids(path), ids(path, "--step-deflection", "0.05")
+        assert len(fine) == found and fine == coarse
+        assert len(set(fine.values())) == found  # instances placed apart keep apart
+        meshes = [
+            {mesh_digest(m) for _, m, _ in read_step(path, deflection=d).items}
+            for d in (None, 0.05)
+        ]
+        assert not meshes[0] & meshes[1]  # not one triangle mesh in common
+
+
 def test_faces_resting_on_faces_touch(files):
     finding = only_finding(bodies_of(files["resting"]))
     assert finding.status == "touching"

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import io
 import json
+import re
 import zipfile
 from typing import NamedTuple
 
@@ -19,11 +20,14 @@ from ..units import METRES
 from .store import Store, checksum, npz_sizes_agree, package_version
 
 # Bump when an entry's layout or the meaning of its meshes changes (the welding, the naming):
-# 7 each product meshed from its BRep text, 6 faces mended from four deflections inside, 5 a
-# deflection per product, 4 each solid welded on its own, 3 welded along shared edges, 2 XCAF.
-FORMAT_VERSION = 7
+# 8 each mesh's product B-rep digest, 7 each product meshed from its BRep text, 6 faces mended
+# from four deflections inside, 5 a deflection per product, 4 each solid welded on its own, 3
+# welded along shared edges, 2 XCAF.
+FORMAT_VERSION = 8
 #: A tessellation cache entry larger than this is a miss (an assembly's is megabytes).
 MAX_TESSELLATION_BYTES = 1 << 30
+#: A mesh's product B-rep digest (``metadata["brep"]``): hex SHA-256, or empty (none known).
+_BREP_DIGEST = re.compile(r"(?:[0-9a-f]{64})?")
 
 _ARRAYS = [
     "checksum",
@@ -53,7 +57,9 @@ class Tessellation(NamedTuple):
     Attributes
     ----------
     items : list of (str, trimesh.Trimesh, (4, 4) float64)
-        ``(name, mesh, transform)`` per solid instance; instances of one product share a mesh.
+        ``(name, mesh, transform)`` per solid instance; instances of one product share a mesh,
+        whose ``metadata`` keeps its own ``deflection`` and its product's ``brep`` digest
+        (``load.step.tessellate``).
     unit : str
         The file's length unit, a key of ``meshcheck.units.METRES``.
     deflection : float
@@ -153,6 +159,7 @@ def _pack(tessellation: Tessellation) -> dict[str, np.ndarray]:
         "deflections": [
             float(m.metadata.get("deflection", tessellation.deflection)).hex() for m in meshes
         ],
+        "breps": [str(m.metadata.get("brep", "")) for m in meshes],
         "angular_deflection": float(tessellation.angular_deflection).hex(),
     }
     return {
@@ -196,6 +203,8 @@ def _unpack(arrays: dict[str, np.ndarray]) -> Tessellation | None:
         or np.any(mesh_of >= n_meshes)
         or header["unit"] not in METRES
         or len(header["deflections"]) != n_meshes
+        or len(header["breps"]) != n_meshes
+        or not all(_BREP_DIGEST.fullmatch(str(d)) for d in header["breps"])
     ):
         return None
     meshes = []
@@ -206,6 +215,7 @@ def _unpack(arrays: dict[str, np.ndarray]) -> Tessellation | None:
             return None
         mesh = trimesh.Trimesh(vertices.copy(), faces.copy(), process=False)
         mesh.metadata["deflection"] = float.fromhex(header["deflections"][k])
+        mesh.metadata["brep"] = header["breps"][k]
         meshes.append(mesh)
     items = [
         (str(name), meshes[int(m)], arrays["transforms"][i].copy())

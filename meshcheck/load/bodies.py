@@ -259,6 +259,7 @@ def _place(
             is_rescaled=is_rescaled,
             brep=file_read.solids,
             elements=file_read.elements.get(node, ()),
+            source_digest=file_read.source_of(g),
             known_digest=digests[g],
         )
         for name, (node, g, _), transform in zip(names, file_read.items, transforms, strict=True)

@@ -77,6 +77,11 @@ class Body:
     elements : tuple of PartElement
         The collision elements a URDF link of several is made of (its mesh is their union):
         a finding names the ones it involves (``verify.elements``). Empty otherwise.
+    source_digest : str
+        What the part's finding IDs hash as its geometry when its triangles are only one
+        rendering of it: a STEP solid's product B-rep (hex SHA-256 of its BRep text), which
+        another deflection or mesher does not change. Empty: its mesh's ``digest``
+        (``id_digest``).
     known_digest : str, optional
         ``mesh_digest(mesh)`` when the caller has it (a reader hashes a mesh once, however many
         instances place it); not kept as a field, so ``dataclasses.replace`` never carries it
@@ -94,6 +99,7 @@ class Body:
     is_rescaled: bool = False
     brep: StepSolids | None = field(default=None, repr=False)
     elements: tuple[PartElement, ...] = field(default=(), repr=False)
+    source_digest: str = field(default="", repr=False)
     known_digest: InitVar[str | None] = None
 
     def __post_init__(self, known_digest: str | None):
@@ -113,6 +119,11 @@ class Body:
     def digest(self) -> str:
         """Hex SHA-256 of the body's own geometry (vertices and faces, frame-local)."""
         return mesh_digest(self.mesh)
+
+    @property
+    def id_digest(self) -> str:
+        """The geometry digest its finding IDs hash: ``source_digest``, else ``digest``."""
+        return self.source_digest or self.digest
 
     @property
     def is_closed(self) -> bool:

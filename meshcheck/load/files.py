@@ -96,6 +96,8 @@ class FileRead:
     deflections : tuple of float
         Each geometry's own deflection (a STEP product whose faces were meshed again may hold
         more than the others); empty when every geometry holds ``deflection``.
+    sources : tuple of str
+        Each geometry's ``Body.source_digest`` (a STEP product's B-rep); empty for other files.
     is_float32 : bool
         Whether the reader got the coordinates through float32 (``Body.is_float32``).
     robot : robot.Robot or None
@@ -116,10 +118,15 @@ class FileRead:
     solids: StepSolids | None = None
     elements: dict = dataclasses.field(default_factory=dict)
     deflections: tuple[float, ...] = ()
+    sources: tuple[str, ...] = ()
 
     def deflection_of(self, geometry: int) -> float:
         """The deflection geometry ``geometry`` holds, in the file's unit."""
         return self.deflections[geometry] if self.deflections else self.deflection
+
+    def source_of(self, geometry: int) -> str:
+        """Geometry ``geometry``'s ``Body.source_digest`` (empty: none)."""
+        return self.sources[geometry] if self.sources else ""
 
     @property
     def triangles(self) -> int:
@@ -221,6 +228,7 @@ def _read(
     index: dict[int, int] = {}  # id(geometry) -> its index: cleaned once, shared by instances
     geometries: list[tuple[np.ndarray, np.ndarray, bool]] = []
     deflections: list[float] = []
+    sources: list[str] = []
     out = []
     for node, geom, transform in sorted(items, key=lambda item: item[0]):
         name = f"{path}#{node}" if multi else path
@@ -235,7 +243,9 @@ def _read(
             closed = topology.is_closed(f)
             index[id(geom)] = len(geometries)
             geometries.append((v, f, closed))
-            deflections.append(float(getattr(geom, "metadata", {}).get("deflection", deflection)))
+            metadata = getattr(geom, "metadata", {})
+            deflections.append(float(metadata.get("deflection", deflection)))
+            sources.append(str(metadata.get("brep", "")))
         g = index[id(geom)]
         if not geometries[g][2]:
             warn(name, "mesh is not closed (not watertight); its findings rest on surfaces only")
@@ -250,6 +260,7 @@ def _read(
         solids=solids,
         elements={node: geom.elements for node, geom, _ in items if hasattr(geom, "elements")},
         deflections=tuple(deflections) if ext in STEP_EXTENSIONS else (),
+        sources=tuple(sources) if ext in STEP_EXTENSIONS else (),
     )
 
 

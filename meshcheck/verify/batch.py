@@ -308,9 +308,9 @@ def _verify_in_workers(
 
 def pair_finding(a: Body, b: Body, verdict: PairVerdict, tolerance: float) -> Finding:
     """The finding of a pair that is not clear, its parts (and the verdict's) in name order."""
-    if (a.name, a.digest) > (b.name, b.digest):
+    if (a.name, a.id_digest) > (b.name, b.id_digest):
         a, b, verdict = b, a, verdict.swapped()
     pair_id = finding_id(
-        a.name, a.digest, b.name, b.digest, placement_a=a.transform, placement_b=b.transform
+        a.name, a.id_digest, b.name, b.id_digest, placement_a=a.transform, placement_b=b.transform
     )
     return Finding(a.name, b.name, verdict, id=pair_id, tolerance=tolerance)

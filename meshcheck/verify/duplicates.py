@@ -96,6 +96,9 @@ def duplicate_findings(bodies: Sequence, sets: list[list[int]], geometry: dict) 
     for members in sets:
         names = sorted(bodies[k].name for k in members)
         local, _, corner, digest = geometry[id(bodies[members[0]].mesh)]
+        sources = sorted({bodies[k].source_digest for k in members} - {""})
+        if sources:  # STEP solids: the products they render, not this rendering of them
+            digest = "\0".join(sources)
         transform = np.asarray(bodies[members[0]].transform, dtype=np.float64)
         world = (local + corner) @ transform[:3, :3].T + transform[:3, 3]
         lower, upper = world.min(axis=0), world.max(axis=0)
@@ -115,8 +118,9 @@ def duplicate_findings(bodies: Sequence, sets: list[list[int]], geometry: dict) 
 
 
 def duplicate_id(names: Sequence[str], digest: str, placements: Sequence[np.ndarray] = ()) -> str:
-    """Stable 12-hex-digit ID of a duplicate set: its sorted names, the geometry's digest and the
-    copies' placements (moving the set elsewhere lapses an approval by ID, as for any finding)."""
+    """Stable 12-hex-digit ID of a duplicate set: its sorted names, the geometry's digest (for
+    STEP solids, their products' B-rep: ``Body.source_digest``) and the copies' placements
+    (moving the set elsewhere lapses an approval by ID, as for any finding)."""
     text = "\0".join(["duplicate", digest, *sorted(names)])
     h = hashlib.sha256(text.encode("utf-8", "surrogateescape"))
     for placement in sorted((np.asarray(p, dtype=np.float64) + 0.0).tobytes() for p in placements):

@@ -110,7 +110,9 @@ def tessellate(
     -------
     meshes : dict
         By product key: the product's closed mesh (file units) and the largest distance, mm,
-        between a face meshed again and its triangles (``product_mesh``).
+        between a face meshed again and its triangles (``product_mesh``). Each mesh's
+        ``metadata["brep"]`` is the hex SHA-256 of its product's BRep text: the solid it
+        approximates, whatever the deflection or the mesher (``Body.source_digest``).
     deflection_mm : float
         The deflection used, mm.
     """
@@ -191,7 +193,9 @@ def _meshed_products(
         if isinstance(result[0], str):  # (part name, reason): the product cannot be meshed
             raise InputError(*result)
         vertices, faces, deviation = result
-        out[key] = (trimesh.Trimesh(vertices, faces, process=False), deviation)
+        mesh = trimesh.Trimesh(vertices, faces, process=False)
+        mesh.metadata["brep"] = stored[key][1]  # what its parts' finding IDs hash (``Body``)
+        out[key] = (mesh, deviation)
     return out
 
 
