@@ -326,6 +326,31 @@ def test_finding_ids_follow_the_solids_not_their_triangles(files, tmp_path):
         assert not meshes[0] & meshes[1]  # not one triangle mesh in common
 
 
+def test_pattern_groups_follow_the_solids_not_their_triangles(tmp_path):
+    # Three plates, each pierced by its pin the same way (one turned a quarter): one pattern
+    # group, whose ID hashes the products' B-rep and frames, so another deflection keeps it.
+    plate, pin = box((-5, -5, 0), (5, 5, 2)), cylinder(1.0, -1.0, 3.0, x=1.5)
+    places = [placement((0, 0, 0)), placement((30, 0, 0)), placement((0, 30, 0), angle_deg=90)]
+    path = str(
+        write_step(
+            tmp_path / "pierced.step",
+            {"plate": plate, "pin": pin},
+            [("plate", p) for p in places] + [("pin", p) for p in places],
+        )
+    )
+
+    def groups(*options):
+        args = [path, "--no-cache", "--format", "json", "-j", "1", *options]
+        result = CliRunner().invoke(main, args)
+        assert result.exit_code == 1, result.output
+        report = json.loads(result.stdout)
+        return [(g["id"], g["kind"], sorted(g["findings"])) for g in report["groups"]]
+
+    fine, coarse = groups(), groups("--step-deflection", "0.05")
+    assert fine == coarse
+    assert [(kind, len(ids)) for _, kind, ids in fine] == [("pattern", 3)]
+
+
 def test_faces_resting_on_faces_touch(files):
     finding = only_finding(bodies_of(files["resting"]))
     assert finding.status == "touching"

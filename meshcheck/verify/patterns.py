@@ -6,7 +6,9 @@ their parts have the same geometries (``local_geometry``'s digest: the mesh cont
 translation) and the second part sits in the first's frame at the same relative placement, within
 the touching tolerance: every vertex of it lies within the tolerance of where it lies in the
 other finding. The verify stage decided each finding alone; this stage only labels them
-(``Finding.pattern``), and ``results.clash_groups`` groups the labels.
+(``Finding.pattern``), and ``results.clash_groups`` groups the labels. A pattern's key hashes the
+two geometries and one member's relative placement; for STEP solids, their products' B-rep and
+the products' own frames, which another deflection does not move (as their finding IDs).
 """
 
 from __future__ import annotations
@@ -53,7 +55,7 @@ def with_patterns(
     index = {b.name: k for k, b in enumerate(bodies)}
     grouped = [f for f in findings if f.status in GROUPED_STATUSES]
     used = [bodies[index[name]] for f in grouped for name in (f.a, f.b)]
-    kind = geometry_classes(used, geometry, tolerance=tolerance)
+    kind = _named_classes(used, geometry_classes(used, geometry, tolerance=tolerance))
     by_pair: dict[tuple[str, str, str], list[int]] = {}
     for n, f in enumerate(findings):
         if f.status in GROUPED_STATUSES:
@@ -63,16 +65,19 @@ def with_patterns(
     for (_, first, second), members in sorted(by_pair.items()):
         if len(members) < 2:
             continue
-        points, owner = [], []
+        points, stable, owner = [], [], []
         for n in members:
-            for point in _relative(bodies, index, geometry, kind, findings[n], first, second):
+            for point, key_point in _relative(
+                bodies, index, geometry, kind, findings[n], first, second
+            ):
                 points.append(point)
+                stable.append(key_point)
                 owner.append(n)
         tol = tolerance
         if tol is None:
             tol = min((findings[n].tolerance or 0.0) for n in members)
         for rows in _joined(np.array(points), np.array(owner), tol):
-            representative = min(points[k].tobytes() for k in rows)
+            representative = min(stable[k].tobytes() for k in rows)
             h = hashlib.sha256(f"pattern\0{first}\0{second}\0".encode())
             h.update(representative)
             key = h.hexdigest()[:12]
@@ -156,10 +161,23 @@ def _mesh_tolerance(body, local_geometry: tuple, tolerance: float | None) -> flo
     return tolerance / scale if scale > 0 else 0.0
 
 
+def _named_classes(bodies: Sequence, kind: dict) -> dict:
+    """``kind`` (``geometry_classes``) with each class named by the B-rep product of the STEP
+    solids it renders when they are one product's (``Body.source_digest``: the same at any
+    deflection, so the classes' order and the keys are too), else by its meshes' digest."""
+    sources: dict[str, set[str]] = {}
+    for body in bodies:
+        sources.setdefault(kind[id(body.mesh)], set()).add(body.source_digest)
+    named = {c: next(iter(s)) if len(s) == 1 and "" not in s else c for c, s in sources.items()}
+    return {mesh: named[c] for mesh, c in kind.items()}
+
+
 def _relative(bodies, index, geometry, kind, finding: Finding, first: str, second: str):
     """Where the part of geometry ``second`` sits in the frame of the part of geometry
     ``first``, as 12 numbers in model units (the rotation times the second geometry's size,
-    then the origin); both ways round when the two geometries are one."""
+    then the origin); both ways round when the two geometries are one. Each with what its key
+    hashes: the same, or for a STEP solid the placement of its product's own frame (its
+    rotation unscaled), which its triangles do not move."""
     parts = [bodies[index[finding.a]], bodies[index[finding.b]]]
     if kind[id(parts[0].mesh)] != first:
         parts.reverse()
@@ -169,15 +187,19 @@ def _relative(bodies, index, geometry, kind, finding: Finding, first: str, secon
         frame = np.asarray(body.transform, dtype=np.float64).copy()
         frame[:3, 3] = frame[:3, :3] @ corner + frame[:3, 3]  # the local geometry's frame
         size = float(np.linalg.norm(local.max(axis=0))) if len(local) else 0.0
-        frames.append((frame, size))
+        product = (np.asarray(body.transform, dtype=np.float64), 1.0)
+        frames.append(((frame, size), product if body.source_digest else (frame, size)))
     orders = [(0, 1), (1, 0)] if first == second else [(0, 1)]
-    out = []
-    for i, j in orders:
-        (frame_i, _), (frame_j, size_j) = frames[i], frames[j]
-        scale = abs(float(np.linalg.det(frame_i[:3, :3]))) ** (1.0 / 3.0)
-        relative = np.linalg.solve(frame_i, frame_j)
-        out.append(scale * np.concatenate([relative[:3, :3].ravel() * size_j, relative[:3, 3]]))
-    return out
+    return [tuple(_placed(frames[i][k], frames[j][k]) for k in (0, 1)) for i, j in orders]
+
+
+def _placed(first: tuple[np.ndarray, float], second: tuple[np.ndarray, float]) -> np.ndarray:
+    """12 numbers: frame ``second[0]`` in frame ``first[0]``, its rotation times ``second[1]``,
+    in model units."""
+    (frame_i, _), (frame_j, size_j) = first, second
+    scale = abs(float(np.linalg.det(frame_i[:3, :3]))) ** (1.0 / 3.0)
+    relative = np.linalg.solve(frame_i, frame_j)
+    return scale * np.concatenate([relative[:3, :3].ravel() * size_j, relative[:3, 3]])
 
 
 def _joined(points: np.ndarray, owner: np.ndarray, tol: float) -> list[list[int]]:
