@@ -33,8 +33,8 @@ run one peer (what the table times).
 ``--phases`` prints instead where a cold run's CPU seconds go, for each assembly: one process
 at ``-j 1`` without a cache, its imports (meshcheck with click and numpy; trimesh with scipy;
 OpenCASCADE's bindings), OpenCASCADE reading the file (``read_document``), the tessellation,
-the pairs decided on the B-rep (``decide_on_brep``), and the rest (broad phase, filters,
-report), best of ``--repeat``.
+the pairs decided on the B-rep (``decide_on_brep``; how many distinct pairs ``decide_pair``
+decided, and their mean), and the rest (broad phase, filters, report), best of ``--repeat``.
 
 meshcheck's modules are compiled to bytecode first, as an installed wheel has them (an editable
 checkout run with ``PYTHONDONTWRITEBYTECODE`` would compile them again in every process).
@@ -144,9 +144,11 @@ def phases(path: str) -> str:
     mark = clock()
     import meshcheck.pipeline
     import meshcheck.verify.brep
+    import meshcheck.verify.solids
 
     marks["imports: meshcheck, click, numpy"] += clock() - mark
-    spent = dict.fromkeys(("read_document", "tessellation", "decide_on_brep"), 0.0)
+    spent = dict.fromkeys(("read_document", "tessellation", "decide_on_brep", "decide_pair"), 0.0)
+    calls = dict.fromkeys(spent, 0)
 
     def timed_call(name, function):
         def call(*args, **kwargs):
@@ -155,6 +157,7 @@ def phases(path: str) -> str:
                 return function(*args, **kwargs)
             finally:
                 spent[name] += clock() - begin
+                calls[name] += 1
 
         return call
 
@@ -164,6 +167,8 @@ def phases(path: str) -> str:
     read._tessellation = timed_call("tessellation", read._tessellation)
     pipeline = meshcheck.pipeline
     pipeline.decide_on_brep = timed_call("decide_on_brep", pipeline.decide_on_brep)
+    solids = meshcheck.verify.solids
+    solids.decide_pair = timed_call("decide_pair", solids.decide_pair)
     begin = clock()
     with quiet():
         try:
@@ -177,8 +182,9 @@ def phases(path: str) -> str:
     marks["STEP read (OpenCASCADE transfer)"] = spent["read_document"]
     marks["tessellation"] = spent["tessellation"]
     marks["pairs on the B-rep (OpenCASCADE)"] = spent["decide_on_brep"]
+    pairs, pair_seconds = calls["decide_pair"], spent.pop("decide_pair")
     marks["the rest (broad phase, filters, report)"] = run - sum(spent.values())
-    return json.dumps({"total": clock() - start, **marks})
+    return json.dumps({"total": clock() - start, "pairs": [pairs, pair_seconds], **marks})
 
 
 def print_phases(paths: list[str], repeat: int) -> None:
@@ -194,8 +200,12 @@ def print_phases(paths: list[str], repeat: int) -> None:
             if best is None or marks["total"] < best["total"]:
                 best = marks
         print(f"{os.path.basename(path)}: {best.pop('total'):.2f} s CPU")
+        pairs, pair_seconds = best.pop("pairs")
         for name, seconds in best.items():
             print(f"  {name:42} {seconds:5.2f} s")
+            if name.startswith("pairs on the B-rep") and pairs:
+                each = pair_seconds / pairs
+                print(f"    {pairs} distinct pairs: {pair_seconds:.2f} s, {each:.3f} s each")
 
 
 def compile_meshcheck() -> None:

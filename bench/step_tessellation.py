@@ -15,6 +15,13 @@ Prints, all measured in this run:
    0.03 mm, at the default.
 3. The sample assembly end to end: its STEP file against the STL files of ``make_samples.py``
    (sizes; load and check times, same process).
+
+``python bench/step_tessellation.py --mend FOLDER ...`` prints instead, for every ``.step`` and
+``.stp`` file in the folders (real exports fetched by hand, as for ``bench/step.py``):
+
+4. The faces BRepMesh cannot mesh at the default deflection, which ``mend_faces`` meshes again
+   with a coarser deflection inside: for each factor of ``MEND_INTERIOR_FACTORS`` (and 2), how
+   many it meshes, and the CPU seconds its successful and failed tries cost.
 """
 
 from __future__ import annotations
@@ -156,8 +163,81 @@ def sample():
         print(f"   {worst.a}: depth {worst.depth:.4f} (CAD 0.7)")
 
 
+def mend_survey(paths: list[str]) -> None:
+    """4. The faces ``mend_faces`` meshes again at the default deflection, in each STEP file
+    (those BRepMesh leaves without triangles or short of their edges, in a solid whose welded
+    mesh is not closed): for each interior deflection factor, tried alone on a fresh copy of
+    each product, how many it meshes, and the CPU seconds of the solids' tries that meshed
+    every face and of those that did not."""
+    import io
+
+    from OCP.BRep import BRep_Builder
+    from OCP.BRepMesh import BRepMesh_IncrementalMesh
+    from OCP.BRepTools import BRepTools
+    from OCP.IMeshTools import IMeshTools_Parameters
+    from OCP.TopoDS import TopoDS_Shape
+
+    from meshcheck.load.step import tessellate as t
+    from meshcheck.load.step.document import read_document
+    from meshcheck.mesh import is_closed
+
+    factors = (2, 4, 8, 16)
+    print("4. faces meshed again (mend_faces): interior deflection factor, faces it meshes")
+    for path in paths:
+        with open(path, "rb") as f:
+            instances = read_document(f.read(), path)
+        products = {i.product_key: i.product for i in instances}
+        diagonal = max(t.shape_diagonal(shape) for shape in products.values())
+        deflection = t._honoured_deflection(None, diagonal, path, "mm", 1.0)
+        angle = t.DEFAULT_ANGULAR_DEFLECTION
+        tried = dict.fromkeys(factors, 0)
+        meshed = dict.fromkeys(factors, 0)
+        seconds = {f: [0.0, 0.0] for f in factors}  # meshed, failed
+        needing = set()
+        for key, product in products.items():
+            text = t.brep_text(product)
+            for factor in factors:
+                shape = TopoDS_Shape()
+                BRepTools.Read_s(shape, io.BytesIO(text), BRep_Builder())
+                quiet(BRepMesh_IncrementalMesh, shape, deflection, False, angle, False)
+                for n, (solid, is_solid) in enumerate(t._solids_and_rest(shape)):
+                    if not is_solid or is_closed(t._welded(solid, path, 1.0, deflection)):
+                        continue  # what product_mesh leaves as meshed
+                    broken = [face for face in t._faces(solid) if not t.follows_edges(face)]
+                    needing.update((key, n, k) for k in range(len(broken)))
+                    for face in broken:
+                        BRep_Builder().UpdateFace(face, None)
+                    params = IMeshTools_Parameters()
+                    params.Deflection, params.Angle = deflection, angle
+                    params.DeflectionInterior = factor * deflection
+                    start = time.process_time()
+                    quiet(BRepMesh_IncrementalMesh, t._compound(broken), params)
+                    ok = sum(t.follows_edges(face) for face in broken)
+                    seconds[factor][0 if ok == len(broken) else 1] += time.process_time() - start
+                    tried[factor] += len(broken)
+                    meshed[factor] += ok
+        products_needing = len({key for key, _, _ in needing})
+        print(f"   {os.path.basename(path)}: {len(needing)} faces of {products_needing} products")
+        for factor in factors:
+            if tried[factor]:
+                done, failed = seconds[factor]
+                print(
+                    f"     x{factor:<2} {meshed[factor]:3} of {tried[factor]:3} meshed, "
+                    f"{done:6.2f} s; tries that left some {failed:6.2f} s"
+                )
+
+
 def main():
     warnings.simplefilter("ignore")
+    if sys.argv[1:2] == ["--mend"]:
+        paths = [
+            os.path.join(folder, name)
+            for folder in sys.argv[2:]
+            for name in sorted(os.listdir(folder))
+            if name.lower().endswith((".step", ".stp"))
+        ]
+        mend_survey(paths)
+        return
     with tempfile.TemporaryDirectory() as tmp:
         per_part(tmp)
         pins(tmp)

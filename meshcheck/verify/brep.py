@@ -93,9 +93,10 @@ from .solids import NOT_ONE_SOLID, SHAPES
 
 #: Bump when a cached B-rep verdict's meaning changes.
 FORMAT_VERSION = 2
-#: Expected seconds of one pair on the B-rep (an intersection, or a distance): 0.14 to 0.18 s of
-#: CPU an intersection of as1-oc-214.stp's coincident B-spline shanks and holes, a few
-#: milliseconds on analytic cylinders and planes (measured on the shared 2-core machine).
+#: Seconds one pair on the B-rep (an intersection, or a distance) is expected to take before any
+#: is measured (``_decide_all`` then goes by the pairs' mean): from milliseconds on analytic
+#: cylinders and planes to seconds on a modelled thread in its hole (``python bench/step.py
+#: FOLDERS --phases`` prints each file's mean).
 PAIR_SECONDS = 0.15
 #: STEP files of this many bytes together have their workers started as the run starts: the
 #: fastener-heavy exports (2.3-3.4 MB) spend 10-30 s of CPU on the B-rep, where the files below

@@ -74,11 +74,10 @@ MIN_DEFLECTION_MM = 1e-6
 MIN_RELATIVE_DEFLECTION = 1e-6
 # Interior deflections tried, as multiples of the linear deflection, for a face BRepMesh could not
 # mesh (``mend_faces``): the edges keep the linear deflection. A larger one makes BRepMesh insert
-# fewer nodes inside the face, which the chamfer cones that fail need (four to sixteen times;
-# their triangles then measured within a third of the deflection, and the distance measured is
-# what the product holds). A failed try costs more than meshing the face: twice the deflection
-# failed on every face that needed mending in the real exports measured (23 faces of 8 products;
-# 0.6-0.7 s for each Bowden module plate), so the list starts at four.
+# fewer nodes inside the face, which the chamfer cones that fail need (the distance then measured
+# is what the product holds). Twice the deflection meshed none of the faces that needed it in the
+# real exports, and its failed tries cost more than the faces' meshes
+# (``python bench/step_tessellation.py --mend FOLDERS``), so the list starts at four.
 MEND_INTERIOR_FACTORS = (4, 8, 16)
 # Triangles one STEP file may be tessellated into (every distinct product once), unless the run's
 # budget (``--max-triangles``) has less left: a million triangles take about 200 MB here.
