@@ -34,7 +34,9 @@ run one peer (what the table times).
 at ``-j 1`` without a cache, its imports (meshcheck with click and numpy; trimesh with scipy;
 OpenCASCADE's bindings), OpenCASCADE reading the file (``read_document``), the tessellation,
 the pairs decided on the B-rep (``decide_on_brep``; how many distinct pairs ``decide_pair``
-decided, and their mean), and the rest (broad phase, filters, report), best of ``--repeat``.
+decided, their mean, and the CPU seconds of their booleans alone: OpenCASCADE's intersection
+and common solid, which an exact volume cannot do without), and the rest (broad phase, filters,
+report), best of ``--repeat``.
 
 meshcheck's modules are compiled to bytecode first, as an installed wheel has them (an editable
 checkout run with ``PYTHONDONTWRITEBYTECODE`` would compile them again in every process).
@@ -169,6 +171,17 @@ def phases(path: str) -> str:
     pipeline.decide_on_brep = timed_call("decide_on_brep", pipeline.decide_on_brep)
     solids = meshcheck.verify.solids
     solids.decide_pair = timed_call("decide_pair", solids.decide_pair)
+    booleans = [0.0]  # the pairs' intersections: pave filler and common solid
+
+    class TimedIntersection(solids._Intersection):
+        def __init__(self, *args):
+            begin = clock()
+            try:
+                super().__init__(*args)
+            finally:
+                booleans[0] += clock() - begin
+
+    solids._Intersection = TimedIntersection
     begin = clock()
     with quiet():
         try:
@@ -184,7 +197,8 @@ def phases(path: str) -> str:
     marks["pairs on the B-rep (OpenCASCADE)"] = spent["decide_on_brep"]
     pairs, pair_seconds = calls["decide_pair"], spent.pop("decide_pair")
     marks["the rest (broad phase, filters, report)"] = run - sum(spent.values())
-    return json.dumps({"total": clock() - start, "pairs": [pairs, pair_seconds], **marks})
+    detail = [pairs, pair_seconds, booleans[0]]
+    return json.dumps({"total": clock() - start, "pairs": detail, **marks})
 
 
 def print_phases(paths: list[str], repeat: int) -> None:
@@ -200,12 +214,13 @@ def print_phases(paths: list[str], repeat: int) -> None:
             if best is None or marks["total"] < best["total"]:
                 best = marks
         print(f"{os.path.basename(path)}: {best.pop('total'):.2f} s CPU")
-        pairs, pair_seconds = best.pop("pairs")
+        pairs, pair_seconds, boolean_seconds = best.pop("pairs")
         for name, seconds in best.items():
             print(f"  {name:42} {seconds:5.2f} s")
             if name.startswith("pairs on the B-rep") and pairs:
                 each = pair_seconds / pairs
                 print(f"    {pairs} distinct pairs: {pair_seconds:.2f} s, {each:.3f} s each")
+                print(f"    their booleans (intersection, common solid): {boolean_seconds:.2f} s")
 
 
 def compile_meshcheck() -> None:
