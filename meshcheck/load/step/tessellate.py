@@ -119,8 +119,7 @@ def tessellate(
     from OCP.BRepTools import BRepTools
 
     by_key = {i.product_key: i.product for i in instances}
-    products = list(by_key.values())
-    diagonal = max(shape_diagonal(shape) for shape in products)
+    diagonal = max(shape_diagonal(shape) for shape in by_key.values())
     deflection_mm = _honoured_deflection(deflection_mm, diagonal, path, unit, default_scale)
     to_unit = 1e-3 / METRES[unit]
     # Estimate before meshing fine: a doubly curved face needs triangles in proportion to
