@@ -49,7 +49,7 @@ def main() -> None:
         message = messages.get()
         if message is None:  # the parent closed the stream, or is gone
             replies.close()
-            return
+            _leave()
         if message[0] == "put":
             store[message[1]] = message[2]
             continue
@@ -61,7 +61,15 @@ def main() -> None:
 
             reply = ("error", traceback.format_exc())
         if not replies.put(reply):
-            return
+            _leave()
+
+
+def _leave() -> None:
+    """End the process now, without the interpreter's teardown: it holds nothing to save (every
+    reply is written), and freeing what its tasks kept (OpenCASCADE's solids, meshes) one object
+    at a time took 0.37 s of the parent's wait on a STEP assembly's pairs."""
+    sys.stderr.flush()
+    os._exit(0)
 
 
 class _Messages:
