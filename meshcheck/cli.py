@@ -493,7 +493,7 @@ def _refuse_robot_options(files, motion, given: dict[str, bool]) -> None:
 def _robot_files(files) -> list[str]:
     """The URDF files among the inputs, as the loader finds them (``load.paths.walk_meshes``:
     hidden entries of a directory skipped), without reading any."""
-    from .load.files import URDF_EXTENSIONS
+    from .load.formats import URDF_EXTENSIONS
     from .load.paths import walk_meshes
 
     out = []
@@ -547,24 +547,29 @@ def _check(files, settings, baseline, export_path):
             f"out of memory: the address-space limit leaves {left >> 20} MiB after start-up, "
             f"a check needs {RUN_ADDRESS_SPACE >> 20} MiB",
         )
-    with Progress("starting", 0):  # numba, trimesh, scipy: seconds on a cold disk
-        from .pipeline import check
-
+    ahead = _read_ahead(files, settings)  # a STEP file read while the pipeline is imported
     error = None
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", MeshcheckWarning)
-        try:
-            result = check(files, settings)
-            if baseline is not None:
-                from .outcome import compare
+    try:
+        with Progress("starting", 0):  # numba, trimesh, scipy: seconds on a cold disk
+            from .pipeline import check
 
-                result = compare(result, baseline)
-            if export_path is not None:
-                from .reports.gltf import export_clashes
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", MeshcheckWarning)
+            try:
+                result = check(files, settings)
+                if baseline is not None:
+                    from .outcome import compare
 
-                export_clashes(export_path, result.bodies, result.findings, units=result.units)
-        except MeshcheckError as exc:
-            error = exc
+                    result = compare(result, baseline)
+                if export_path is not None:
+                    from .reports.gltf import export_clashes
+
+                    export_clashes(export_path, result.bodies, result.findings, units=result.units)
+            except MeshcheckError as exc:
+                error = exc
+    finally:
+        if ahead is not None:
+            ahead.stop()  # a file the run did not take (it failed first)
     for w in caught:
         if issubclass(w.category, MeshcheckWarning):
             click.echo(f"warning: {printable(str(w.message))}", err=True)
@@ -573,6 +578,22 @@ def _check(files, settings, baseline, export_path):
     if error is not None:
         _fail(error)
     return result
+
+
+def _read_ahead(files, settings):
+    """Start reading the first STEP file among ``files`` in a worker (``load.step.ahead``); the
+    module that did, None when there is no STEP file or it cannot even be imported (no file
+    descriptor left: the run goes on without it, and says what it cannot open)."""
+    from .load.formats import STEP_EXTENSIONS
+
+    if not any(str(f).lower().endswith(STEP_EXTENSIONS) for f in files):
+        return None
+    try:
+        from .load.step import ahead
+    except OSError:
+        return None
+    ahead.start(files, settings)
+    return ahead
 
 
 def _write_reports(result, targets, files, srdf_path=None, view_options=None) -> list[str]:
@@ -682,7 +703,7 @@ def _input_files(inputs):
         if not os.path.isdir(path):
             yield path
             continue
-        from .load.files import SUPPORTED_EXTENSIONS
+        from .load.formats import SUPPORTED_EXTENSIONS
 
         for folder, _, names in os.walk(path):
             for name in names:

@@ -248,6 +248,7 @@ class _Worker:
         self.queued: int | None = None  # index of the task sent to run after it (``run_here``)
         self.started = 0.0
         self.is_ready = False
+        self.prepare = prepare
 
     def fileno(self) -> int:
         return self.receive_end.fileno()
@@ -300,10 +301,23 @@ class LocalPool(Executor):
         return bool(self.workers)
 
     def prepare(self, function: str) -> None:
-        # One worker fewer than jobs: a map that lets this process help wants no more.
+        # One worker fewer than jobs: a map that lets this process help wants no more. A worker
+        # started early with the same function (``start_early``) joins when its task is taken.
         if not self.workers:
-            self.workers = [_Worker(function) for _ in range(self.jobs - 1)]
+            early = sum(w.prepare == function for w in _EARLY.values())
+            self.workers = [_Worker(function) for _ in range(self.jobs - 1 - early)]
             self.prepared = frozenset({function})
+
+    def adopt(self, worker: _Worker) -> bool:
+        """Take ``worker`` (ready and idle: an early one whose task was taken, ``take_early``)
+        as one of the pool's, when the pool has room for it (one worker fewer than ``jobs``:
+        this process takes tasks too). False when it has none."""
+        if len(self.workers) >= self.jobs - 1:
+            return False
+        called = frozenset({worker.prepare} - {None})
+        self.prepared = called if not self.workers else self.prepared & called
+        self.workers.append(worker)
+        return True
 
     #: Index of the task this process runs itself (``map(here=True)``), None otherwise.
     here_task: int | None = None
@@ -359,6 +373,78 @@ class LocalPool(Executor):
                 worker.kill()  # needed none of it: a warm run)
         self.workers = []
         self.prepared = frozenset()
+
+
+# ---------------------------------------------------------------------------------------------
+# Workers started before the run's pool
+
+
+#: Workers started before a pool (``start_early``), each running one task, by its caller's key.
+_EARLY: dict[object, _Worker] = {}
+
+
+def start_early(key, function: str, args: tuple, *, prepare: str | None = None) -> None:
+    """Start a worker now, before the run's pool exists: it calls ``prepare`` (imports), then
+    ``function(store, *args)``, while this process goes on. ``take_early(key)`` waits for the
+    result; the worker then joins the run's pool.
+
+    Examples
+    --------
+    >>> start_early("example", "meshcheck.execute:echo", (7,))
+    >>> take_early("example")
+    7
+    """
+    stop_early(key)
+    worker = _Worker(prepare)
+    try:
+        worker.send_end.send(("run", function, (), args))
+    except OSError:  # it died at once: nothing was started
+        worker.kill()
+        return
+    _EARLY[key] = worker
+
+
+def take_early(key, pool: Executor | None = None):
+    """The result of the task started under ``key`` (``start_early``), once it is done; None
+    when none was started or its worker died. The worker then joins ``pool`` when that is a
+    local pool with room for it (``LocalPool.adopt``), else stops.
+
+    Raises
+    ------
+    RuntimeError
+        The task raised (a bug): its traceback.
+    """
+    worker = _EARLY.pop(key, None)
+    if worker is None:
+        return None
+    try:
+        message = worker.receive_end.recv()
+        if message[0] == "ready":
+            worker.is_ready = True
+            message = worker.receive_end.recv()
+    except (EOFError, OSError):
+        worker.kill()
+        return None
+    if message[0] == "error":
+        worker.kill()
+        raise RuntimeError(f"a meshcheck worker failed:\n{message[1]}")
+    if not (isinstance(pool, LocalPool) and pool.adopt(worker)):
+        worker.stop()
+    return message[1]
+
+
+def has_early(key) -> bool:
+    """Whether a worker started under ``key`` (``start_early``) has a result to take."""
+    return key in _EARLY
+
+
+def stop_early(key=None) -> None:
+    """Kill the worker started early under ``key`` (default: every one) whose result was not
+    taken: its task is not wanted any more."""
+    for k in list(_EARLY) if key is None else [key]:
+        worker = _EARLY.pop(k, None)
+        if worker is not None:
+            worker.kill()
 
 
 class _LocalRun:
@@ -774,8 +860,13 @@ def executor_for(*, jobs: int | None = None, scheduler: str | None = None) -> Ex
     (``jobs``, default all cores), else this process alone for ``jobs=1``."""
     if scheduler:
         return DaskExecutor(scheduler)
-    jobs = min(jobs or default_jobs(), max_local_jobs())
+    jobs = local_jobs(jobs)
     return Executor() if jobs <= 1 else LocalPool(jobs)
+
+
+def local_jobs(jobs: int | None = None) -> int:
+    """The local processes a run given ``jobs`` (default all cores) uses, this one included."""
+    return min(jobs or default_jobs(), max_local_jobs())
 
 
 #: Memory a local worker is counted to need (its interpreter, numpy, trimesh, CoACD and one

@@ -158,6 +158,34 @@ def test_prepared_workers_import_before_their_first_task():
     assert time.monotonic() - started < 0.5
 
 
+def test_a_worker_started_early_joins_the_pool_that_takes_its_result():
+    """``start_early`` runs one task before any pool exists; ``take_early`` gives its result
+    and the pool adopts the worker (prepared as it was), counted in ``prepare``; a pool with no
+    room, or no pool, stops it; ``stop_early`` kills a worker whose result nobody took."""
+    from meshcheck.execute import has_early, start_early, stop_early, take_early
+
+    preload = "meshcheck.load.step.tessellate:preload"
+    start_early("a", "meshcheck.execute:sleep_then_pid", (0.0,), prepare=preload)
+    with LocalPool(2) as pool:
+        pool.prepare(preload)  # the early worker is the one it wants
+        assert pool.workers == [] and pool.prepared == {preload}
+        pid = take_early("a", pool)
+        assert not has_early("a")
+        assert [w.process.pid for w in pool.workers] == [pid] and pool.prepared == {preload}
+        ask = [Task(("OCP.OCP",))]
+        assert pool.map("meshcheck.execute:is_imported", ask) == [True]
+        start_early("b", "meshcheck.execute:echo", (2,))
+        assert take_early("b", pool) == 2  # no room left: stopped
+        assert len(pool.workers) == 1
+    assert take_early("a") is None  # taken already
+    start_early("c", "meshcheck.execute:sleep_then_echo", (30.0, 3))
+    from meshcheck.execute import _EARLY
+
+    process = _EARLY["c"].process
+    stop_early()
+    assert process.wait(timeout=5) is not None and not has_early("c")
+
+
 def test_shared_values_travel_once_per_worker():
     shared = {"m": list(range(1000))}
     tasks = [Task(("m",), needs=("m",)) for _ in range(6)]

@@ -24,6 +24,7 @@ STAGES = [
         "base",
         [
             "errors",
+            "_lazy",
             "units",
             "tolerances",
             "motion",
@@ -56,8 +57,15 @@ RANK = {top: k for k, (_, tops) in enumerate(STAGES) for top in tops}
 ROOMS = {
     # one signed store, then the entries kept in it
     "meshcheck.cache": [["store"], ["decompositions", "verdicts", "tessellations"]],
-    # bytes -> document (its structure checked) -> meshes; the file's unit beside
-    "meshcheck.load.step": [["units", "assembly"], ["document"], ["tessellate"], ["read"]],
+    # bytes -> document (its structure checked) -> products -> meshes; the file's unit beside;
+    # a worker reading a file ahead runs the same rooms, before ``read`` takes what it read
+    "meshcheck.load.step": [
+        ["units", "assembly"],
+        ["document"],
+        ["tessellate"],
+        ["ahead"],
+        ["read"],
+    ],
 }
 
 

@@ -229,9 +229,11 @@ def four_products(path) -> str:
     return write_step(path, products, instances)
 
 
-def test_products_meshed_in_prepared_workers_are_the_ones_meshed_here(tmp_path):
+def test_products_meshed_in_prepared_workers_are_the_ones_meshed_here(tmp_path, monkeypatch):
     from meshcheck.execute import LocalPool
-    from meshcheck.load.step import tessellate
+    from meshcheck.load.step import read, tessellate
+
+    monkeypatch.setattr(read, "PREPARE_BYTES", 0)  # these files count as large ones
 
     path = four_products(tmp_path / "four.step")
     other = write_step(  # a second file: its product labels are the first one's

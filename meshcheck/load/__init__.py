@@ -64,12 +64,24 @@ about it, ``verify.shells``: the test is the verify stage's.)
 
 from __future__ import annotations
 
-from ..mesh import is_closed, split_shells
-from .bodies import load_assembly, load_bodies, load_file, split_body
-from .body import Assembly, Body, LocalGeometry, local_geometries, local_geometry, mesh_digest
-from .files import SUPPORTED_EXTENSIONS
-from .limits import Limits
-from .paths import expand_paths
+from typing import TYPE_CHECKING
+
+from .._lazy import lazy_names
+
+if TYPE_CHECKING:
+    from ..mesh import is_closed, split_shells
+    from .bodies import load_assembly, load_bodies, load_file, split_body
+    from .body import (
+        Assembly,
+        Body,
+        LocalGeometry,
+        local_geometries,
+        local_geometry,
+        mesh_digest,
+    )
+    from .formats import SUPPORTED_EXTENSIONS
+    from .limits import Limits
+    from .paths import expand_paths
 
 __all__ = [
     "SUPPORTED_EXTENSIONS",
@@ -88,3 +100,26 @@ __all__ = [
     "split_body",
     "split_shells",
 ]
+
+# Imported on first use: a STEP file's reader (``step.document``) imports no trimesh.
+__getattr__, __dir__ = lazy_names(
+    __name__,
+    {
+        **dict.fromkeys(("is_closed", "split_shells"), "..mesh"),
+        **dict.fromkeys(("load_assembly", "load_bodies", "load_file", "split_body"), ".bodies"),
+        **dict.fromkeys(
+            (
+                "Assembly",
+                "Body",
+                "LocalGeometry",
+                "local_geometries",
+                "local_geometry",
+                "mesh_digest",
+            ),
+            ".body",
+        ),
+        "SUPPORTED_EXTENSIONS": ".formats",
+        "Limits": ".limits",
+        "expand_paths": ".paths",
+    },
+)

@@ -32,6 +32,7 @@ from .. import units as units_
 from ..errors import InputError, MeshcheckError, MeshcheckWarning
 from ..geometry import topology
 from ..mesh import as_mesh, clean_arrays, warn
+from .formats import STEP_EXTENSIONS, SUPPORTED_EXTENSIONS, URDF_EXTENSIONS
 from .gltf import read_gltf
 from .limits import MAX_TEXT_LINE, Budget, Limits, read_file
 from .robot import Robot
@@ -42,11 +43,6 @@ if TYPE_CHECKING:
     from ..cache import TessellationCache
     from .step import StepSolids
 
-STEP_EXTENSIONS = (".step", ".stp")
-URDF_EXTENSIONS = (".urdf",)
-SUPPORTED_EXTENSIONS = (
-    ".stl", ".obj", ".ply", ".off", ".glb", ".gltf", ".3mf", *STEP_EXTENSIONS, *URDF_EXTENSIONS
-)  # fmt: skip
 #: Read in worker processes when reading in parallel. STEP stays here (its tessellation cache
 #: is written by this process only, and its exact solids stay here), and so does 3MF (its
 #: reader sizes its stream by what the run's budget has left, which only this process knows).

@@ -28,7 +28,7 @@ import numpy as np
 
 from ..config import matches
 from ..errors import ConfigError
-from .files import URDF_EXTENSIONS
+from .formats import URDF_EXTENSIONS
 from .robot import Collision, Joint, Mechanism, Robot, joint_values, link_transforms
 
 #: The link of the parts no joint moves.

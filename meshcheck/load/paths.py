@@ -6,7 +6,7 @@ import os
 from collections.abc import Iterable
 
 from ..errors import InputError
-from .files import SUPPORTED_EXTENSIONS
+from .formats import SUPPORTED_EXTENSIONS
 
 
 def expand_paths(paths: Iterable[str]) -> list[str]:

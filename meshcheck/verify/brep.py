@@ -82,8 +82,8 @@ from ..cache.store import checksum, package_version
 from ..errors import InputError, MeshcheckWarning
 from ..execute import Executor, Task
 from ..load import Body
-from ..load.files import STEP_EXTENSIONS
-from ..load.step.tessellate import PREPARE
+from ..load.formats import STEP_EXTENSIONS
+from ..load.step.tessellate import PREPARE, PREPARE_BYTES
 from ..progress import Progress
 from ..results import Finding, Location, PairVerdict, Solid, Verdict
 from ..settings import Settings
@@ -98,11 +98,6 @@ FORMAT_VERSION = 2
 #: cylinders and planes to seconds on a modelled thread in its hole (``python bench/step.py
 #: FOLDERS --phases`` prints each file's mean).
 PAIR_SECONDS = 0.15
-#: STEP files of this many bytes together have their workers started as the run starts: the
-#: fastener-heavy exports (2.3-3.4 MB) spend 10-30 s of CPU on the B-rep, where the files below
-#: 1 MB (box_sides.STEP, the AS1 assemblies, a KiCad board) decide theirs in less than a
-#: worker's start-up, and a worker started for nothing costs 1.2 s of CPU.
-PREPARE_BYTES = 1 << 20
 
 
 def prepare_workers(executor: Executor, paths: Sequence[str]) -> None:

@@ -20,19 +20,24 @@ converts back to the length unit the file declares, so that a millimetre STEP gi
 and an inch STEP inches.
 """
 
-from .assembly import check_structure
-from .read import StepAssembly, StepSolids, read_step
-from .tessellate import (
-    DEFAULT_ANGULAR_DEFLECTION,
-    DEFAULT_DEFLECTION_MM,
-    DEFAULT_RELATIVE_DEFLECTION,
-    MAX_STEP_TRIANGLES,
-    MIN_DEFLECTION_MM,
-    MIN_RELATIVE_DEFLECTION,
-    close_mesh,
-    shape_diagonal,
-)
-from .units import step_unit
+from typing import TYPE_CHECKING
+
+from ..._lazy import lazy_names
+
+if TYPE_CHECKING:
+    from .assembly import check_structure
+    from .read import StepAssembly, StepSolids, read_step
+    from .tessellate import (
+        DEFAULT_ANGULAR_DEFLECTION,
+        DEFAULT_DEFLECTION_MM,
+        DEFAULT_RELATIVE_DEFLECTION,
+        MAX_STEP_TRIANGLES,
+        MIN_DEFLECTION_MM,
+        MIN_RELATIVE_DEFLECTION,
+        close_mesh,
+        shape_diagonal,
+    )
+    from .units import step_unit
 
 __all__ = [
     "DEFAULT_ANGULAR_DEFLECTION",
@@ -49,3 +54,26 @@ __all__ = [
     "shape_diagonal",
     "step_unit",
 ]
+
+# Imported on first use: a worker reading a file ahead (``ahead``) imports no trimesh.
+__getattr__, __dir__ = lazy_names(
+    __name__,
+    {
+        "check_structure": ".assembly",
+        **dict.fromkeys(("StepAssembly", "StepSolids", "read_step"), ".read"),
+        **dict.fromkeys(
+            (
+                "DEFAULT_ANGULAR_DEFLECTION",
+                "DEFAULT_DEFLECTION_MM",
+                "DEFAULT_RELATIVE_DEFLECTION",
+                "MAX_STEP_TRIANGLES",
+                "MIN_DEFLECTION_MM",
+                "MIN_RELATIVE_DEFLECTION",
+                "close_mesh",
+                "shape_diagonal",
+            ),
+            ".tessellate",
+        ),
+        "step_unit": ".units",
+    },
+)

@@ -13,17 +13,20 @@ import trimesh
 from ...cache import Tessellation, TessellationCache, tessellation_key
 from ...errors import InputError
 from ...units import METRES
+from . import ahead
 from .assembly import Instance, named_instances, placed_solids
 from .document import read_document
 from .tessellate import (
     DEFAULT_ANGULAR_DEFLECTION,
     MAX_STEP_TRIANGLES,
+    PREPARE_BYTES,
+    Products,
     brep_text,
     placed_meshes,
+    products,
     tessellate,
-    with_copied_topology,
 )
-from .units import declared_unit, deflection_mm, warn_no_unit
+from .units import mesh_settings, warn_no_unit
 
 if TYPE_CHECKING:
     from ...execute import Executor
@@ -36,7 +39,8 @@ class StepSolids:
     Made by ``read_step`` from the bytes the load stage read and checked, and kept by the
     file's bodies (``Body.brep``), so no later stage opens the file. When the file was read to be
     tessellated, its solids are the instances read then (the mesher worked on a copy of their
-    topology: they hold no triangulation); when the tessellation came from the cache, the bytes
+    topology: they hold no triangulation); when a worker read it ahead (``ahead``), their BRep
+    texts are the ones it wrote from them; when the tessellation came from the cache, the bytes
     are kept and read into a document when a solid is first asked for, and only then. Either
     way the solids are the file as a fresh read gives them, whatever the cache held.
 
@@ -68,6 +72,7 @@ class StepSolids:
         *,
         items: list[tuple[str, trimesh.Trimesh, np.ndarray]] = (),
         unit: str = "mm",
+        texts: dict[str, bytes] | None = None,
     ):
         self.path = path
         self.digest = hashlib.sha256(data).hexdigest()
@@ -76,6 +81,7 @@ class StepSolids:
         self._instances = instances
         self._solids: dict[str, object] | None = None
         self._texts: dict[int, bytes] = {}
+        self._node_texts = texts or {}  # by node, written by the worker that read the file
         self._named: dict[str, Instance] | None = None
         to_mm = METRES[unit] / 1e-3
         products: dict[int, int] = {}  # id(mesh) -> product number
@@ -122,6 +128,8 @@ class StepSolids:
             As ``by_node``.
         """
         product = self.product(node)
+        if node in self._node_texts:
+            return self._node_texts[node]
         if product not in self._texts:
             if self._named is None:
                 self._named = dict(named_instances(self._document()))
@@ -144,7 +152,7 @@ class StepSolids:
         self.path, self.digest, self.unit = state["path"], state["digest"], state["unit"]
         self._nodes = state["nodes"]
         self._data, self._instances, self._solids, self._texts = None, None, None, {}
-        self._named = None
+        self._named, self._node_texts = None, {}
 
 
 @dataclass(frozen=True)
@@ -244,47 +252,46 @@ def read_step(
         DEFAULT_ANGULAR_DEFLECTION if angular_deflection is None else float(angular_deflection)
     )
     data = _read_bytes(path) if data is None else data
-    declared = declared_unit(data)
     real_unit = unit
-    unit = declared or "mm"
-    wanted_mm, ratio = deflection_mm(deflection, deflection_unit, unit, real_unit)
+    declared, unit, wanted_mm, ratio = mesh_settings(data, deflection, deflection_unit, real_unit)
     budget = MAX_STEP_TRIANGLES if max_triangles is None else min(max_triangles, MAX_STEP_TRIANGLES)
 
     key = tessellation_key(data, wanted_mm, angular, default_scale=ratio) if cache else ""
     found = cache.get(key) if cache is not None else None
-    instances = None
+    instances, texts = None, None
     if found is None or found.unit != unit:
-        instances = read_document(data, path)
-        found = _tessellation(
-            instances, path, wanted_mm, angular, budget, unit, ratio, executor=executor
-        )
+        read = ahead.take(path, data, (unit, wanted_mm, angular, ratio), executor)
+        if read is None:
+            instances = read_document(data, path)
+            read = products(instances, path, wanted_mm, angular, unit, ratio)
+        else:
+            texts = {n: read.solid_texts[i.product_key] for n, i in named_instances(read.instances)}
+        # A small file's products are meshed here: a worker would import trimesh for them.
+        meshers = executor if len(data) >= PREPARE_BYTES else None
+        found = _tessellation(read, path, angular, budget, unit, meshers)
         if cache is not None:
             cache.put(key, found)
+    else:
+        ahead.drop(path)  # nothing to read: the worker reading it ahead, if any, stops
     if declared is None and real_unit is None:
         warn_no_unit(path)
-    solids = StepSolids(path, data, instances, items=found.items, unit=found.unit)
+    solids = StepSolids(path, data, instances, items=found.items, unit=found.unit, texts=texts)
     return StepAssembly(*found, solids=solids)
 
 
 def _tessellation(
-    instances: list[Instance],
+    read: Products,
     path: str,
-    wanted_mm: float | None,
     angular: float,
     budget: int,
     unit: str,
-    ratio: float,
     executor: Executor | None = None,
 ) -> Tessellation:
-    """The instances meshed (``tessellate``), closed and named, in the file's ``unit``; the
-    mesher works on a copy of their topology (``with_copied_topology``), the instances stay as
-    read."""
+    """The products meshed (``tessellate``), closed and named, in the file's ``unit``."""
     to_unit = 1e-3 / METRES[unit]  # file units per mm
-    meshed = with_copied_topology(instances)
-    meshes, used_mm = tessellate(
-        meshed, path, wanted_mm, angular, budget, unit, ratio, executor=executor
-    )
-    items, deflection = placed_meshes(meshed, meshes, path, to_unit, used_mm * to_unit)
+    meshes = tessellate(read, path, angular, budget, unit, executor=executor)
+    held = read.deflection_mm * to_unit
+    items, deflection = placed_meshes(read.instances, meshes, path, to_unit, held)
     return Tessellation(items, unit, deflection, angular)
 
 

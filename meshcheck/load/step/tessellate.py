@@ -42,16 +42,15 @@ import io
 from typing import TYPE_CHECKING
 
 import numpy as np
-import trimesh
 
-from ...cache.store import checksum
 from ...errors import InputError
-from ...mesh import is_closed
 from ...units import METRES
 from .assembly import Instance, UniqueNames, order_key
 from .document import captured_output
 
 if TYPE_CHECKING:
+    import trimesh
+
     from ...execute import Executor
 
 # Linear deflection used when none is given: the largest distance between a curved face and its
@@ -85,92 +84,165 @@ MAX_STEP_TRIANGLES = 5_000_000
 #: What a run with large STEP files has its workers import while it reads them (``preload``;
 #: ``meshcheck.verify.brep.prepare_workers``).
 PREPARE = "meshcheck.load.step.tessellate:preload"
+#: STEP files of this many bytes together have their workers started as the run starts
+#: (``meshcheck.verify.brep.prepare_workers``), and a file this large has its products meshed in
+#: them: the fastener-heavy exports (2.3-3.4 MB) spend 10-30 s of CPU on the B-rep, where the
+#: files below 1 MB (box_sides.STEP, the AS1 assemblies, a KiCad board) decide theirs in less
+#: than a worker's start-up, and a worker started for nothing costs 1.2 s of CPU.
+PREPARE_BYTES = 1 << 20
 
 
-def tessellate(
+@dataclasses.dataclass
+class Products:
+    """A read file's distinct products, ready to mesh (``products``): no OpenCASCADE object, so
+    a worker that read the file ahead (``ahead``) sends it as it is.
+
+    Attributes
+    ----------
+    instances : list of Instance
+        Every solid instance, without its shapes (``product`` and ``trsf`` None): its name,
+        product key and placement, mm.
+    deflection_mm : float
+        The deflection to mesh at, mm (``_honoured_deflection``).
+    coarse_mm : float
+        The coarse deflection the costs were counted at, mm.
+    costs : dict
+        Triangles of each product's coarse mesh, by product key: what meshing it fine costs,
+        roughly.
+    texts : dict
+        BRep text of each product's copy (``with_copied_topology``), by product key, named
+        after its first instance in name order: what ``mesh_task`` meshes.
+    solid_texts : dict or None
+        BRep text of each product as read, by product key (the exact solids' text,
+        ``read.StepSolids.product_text``), when the file was read ahead; None otherwise.
+    """
+
+    instances: list[Instance]
+    deflection_mm: float
+    coarse_mm: float
+    costs: dict[str, int]
+    texts: dict[str, bytes]
+    solid_texts: dict[str, bytes] | None = None
+
+
+def products(
     instances: list[Instance],
     path: str,
     deflection_mm: float | None,
     angular: float,
-    budget: int,
     unit: str,
     default_scale: float = 1.0,
-    *,
-    executor: Executor | None = None,
-) -> tuple[dict[str, tuple[trimesh.Trimesh, float]], float]:
-    """Mesh every distinct product at ``deflection_mm`` (None: the default for their size,
-    ``DEFAULT_DEFLECTION_MM`` times ``default_scale``, OpenCASCADE's millimetres per real one)
-    once its cost is known to fit ``budget`` triangles.
+) -> Products:
+    """The distinct products of ``instances`` (as read), ready to mesh at ``deflection_mm``
+    (None: the default for their size, ``DEFAULT_DEFLECTION_MM`` times ``default_scale``,
+    OpenCASCADE's millimetres per real one): each copied (``with_copied_topology``), meshed
+    coarse to count what it costs, and written as BRep text. OpenCASCADE and numpy only.
 
-    Each product is meshed from its BRep text (``mesh_task``), here or, when ``executor``'s
-    workers have loaded OpenCASCADE (``PREPARE``), in them: the same triangles either way.
-
-    Returns
-    -------
-    meshes : dict
-        By product key: the product's closed mesh (file units) and the largest distance, mm,
-        between a face meshed again and its triangles (``product_mesh``). Each mesh's
-        ``metadata["brep"]`` is the hex SHA-256 of its product's BRep text: the solid it
-        approximates, whatever the deflection or the mesher (``Body.source_digest``).
-    deflection_mm : float
-        The deflection used, mm.
+    Raises
+    ------
+    InputError
+        The deflection cannot be honoured (``_honoured_deflection``).
     """
     from OCP.BRepMesh import BRepMesh_IncrementalMesh
     from OCP.BRepTools import BRepTools
 
-    by_key = {i.product_key: i.product for i in instances}
+    meshed = with_copied_topology(instances)
+    by_key = {i.product_key: i.product for i in meshed}
     diagonal = max(shape_diagonal(shape) for shape in by_key.values())
     deflection_mm = _honoured_deflection(deflection_mm, diagonal, path, unit, default_scale)
-    to_unit = 1e-3 / METRES[unit]
     # Estimate before meshing fine: a doubly curved face needs triangles in proportion to
     # 1/deflection, a cylinder or a plane's curved border to 1/sqrt(deflection); counting
     # 1/deflection from a coarse mesh overestimates, which is the safe side.
     coarse = max(deflection_mm, 1e-3 * diagonal)
+    costs = {}
     with captured_output():
-        estimate = 0.0
-        counts = {}  # coarse triangles by product key: what meshing each fine costs, roughly
         for key, shape in by_key.items():
             BRepTools.Clean_s(shape)  # from no triangulation, whatever meshed it before
             BRepMesh_IncrementalMesh(shape, coarse, False, angular, False)
-            counts[key] = _triangle_count(shape)
-            estimate += counts[key] * coarse / deflection_mm
-        if estimate > budget:
-            fits = coarse * max(1.0, sum(counts.values()) / budget)
-            raise InputError(
-                path,
-                f"STEP deflection {deflection_mm * to_unit:.3g} {unit} would make about "
-                f"{estimate:.3g} triangles (budget {budget}): use {fits * to_unit:.3g} {unit} "
-                "or more, or raise --max-triangles",
-            )
-    meshes = _meshed_products(instances, counts, path, deflection_mm, angular, to_unit, executor)
-    return meshes, deflection_mm
+            costs[key] = _triangle_count(shape)
+    named = _first_instances(meshed)
+    # The texts travel as shared values, not in the tasks (``_meshed_products``).
+    texts = {key: brep_text(named[key].product) for key in named}
+    shapeless = [dataclasses.replace(i, product=None, trsf=None) for i in meshed]
+    return Products(shapeless, deflection_mm, coarse, costs, texts)
+
+
+def _first_instances(instances: list[Instance]) -> dict[str, Instance]:
+    """Each product's first instance in name order, by product key (in that order)."""
+    named: dict[str, Instance] = {}
+    for inst in sorted(instances, key=order_key):
+        named.setdefault(inst.product_key, inst)
+    return named
+
+
+def tessellate(
+    found: Products,
+    path: str,
+    angular: float,
+    budget: int,
+    unit: str,
+    *,
+    executor: Executor | None = None,
+) -> dict[str, tuple[trimesh.Trimesh, float]]:
+    """Mesh every distinct product of ``found`` once its cost is known to fit ``budget``
+    triangles.
+
+    Each product is meshed from its BRep text (``mesh_task``), here or, when ``executor``'s
+    workers have loaded OpenCASCADE (``PREPARE``) for a large file, in them: the same triangles
+    either way.
+
+    Returns
+    -------
+    dict
+        By product key: the product's closed mesh (file units) and the largest distance, mm,
+        between a face meshed again and its triangles (``product_mesh``). Each mesh's
+        ``metadata["brep"]`` is the hex SHA-256 of its product's BRep text: the solid it
+        approximates, whatever the deflection or the mesher (``Body.source_digest``).
+
+    Raises
+    ------
+    InputError
+        The estimate exceeds ``budget``, or a product cannot be meshed.
+    """
+    to_unit = 1e-3 / METRES[unit]
+    deflection_mm, coarse = found.deflection_mm, found.coarse_mm
+    estimate = 0.0
+    for count in found.costs.values():
+        estimate += count * coarse / deflection_mm
+    if estimate > budget:
+        fits = coarse * max(1.0, sum(found.costs.values()) / budget)
+        raise InputError(
+            path,
+            f"STEP deflection {deflection_mm * to_unit:.3g} {unit} would make about "
+            f"{estimate:.3g} triangles (budget {budget}): use {fits * to_unit:.3g} {unit} "
+            "or more, or raise --max-triangles",
+        )
+    return _meshed_products(found, path, angular, to_unit, executor)
 
 
 def _meshed_products(
-    instances: list[Instance],
-    costs: dict[str, int],
+    found: Products,
     path: str,
-    deflection_mm: float,
     angular: float,
     to_unit: float,
     executor: Executor | None,
 ) -> dict[str, tuple[trimesh.Trimesh, float]]:
     """``tessellate``'s meshes: one ``mesh_task`` per distinct product, each named after its
-    first instance in name order, the costliest first (``costs``: by product key)."""
+    first instance in name order, the costliest first (``found.costs``)."""
+    import trimesh
+
+    from ...cache.store import checksum
     from ...execute import Executor, Task
 
-    deflection = deflection_mm * to_unit
-    named: dict[str, Instance] = {}
-    for inst in sorted(instances, key=order_key):
-        named.setdefault(inst.product_key, inst)
+    deflection = found.deflection_mm * to_unit
+    named = _first_instances(found.instances)
     keys = list(named)
     # The texts travel as shared values, not in the tasks: a task sent ahead to a busy worker
     # would block this process on a large one until that worker finished (``LocalPool``). A
     # worker keeps what it was sent for the next map (another file's products): by content.
-    texts = {key: brep_text(named[key].product) for key in keys}
-    stored = {key: ("step-product", checksum(text).hex()) for key, text in texts.items()}
-    shared = {stored[key]: text for key, text in texts.items()}
-    sizes = [costs[key] for key in keys]
+    stored = {key: ("step-product", checksum(found.texts[key]).hex()) for key in keys}
+    shared = {stored[key]: found.texts[key] for key in keys}
+    sizes = [found.costs[key] for key in keys]
     in_workers = _meshes_in_workers(executor, len(keys))
     if in_workers and len(keys) > executor.jobs:
         # The workers start on the largest products and this process on the smallest
@@ -434,6 +506,10 @@ def product_mesh(
     deviation : float
         The largest distance, mm, between a face meshed again and its triangles (0 if none).
     """
+    import trimesh
+
+    from ...mesh import is_closed
+
     deflection_mm = deflection / to_unit
     shells, deviation = [], 0.0
     for part, is_solid in _solids_and_rest(shape):
@@ -665,12 +741,15 @@ def close_mesh(
 
     Examples
     --------
+    >>> import trimesh
     >>> box = trimesh.creation.box()
     >>> split = box.vertices[box.faces].reshape(-1, 3) + 1e-9  # every face its own vertices
     >>> mesh = close_mesh(split, np.arange(36).reshape(-1, 3), 1e-3)
     >>> bool(mesh.is_watertight), len(mesh.vertices), round(float(mesh.volume), 9)
     (True, 8, 1.0)
     """
+    import trimesh
+
     vertices = np.asarray(vertices, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64)
     extent = float(np.abs(vertices).max()) if len(vertices) else 0.0

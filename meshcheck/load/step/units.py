@@ -94,3 +94,15 @@ def deflection_mm(
         return None, ratio  # the default, at least DEFAULT_RELATIVE_DEFLECTION of the parts
     given_unit = (real_unit or unit) if deflection_unit is None else deflection_unit
     return float(deflection) * METRES[given_unit] / 1e-3 * ratio, ratio
+
+
+def mesh_settings(
+    data: bytes, deflection: float | None, deflection_unit: str | None, real_unit: str | None
+) -> tuple[str | None, str, float | None, float]:
+    """What a STEP file is meshed with, from its bytes and ``read_step``'s options: (the unit
+    it declares or None, the unit it is read in, the deflection in OpenCASCADE's millimetres or
+    None for the default, OpenCASCADE's millimetres per real one: ``deflection_mm``)."""
+    declared = declared_unit(data)
+    unit = declared or "mm"
+    wanted_mm, ratio = deflection_mm(deflection, deflection_unit, unit, real_unit)
+    return declared, unit, wanted_mm, ratio

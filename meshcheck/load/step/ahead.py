@@ -1,0 +1,125 @@
+"""A STEP file read ahead: a worker imports OpenCASCADE and reads the file while this process
+imports trimesh, scipy and the pipeline; the load stage takes what it read.
+
+Why
+---
+A cold check of a small STEP file spends most of its time importing, one import after the other
+on one core: trimesh with scipy (0.4-0.5 s of CPU), then OpenCASCADE (0.6-0.8 s), then the read.
+When the run may use a second process (``-j 2`` or more, local), the command starts one worker
+before it imports the pipeline (``start``). The worker imports OpenCASCADE, reads and checks the
+file, and makes its ``tessellate.Products``: the products copied, counted at a coarse deflection
+and written as BRep text, and the products as read written too, for the exact solids
+(``read_task``). This process meanwhile imports the rest, then OpenCASCADE; the load stage takes
+the worker's products (``take``), meshes them, and the worker stays in the run's pool with
+OpenCASCADE loaded, for the pairs decided on the B-rep.
+
+What it cannot change
+---------------------
+The worker runs the code ``read.read_step`` runs here on the same bytes, so the products, the
+meshes and every report are the same with it or without it (``-j 1`` never reads ahead).
+``take`` gives None, and the load stage reads the file itself, whenever the worker did not read
+the bytes the load stage read (the file changed, or the path names another file now) with the
+same settings, could not read them (the load stage then reports the error as it would have), or
+died. A file whose tessellation is in the cache is not read: its worker is stopped (``drop``).
+
+This module imports OpenCASCADE and numpy only (not trimesh), so the worker reads while this
+process imports trimesh.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from typing import TYPE_CHECKING
+
+from ...errors import InputError
+from ...execute import has_early, local_jobs, start_early, stop_early, take_early
+from ...units import DEFAULT_UNIT, given_units
+from ..formats import STEP_EXTENSIONS
+from ..limits import Limits, read_file
+from .assembly import order_key
+from .document import read_document
+from .tessellate import DEFAULT_ANGULAR_DEFLECTION, PREPARE, Products, brep_text, products
+from .units import mesh_settings
+
+if TYPE_CHECKING:
+    from ...execute import Executor
+    from ...settings import Settings
+
+#: The task of the worker that reads a file ahead.
+READ_TASK = "meshcheck.load.step.ahead:read_task"
+
+
+def start(paths: list[str], settings: Settings) -> None:
+    """Start a worker reading the first STEP file named in ``paths`` (a directory's files are
+    not looked for), when the run has a local process besides this one (``-j``); nothing
+    otherwise. ``stop`` ends it when the load stage did not take it."""
+    if settings.scheduler or local_jobs(settings.jobs) < 2:
+        return
+    for path in paths:
+        if os.path.splitext(path)[1].lower() in STEP_EXTENSIONS and os.path.isfile(path):
+            deflection = settings.step_deflection
+            options = (  # as the load stage passes them to ``read_step``
+                deflection,
+                (settings.units or DEFAULT_UNIT) if deflection is not None else None,
+                given_units([path], settings.file_units).get(path),
+            )
+            try:
+                start_early(_key(path), READ_TASK, (path, options), prepare=PREPARE)
+            except OSError:  # no process or pipe to be had: the load stage reads it
+                pass
+            return
+
+
+def read_task(store: dict, path: str, options: tuple) -> tuple | None:
+    """In the worker: ``path`` read (within the default limits) and made ``Products`` as
+    ``read.read_step`` makes them with ``options`` (deflection, its unit and the unit the user
+    gave the file), with the products as read written too (``solid_texts``). Returns (the
+    bytes' SHA-256, the settings, the products), or None when the file cannot be read or its
+    products made (the load stage says why)."""
+    try:
+        data = read_file(path, Limits())
+        _, unit, wanted_mm, ratio = mesh_settings(data, *options)
+        instances = read_document(data, path)
+        read = products(instances, path, wanted_mm, DEFAULT_ANGULAR_DEFLECTION, unit, ratio)
+    except (InputError, ValueError, KeyError):
+        return None
+    first: dict = {}
+    for inst in sorted(instances, key=order_key):
+        first.setdefault(inst.product_key, inst)
+    read.solid_texts = {key: brep_text(inst.product) for key, inst in first.items()}
+    settings = (unit, wanted_mm, DEFAULT_ANGULAR_DEFLECTION, ratio)
+    return hashlib.sha256(data).hexdigest(), settings, read
+
+
+def take(path: str, data: bytes, settings: tuple, executor: Executor | None) -> Products | None:
+    """The products of ``path`` read ahead, when a worker read exactly ``data`` with
+    ``settings`` (``(unit, deflection mm, angular, ratio)`` as ``read_step`` has them); None
+    otherwise. OpenCASCADE is imported here first, while the worker reads (the products are
+    meshed here, and B-rep pairs decided). The worker then joins ``executor``'s pool."""
+    key = _key(path)
+    if not has_early(key):
+        return None
+    import OCP.TopoDS  # noqa: F401
+
+    result = take_early(key, executor)
+    if result is None:
+        return None
+    digest, made_with, read = result
+    if digest != hashlib.sha256(data).hexdigest() or made_with != settings:
+        return None
+    return read
+
+
+def drop(path: str) -> None:
+    """Stop the worker reading ``path`` ahead, if any: the load stage needs nothing read."""
+    stop_early(_key(path))
+
+
+def stop() -> None:
+    """Stop every worker still reading ahead (the run is over, or failed before taking it)."""
+    stop_early()
+
+
+def _key(path: str) -> tuple[str, str]:
+    return ("step-ahead", os.path.realpath(path))

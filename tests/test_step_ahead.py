@@ -1,0 +1,162 @@
+"""A STEP file read ahead in a worker (``load.step.ahead``) gives the run exactly what reading it
+in this process gives: the same products, meshes and exact solids; and whenever the worker's read
+does not fit (other bytes, a file it cannot read, a tessellation in the cache) the file is read
+here, as without it."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from meshcheck.cache import TessellationCache
+from meshcheck.errors import InputError
+from meshcheck.execute import LocalPool, Task, has_early, stop_early
+from meshcheck.load.step import ahead, read, read_step
+from meshcheck.load.step.tessellate import PREPARE
+from meshcheck.settings import Settings
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+BOX_SIDES = os.path.join(HERE, "data", "step", "box_sides.STEP")
+SAMPLE = os.path.join(HERE, "..", "sample_meshes", "assembly.step")
+
+
+@pytest.fixture(autouse=True)
+def _two_processes(monkeypatch):
+    """A run with a second local process, on any machine; no worker outlives its test."""
+    monkeypatch.setattr(ahead, "local_jobs", lambda jobs: 2)
+    yield
+    stop_early()
+
+
+def _settings(**options) -> Settings:
+    return Settings.from_options(config=None, jobs=2, **options)
+
+
+def _same_assembly(one, two) -> None:
+    assert one.unit == two.unit and one.deflection == two.deflection
+    assert [n for n, _, _ in one.items] == [n for n, _, _ in two.items]
+    for (_, a, pa), (_, b, pb) in zip(one.items, two.items, strict=True):
+        assert np.array_equal(a.vertices, b.vertices) and np.array_equal(a.faces, b.faces)
+        assert np.array_equal(pa, pb) and a.metadata == b.metadata
+    for name, _, _ in one.items:  # the exact solids: the same BRep text
+        assert one.solids.product_text(name) == two.solids.product_text(name)
+
+
+def test_a_file_read_ahead_is_the_file_read_here_and_its_worker_joins_the_pool(monkeypatch):
+    here = read_step(BOX_SIDES)
+    ahead.start([BOX_SIDES], _settings())
+    assert has_early(ahead._key(BOX_SIDES))
+
+    def not_here(*args):
+        raise AssertionError("the file was read in this process")
+
+    monkeypatch.setattr(read, "read_document", not_here)
+    with LocalPool(2) as pool:
+        there = read_step(BOX_SIDES, executor=pool)
+        assert (len(pool.workers), pool.prepared) == (1, {PREPARE})
+        worker = pool.workers[0].process.pid
+        task = Task((0.0,))
+        assert pool.map("meshcheck.execute:sleep_then_pid", [task]) == [worker]
+    assert not has_early(ahead._key(BOX_SIDES))
+    _same_assembly(here, there)
+
+
+def test_other_bytes_than_the_worker_read_are_read_here():
+    with open(SAMPLE, "rb") as f:
+        other = f.read()
+    ahead.start([BOX_SIDES], _settings())
+    with LocalPool(2) as pool:  # the load stage read other bytes at that path
+        there = read_step(BOX_SIDES, data=other, executor=pool)
+    _same_assembly(read_step(BOX_SIDES, data=other), there)
+
+
+def test_other_settings_than_the_worker_had_are_read_here():
+    ahead.start([BOX_SIDES], _settings())  # the default deflection
+    with LocalPool(2) as pool:
+        there = read_step(BOX_SIDES, deflection=0.05, deflection_unit="mm", executor=pool)
+    _same_assembly(read_step(BOX_SIDES, deflection=0.05, deflection_unit="mm"), there)
+
+
+def test_the_settings_the_command_line_gives_are_the_ones_read_step_is_given(monkeypatch):
+    """A file given a unit and a deflection on the command line is still read ahead."""
+    settings = _settings(step_deflection=0.001, units="in", file_units={BOX_SIDES: "mm"})
+    ahead.start([BOX_SIDES], settings)
+
+    def not_here(*args):
+        raise AssertionError("the file was read in this process")
+
+    monkeypatch.setattr(read, "read_document", not_here)
+    with LocalPool(2) as pool:
+        read_step(BOX_SIDES, deflection=0.001, deflection_unit="in", unit="mm", executor=pool)
+
+
+def test_a_file_the_worker_cannot_read_is_refused_as_it_is_here(tmp_path):
+    bad = tmp_path / "bad.step"
+    bad.write_bytes(b"ISO-10303-21;\nHEADER;\nthis is not STEP\n")
+    with pytest.raises(InputError) as expected:
+        read_step(str(bad))
+    ahead.start([str(bad)], _settings())
+    with LocalPool(2) as pool, pytest.raises(InputError) as refused:
+        read_step(str(bad), executor=pool)
+    assert str(refused.value) == str(expected.value)
+
+
+def test_a_tessellation_in_the_cache_stops_the_worker(tmp_path):
+    cache = TessellationCache(str(tmp_path), secret=b"k" * 32)
+    here = read_step(BOX_SIDES, cache=cache)
+    ahead.start([BOX_SIDES], _settings())
+    key = ahead._key(BOX_SIDES)
+    from meshcheck.execute import _EARLY
+
+    process = _EARLY[key].process
+    with LocalPool(2) as pool:
+        cached = read_step(BOX_SIDES, cache=cache, executor=pool)
+        assert pool.workers == []
+    assert not has_early(key) and process.poll() is not None  # killed, not left reading
+    _same_assembly(here, cached)
+
+
+def test_nothing_is_read_ahead_for_one_process_a_cluster_or_no_step_file(monkeypatch, tmp_path):
+    key = ahead._key(BOX_SIDES)
+    monkeypatch.setattr(ahead, "local_jobs", lambda jobs: 1)
+    ahead.start([BOX_SIDES], _settings())
+    assert not has_early(key)
+    monkeypatch.setattr(ahead, "local_jobs", lambda jobs: 2)
+    ahead.start([BOX_SIDES], _settings(scheduler="tcp://127.0.0.1:1"))
+    assert not has_early(key)
+    (tmp_path / "in_a_folder.step").write_bytes(open(BOX_SIDES, "rb").read())
+    plate = os.path.join(HERE, "..", "sample_meshes", "plate.stl")
+    ahead.start([str(tmp_path), plate], _settings())  # a folder's files are not looked for
+    assert not has_early(ahead._key(str(tmp_path / "in_a_folder.step")))
+
+
+def test_the_command_reports_the_same_bytes_with_and_without_reading_ahead(tmp_path):
+    reports = []
+    for jobs in ("1", "2"):
+        command = [sys.executable, "-m", "meshcheck", BOX_SIDES, SAMPLE, "-j", jobs]
+        command += ["--format", "json", "--no-cache"]
+        done = subprocess.run(command, capture_output=True, cwd=tmp_path, timeout=300)
+        assert done.returncode == 1, done.stderr.decode()[-2000:]
+        reports.append(done.stdout)
+    assert reports[0] == reports[1]
+    assert json.loads(reports[0])["summary"]["interference"] > 0
+
+
+def test_the_command_reads_its_first_step_file_ahead(monkeypatch, tmp_path):
+    from meshcheck import cli
+
+    def not_here(*args):
+        raise AssertionError("the file was read in this process")
+
+    monkeypatch.setattr(read, "read_document", not_here)
+    out = tmp_path / "report.json"
+    args = [BOX_SIDES, "-j", "2", "--no-cache", "--format", "json", "-o", str(out)]
+    with pytest.raises(SystemExit) as done:
+        cli.main(args, standalone_mode=True)
+    assert done.value.code == 1
+    assert json.loads(out.read_text())["summary"]["interference"] > 0
