@@ -32,7 +32,6 @@ import hashlib
 import os
 from typing import TYPE_CHECKING
 
-from ...errors import InputError
 from ...execute import has_early, local_jobs, start_early, stop_early, take_early
 from ...units import DEFAULT_UNIT, given_units
 from ..formats import STEP_EXTENSIONS
@@ -75,19 +74,20 @@ def read_task(store: dict, path: str, options: tuple) -> tuple | None:
     """In the worker: ``path`` read (within the default limits) and made ``Products`` as
     ``read.read_step`` makes them with ``options`` (deflection, its unit and the unit the user
     gave the file), with the products as read written too (``solid_texts``). Returns (the
-    bytes' SHA-256, the settings, the products), or None when the file cannot be read or its
-    products made (the load stage says why)."""
+    bytes' SHA-256, the settings, the products), or None when anything goes wrong: the load
+    stage then reads the file itself, and refuses it (or fails: out of memory, a bug) exactly as
+    it would have without a worker."""
     try:
         data = read_file(path, Limits())
         _, unit, wanted_mm, ratio = mesh_settings(data, *options)
         instances = read_document(data, path)
         read = products(instances, path, wanted_mm, DEFAULT_ANGULAR_DEFLECTION, unit, ratio)
-    except (InputError, ValueError, KeyError):
+        first: dict = {}
+        for inst in sorted(instances, key=order_key):
+            first.setdefault(inst.product_key, inst)
+        read.solid_texts = {key: brep_text(inst.product) for key, inst in first.items()}
+    except Exception:  # what it was is the load stage's to say, as without a worker
         return None
-    first: dict = {}
-    for inst in sorted(instances, key=order_key):
-        first.setdefault(inst.product_key, inst)
-    read.solid_texts = {key: brep_text(inst.product) for key, inst in first.items()}
     settings = (unit, wanted_mm, DEFAULT_ANGULAR_DEFLECTION, ratio)
     return hashlib.sha256(data).hexdigest(), settings, read
 
