@@ -207,6 +207,15 @@ def sleep_then_shared(store: dict, seconds: float, key) -> tuple[int, float, int
     return os.getpid(), started, len(store[key])
 
 
+def hold_then_shared(store: dict, count: int, key) -> tuple[int, float, int]:
+    """A task that notes when it starts, then sums ``range(count)`` in one call that holds
+    Python's lock throughout (as a long OpenCASCADE call does), then returns the id of its
+    process, that time and the length of a shared value (for tests)."""
+    started = time.time()
+    sum(range(count))
+    return os.getpid(), started, len(store[key])
+
+
 def is_imported(store: dict, module: str) -> bool:
     """A task that says whether its process has imported ``module`` (for tests)."""
     return module in sys.modules
@@ -219,10 +228,18 @@ def exit_worker(store: dict, code: int):
 
 class _Worker:
     """One ``python -m meshcheck._worker`` process and its two pipe ends; ``prepare``: a
-    function it calls before it says it is ready (``Executor.prepare``)."""
+    function it calls before it says it is ready (``Executor.prepare``).
+
+    Messages to it are written by a thread of its own (``send``): this process never waits on
+    the pipe. A worker reads its messages as they come, but only when Python lets its reading
+    thread run, and a task inside one long OpenCASCADE call (a boolean, a mesh) holds Python's
+    lock throughout: a product's BRep text sent to such a worker with its next task blocked this
+    process until the call returned (0.39 s on the X1C mount's pairs)."""
 
     def __init__(self, prepare: str | None = None):
+        import queue
         import subprocess
+        import threading
         from multiprocessing.connection import Connection
 
         env = dict(os.environ)
@@ -249,20 +266,57 @@ class _Worker:
         self.started = 0.0
         self.is_ready = False
         self.prepare = prepare
+        self.is_broken = False  # a write found the worker gone
+        self._outbox: queue.Queue = queue.Queue()
+        self._writer = threading.Thread(target=self._write, daemon=True)
+        self._writer.start()
 
     def fileno(self) -> int:
         return self.receive_end.fileno()
 
+    def send(self, message) -> None:
+        """Queue ``message`` for the worker, in order; its writing thread sends it.
+
+        Raises
+        ------
+        BrokenPipeError
+            An earlier message found the worker gone.
+        """
+        if self.is_broken:
+            raise BrokenPipeError("the worker is gone")
+        self._outbox.put(message)
+
+    def _write(self) -> None:
+        while (message := self._outbox.get()) is not None:
+            try:
+                self.send_end.send(message)
+            except (BrokenPipeError, OSError):
+                self.is_broken = True
+                return
+            message = None  # not kept while it waits for the next (a mesh, a product's text)
+
+    def _close_writer(self) -> None:
+        """Let the writing thread end (after the messages queued: a write to a worker that is
+        gone fails at once), then close the pipe."""
+        self._outbox.put(None)
+        self._writer.join()
+        self.send_end.close()
+
     def kill(self) -> None:
         self.process.kill()
         self.process.wait()
-        self.send_end.close()
+        self._close_writer()
         self.receive_end.close()
 
     def stop(self, timeout: float = 5.0) -> None:
         """Close the pipe (the worker exits at EOF); kill it if it does not."""
         import subprocess
 
+        self._outbox.put(None)
+        self._writer.join(timeout)
+        if self._writer.is_alive():  # it does not read: stuck in a task
+            self.process.kill()
+            self._writer.join()
         self.send_end.close()
         try:
             self.process.wait(timeout=timeout)
@@ -396,11 +450,7 @@ def start_early(key, function: str, args: tuple, *, prepare: str | None = None) 
     """
     stop_early(key)
     worker = _Worker(prepare)
-    try:
-        worker.send_end.send(("run", function, (), args))
-    except OSError:  # it died at once: nothing was started
-        worker.kill()
-        return
+    worker.send(("run", function, (), args))
     _EARLY[key] = worker
 
 
@@ -561,9 +611,9 @@ class _LocalRun:
         try:
             for key in task.needs:
                 if key not in worker.keys:
-                    worker.send_end.send(("put", key, self.shared[key]))
+                    worker.send(("put", key, self.shared[key]))
                     worker.keys.add(key)
-            worker.send_end.send(("run", self.function, task.needs, task.args))
+            worker.send(("run", self.function, task.needs, task.args))
         except (BrokenPipeError, OSError):  # it died before taking the task: put it back
             self.pending.appendleft(index)
             if not queued:

@@ -138,6 +138,28 @@ def test_a_busy_worker_is_sent_its_next_task_and_its_large_values_without_waitin
     # after this process's 3 s one
 
 
+def test_a_worker_holding_pythons_lock_does_not_hold_this_process_up():
+    """A worker inside one long call that holds Python's lock (OpenCASCADE's booleans do) reads
+    no message until it returns: the value of its next task, larger than a pipe holds, is
+    written by a thread of this process, which runs its own task meanwhile."""
+    shared = {key: bytes(4 << 20) for key in ("a", "b", "c")}
+    tasks = [  # the worker takes the two larger tasks, this process the small one
+        Task((120_000_000, "a"), needs=("a",), size=3),  # about 1.5 s in one call
+        Task((1, "b"), needs=("b",), size=2),
+        Task((1, "c"), needs=("c",), size=1),
+    ]
+    with LocalPool(2) as pool:
+        pool.map("meshcheck.execute:echo", [Task((0,))])  # started and ready
+        begun = time.time()
+        (pid, first, _), _, (here, small, size) = pool.map(
+            "meshcheck.execute:hold_then_shared", tasks, shared=shared, here=True
+        )
+        ended = time.time()
+    assert here == os.getpid() != pid and size == 4 << 20
+    assert ended - first > 0.5  # the worker's call held it that long
+    assert small - begun < 0.4  # this process ran its task at once, not after that call
+
+
 def test_prepared_workers_import_before_their_first_task():
     """``prepare`` starts the workers a map with this process helping wants (jobs - 1), each
     calling the function before it is ready; a worker started by a map calls none."""
