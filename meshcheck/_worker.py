@@ -37,11 +37,11 @@ def main() -> None:
     os.dup2(2, 1)
     sys.stdout = sys.stderr
 
-    from meshcheck.execute import call, resolve
+    from meshcheck.execute import Writer, call, resolve
 
     if len(sys.argv) > 1:  # the parent's prepare function (Executor.prepare): imports
         resolve(sys.argv[1])()
-    replies = _Replies(send)
+    replies = Writer(send)
     messages = _Messages(receive)
     store: dict = {}
     replies.put(("ready",))
@@ -99,41 +99,6 @@ class _Messages:
                 self.queue.put(None)
                 return
             self.queue.put(message)
-
-
-class _Replies:
-    """The replies to the parent, in order, written by a thread of their own.
-
-    A reply larger than the pipe's buffer (a verdict with its shared solid's triangles) blocks
-    its writer until the parent reads it, and the parent reads nothing while it runs a task
-    itself (``execute._LocalRun.run_here``): written from here, the next task the parent has
-    already sent would wait for it."""
-
-    def __init__(self, connection):
-        import queue
-        import threading
-
-        self.connection, self.queue, self.is_broken = connection, queue.Queue(), False
-        self.thread = threading.Thread(target=self._write, daemon=True)
-        self.thread.start()
-
-    def put(self, reply) -> bool:
-        """Queue ``reply``; False once the parent is gone (a write failed)."""
-        self.queue.put(reply)
-        return not self.is_broken
-
-    def close(self) -> None:
-        """Write the replies queued, then stop."""
-        self.queue.put(None)
-        self.thread.join()
-
-    def _write(self) -> None:
-        while (reply := self.queue.get()) is not None:
-            try:
-                self.connection.send(reply)
-            except (BrokenPipeError, OSError):
-                self.is_broken = True
-                return
 
 
 if __name__ == "__main__":

@@ -226,20 +226,57 @@ def exit_worker(store: dict, code: int):
     os._exit(code)
 
 
+class Writer:
+    """Messages to the other end of a pipe, in order, written by a thread of their own: the
+    worker's replies to its parent, and the parent's messages to each worker
+    (``_Worker.send``).
+
+    A message larger than the pipe's buffer blocks its writer until the other end reads it. The
+    parent reads nothing while it runs a task itself (``_LocalRun.run_here``), and a
+    worker's reading thread runs only when Python lets it, which a task inside one long
+    OpenCASCADE call (a boolean, a mesh) does not until the call returns: written by the caller,
+    either would wait for the other."""
+
+    def __init__(self, connection):
+        import queue
+        import threading
+
+        self.connection, self.queue, self.is_broken = connection, queue.Queue(), False
+        self.thread = threading.Thread(target=self._write, daemon=True)
+        self.thread.start()
+
+    def put(self, message) -> bool:
+        """Queue ``message``; False once the other end is gone (a write failed)."""
+        self.queue.put(message)
+        return not self.is_broken
+
+    def close(self, timeout: float | None = None) -> bool:
+        """Write the messages queued, then stop; False when that takes over ``timeout`` seconds
+        (the other end does not read)."""
+        self.queue.put(None)
+        self.thread.join(timeout)
+        return not self.thread.is_alive()
+
+    def _write(self) -> None:
+        while (message := self.queue.get()) is not None:
+            try:
+                self.connection.send(message)
+            except (BrokenPipeError, OSError):
+                self.is_broken = True
+                return
+            message = None  # not kept while it waits for the next (a mesh, a product's text)
+
+
 class _Worker:
     """One ``python -m meshcheck._worker`` process and its two pipe ends; ``prepare``: a
     function it calls before it says it is ready (``Executor.prepare``).
 
-    Messages to it are written by a thread of its own (``send``): this process never waits on
-    the pipe. A worker reads its messages as they come, but only when Python lets its reading
-    thread run, and a task inside one long OpenCASCADE call (a boolean, a mesh) holds Python's
-    lock throughout: a product's BRep text sent to such a worker with its next task blocked this
-    process until the call returned (0.39 s on the X1C mount's pairs)."""
+    Messages to it are written by a thread of its own (``send``, ``Writer``): this
+    process never waits on the pipe, not even for a worker inside one long OpenCASCADE call,
+    which reads nothing until the call returns."""
 
     def __init__(self, prepare: str | None = None):
-        import queue
         import subprocess
-        import threading
         from multiprocessing.connection import Connection
 
         env = dict(os.environ)
@@ -266,10 +303,7 @@ class _Worker:
         self.started = 0.0
         self.is_ready = False
         self.prepare = prepare
-        self.is_broken = False  # a write found the worker gone
-        self._outbox: queue.Queue = queue.Queue()
-        self._writer = threading.Thread(target=self._write, daemon=True)
-        self._writer.start()
+        self._writer = Writer(self.send_end)
 
     def fileno(self) -> int:
         return self.receive_end.fileno()
@@ -282,41 +316,23 @@ class _Worker:
         BrokenPipeError
             An earlier message found the worker gone.
         """
-        if self.is_broken:
+        if not self._writer.put(message):
             raise BrokenPipeError("the worker is gone")
-        self._outbox.put(message)
-
-    def _write(self) -> None:
-        while (message := self._outbox.get()) is not None:
-            try:
-                self.send_end.send(message)
-            except (BrokenPipeError, OSError):
-                self.is_broken = True
-                return
-            message = None  # not kept while it waits for the next (a mesh, a product's text)
-
-    def _close_writer(self) -> None:
-        """Let the writing thread end (after the messages queued: a write to a worker that is
-        gone fails at once), then close the pipe."""
-        self._outbox.put(None)
-        self._writer.join()
-        self.send_end.close()
 
     def kill(self) -> None:
         self.process.kill()
         self.process.wait()
-        self._close_writer()
+        self._writer.close()  # a write to a worker that is gone fails at once
+        self.send_end.close()
         self.receive_end.close()
 
     def stop(self, timeout: float = 5.0) -> None:
         """Close the pipe (the worker exits at EOF); kill it if it does not."""
         import subprocess
 
-        self._outbox.put(None)
-        self._writer.join(timeout)
-        if self._writer.is_alive():  # it does not read: stuck in a task
+        if not self._writer.close(timeout):  # it does not read: stuck in a task
             self.process.kill()
-            self._writer.join()
+            self._writer.close()
         self.send_end.close()
         try:
             self.process.wait(timeout=timeout)
