@@ -36,9 +36,15 @@ from ...execute import has_early, local_jobs, start_early, stop_early, take_earl
 from ...units import DEFAULT_UNIT, given_units
 from ..formats import STEP_EXTENSIONS
 from ..limits import Limits, read_file
-from .assembly import order_key
 from .document import read_document
-from .tessellate import DEFAULT_ANGULAR_DEFLECTION, PREPARE, Products, brep_text, products
+from .tessellate import (
+    DEFAULT_ANGULAR_DEFLECTION,
+    PREPARE,
+    Products,
+    brep_text,
+    first_instances,
+    products,
+)
 from .units import mesh_settings
 
 if TYPE_CHECKING:
@@ -82,9 +88,7 @@ def read_task(store: dict, path: str, options: tuple) -> tuple | None:
         _, unit, wanted_mm, ratio = mesh_settings(data, *options)
         instances = read_document(data, path)
         read = products(instances, path, wanted_mm, DEFAULT_ANGULAR_DEFLECTION, unit, ratio)
-        first: dict = {}
-        for inst in sorted(instances, key=order_key):
-            first.setdefault(inst.product_key, inst)
+        first = first_instances(instances)
         read.solid_texts = {key: brep_text(inst.product) for key, inst in first.items()}
     except Exception:  # what it was is the load stage's to say, as without a worker
         return None

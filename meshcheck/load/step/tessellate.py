@@ -160,14 +160,14 @@ def products(
             BRepTools.Clean_s(shape)  # from no triangulation, whatever meshed it before
             BRepMesh_IncrementalMesh(shape, coarse, False, angular, False)
             costs[key] = _triangle_count(shape)
-    named = _first_instances(meshed)
+    named = first_instances(meshed)
     # The texts travel as shared values, not in the tasks (``_meshed_products``).
     texts = {key: brep_text(named[key].product) for key in named}
     shapeless = [dataclasses.replace(i, product=None, trsf=None) for i in meshed]
     return Products(shapeless, deflection_mm, coarse, costs, texts)
 
 
-def _first_instances(instances: list[Instance]) -> dict[str, Instance]:
+def first_instances(instances: list[Instance]) -> dict[str, Instance]:
     """Each product's first instance in name order, by product key (in that order)."""
     named: dict[str, Instance] = {}
     for inst in sorted(instances, key=order_key):
@@ -235,7 +235,7 @@ def _meshed_products(
     from ...execute import Executor, Task
 
     deflection = found.deflection_mm * to_unit
-    named = _first_instances(found.instances)
+    named = first_instances(found.instances)
     keys = list(named)
     # The texts travel as shared values, not in the tasks: a task sent ahead to a busy worker
     # would block this process on a large one until that worker finished (``LocalPool``). A
