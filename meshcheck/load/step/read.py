@@ -81,7 +81,6 @@ class StepSolids:
         self._instances = instances
         self._solids: dict[str, object] | None = None
         self._texts: dict[int, bytes] = {}
-        self._node_texts = texts or {}  # by node, written by the worker that read the file
         self._named: dict[str, Instance] | None = None
         to_mm = METRES[unit] / 1e-3
         products: dict[int, int] = {}  # id(mesh) -> product number
@@ -90,6 +89,9 @@ class StepSolids:
             matrix = np.array(transform, dtype=np.float64)
             matrix[:3, 3] *= to_mm
             self._nodes[name] = (products.setdefault(id(mesh), len(products)), matrix)
+        for node, text in (texts or {}).items():  # by node, from the worker that read the file
+            if node in self._nodes:
+                self._texts.setdefault(self.product(node), text)
 
     def has_node(self, node: str) -> bool:
         """Whether ``node`` names one of the file's tessellated solids."""
@@ -128,8 +130,6 @@ class StepSolids:
             As ``by_node``.
         """
         product = self.product(node)
-        if node in self._node_texts:
-            return self._node_texts[node]
         if product not in self._texts:
             if self._named is None:
                 self._named = dict(named_instances(self._document()))
@@ -152,7 +152,7 @@ class StepSolids:
         self.path, self.digest, self.unit = state["path"], state["digest"], state["unit"]
         self._nodes = state["nodes"]
         self._data, self._instances, self._solids, self._texts = None, None, None, {}
-        self._named, self._node_texts = None, {}
+        self._named = None
 
 
 @dataclass(frozen=True)
