@@ -15,7 +15,7 @@ from scipy.optimize import linprog, minimize
 from meshcheck import results
 from meshcheck.geometry.triangles import box_pairs, pair_distances, triangle_distance
 from meshcheck.results import Verdict
-from meshcheck.verify.pair import solid_depth, verify_pair
+from meshcheck.verify.pair import solid_depth, surface_distance, verify_pair
 
 CLEAR = Verdict.CLEAR
 
@@ -376,6 +376,25 @@ def test_mesh_distance_matches_brute_force_and_is_symmetric(ka, kb, ra, rb, off)
             assert w.distance == pytest.approx(brute, abs=1e-12)
     else:
         assert v.status in (Verdict.TOUCHING, Verdict.INTERFERENCE)
+
+
+@settings(derandomize=True, deadline=None, max_examples=60)
+@given(st.integers(0, 2), st.integers(0, 2), angles, angles, offsets, st.floats(0.0, 1.5))
+def test_surface_distance_with_enough_answers_as_the_least_distance(ka, kb, ra, rb, off, enough):
+    """``enough`` stops at the first triangle pair within it: whether the surfaces come within
+    ``enough``, and the exact distance when they do not, are those of every triangle pair
+    (brute force)."""
+    a, b = _placed(ka, ra, (0, 0, 0)), _placed(kb, rb, off)
+    brute = _brute_distance(a, b)
+    reach = 2.0
+    got = surface_distance(a, b, reach=reach, enough=enough)
+    full = surface_distance(a, b, reach=reach)
+    assert (got <= enough) == (brute <= enough)
+    if got > enough:
+        assert got == full
+        assert got == (pytest.approx(brute, abs=1e-12) if brute <= reach else math.inf) or (
+            got == 0.0  # a shell of one inside the other
+        )
 
 
 @settings(derandomize=True, deadline=None, max_examples=40)

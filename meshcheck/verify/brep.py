@@ -14,7 +14,10 @@ and only on them:
   solids, so when the exact triangle distance exceeds the solids' reach (``tolerance +
   clearance``) plus both deflections, and neither mesh holds a shell of the other, the solids are
   farther apart than the reach: the pair is clear (``pair.surface_distance``; milliseconds).
-  Every other pair goes to the B-rep, without being decided on the meshes first.
+  Every other pair goes to the B-rep, without being decided on the meshes first. Whether the
+  meshes come within the two deflections is all the B-rep needs to know of a near pair, so the
+  first triangle pair found within them answers (nearest boxes first): a bolt resting along its
+  hole costs a few triangle pairs, not every pair of the contact.
 - **The B-rep decides** (``solids.decide``), with the pair's own tolerance ``t``: the user's
   ``--tolerance``, or ``TOLERANCE_FRACTION`` of the smaller solid's own box diagonal (in its own
   frame, so every instance of a pair gets the same; the deflections do not enter, the solids are
@@ -451,7 +454,12 @@ def _screened(bodies, pairs, near_surfaces, settings) -> list[_PairJob | None]:
         reach = job.tolerance_report + deflections
         reach += float(job.clearance or 0.0) * 1e-3 / METRES[a.units]
         distance = surface_distance(
-            a.world, b.world, reach=reach, surfaces_apart=not bool(is_near), memo=memo
+            a.world,
+            b.world,
+            reach=reach,
+            surfaces_apart=not bool(is_near),
+            memo=memo,
+            enough=deflections,
         )
         if distance > reach:
             out.append(None)

@@ -28,6 +28,7 @@ from .. import results
 from ..geometry.triangles import (
     box_pairs,
     pair_distances,
+    placed_surface_distance,
     triangle_boxes,
     winding_numbers,
 )
@@ -111,6 +112,7 @@ def surface_distance(
     reach: float,
     surfaces_apart: bool = False,
     memo: dict | None = None,
+    enough: float | None = None,
 ) -> float:
     """The exact distance between two meshes' surfaces when it is within ``reach``; 0 when a
     shell of one lies inside the other; ``inf`` otherwise (farther apart than ``reach``).
@@ -125,6 +127,10 @@ def surface_distance(
         The caller has proven that the surfaces stay farther apart than ``reach``.
     memo : dict, optional
         As for ``verify_pair``.
+    enough : float, optional
+        A distance (at most ``reach``) that answers the caller: the first triangle pair found
+        within it, nearest boxes first, gives its distance, not the least one. Two surfaces
+        resting on each other then cost a few pairs, not every pair along the contact.
 
     Examples
     --------
@@ -135,6 +141,12 @@ def surface_distance(
     """
     meshes = _recentred(a, b, {} if memo is None else memo)
     distance = math.inf
+    if not surfaces_apart and enough is not None:
+        found, _ = placed_surface_distance(
+            meshes.va, meshes.fa, meshes.vb, meshes.fb, np.eye(4), float(enough), settle=True
+        )
+        if found <= enough:
+            return found
     if not surfaces_apart:
         near = _near_pairs(meshes, float(reach))
         if len(near.distance) and float(near.distance.min()) <= reach:
