@@ -40,7 +40,10 @@ def main() -> None:
     from meshcheck.execute import Writer, call, resolve
 
     if len(sys.argv) > 1:  # the parent's prepare function (Executor.prepare): imports
-        resolve(sys.argv[1])()
+        try:
+            resolve(sys.argv[1])()
+        except Exception:  # no traceback on the user's terminal: the parent starts a worker
+            _leave(1)  # without it, and meets the failure itself if a task needs that import
     replies = Writer(send)
     messages = _Messages(receive)
     store: dict = {}
@@ -64,12 +67,12 @@ def main() -> None:
             _leave()
 
 
-def _leave() -> None:
+def _leave(status: int = 0) -> None:
     """End the process now, without the interpreter's teardown: it holds nothing to save (every
     reply is written), and freeing what its tasks kept (OpenCASCADE's solids, meshes) one object
     at a time is time its parent waits for (``LocalPool.close``)."""
     sys.stderr.flush()
-    os._exit(0)
+    os._exit(status)
 
 
 class _Messages:

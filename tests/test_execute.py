@@ -180,6 +180,18 @@ def test_prepared_workers_import_before_their_first_task():
     assert time.monotonic() - started < 0.5
 
 
+def test_a_worker_whose_prepare_fails_leaves_quietly_and_is_replaced(capfd):
+    """A prepare function that raises (here: called without its argument) ends its worker
+    before it is ready, with no traceback on the user's terminal; the pool starts a worker
+    without it, and the map's results are whole."""
+    with LocalPool(2) as pool:
+        pool.prepare("meshcheck.execute:resolve")
+        tasks = [Task((0.5, k)) for k in range(3)]  # long enough to see the first one die
+        assert pool.map("meshcheck.execute:sleep_then_echo", tasks) == [0, 1, 2]
+        assert pool.failed_starts == 1 and pool.prepared == frozenset()
+    assert "Traceback" not in capfd.readouterr().err
+
+
 def test_a_worker_started_early_joins_the_pool_that_takes_its_result():
     """``start_early`` runs one task before any pool exists; ``take_early`` gives its result
     and the pool adopts the worker (prepared as it was), counted in ``prepare``; a pool with no
