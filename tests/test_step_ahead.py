@@ -16,7 +16,7 @@ import pytest
 from meshcheck.cache import TessellationCache
 from meshcheck.errors import InputError
 from meshcheck.execute import LocalPool, Task, has_early, stop_early
-from meshcheck.load.step import ahead, read, read_step
+from meshcheck.load.step import ahead, read, read_step, tessellate
 from meshcheck.load.step.tessellate import PREPARE
 from meshcheck.settings import Settings
 
@@ -56,6 +56,7 @@ def test_a_file_read_ahead_is_the_file_read_here_and_its_worker_joins_the_pool(m
         raise AssertionError("the file was read in this process")
 
     monkeypatch.setattr(read, "read_document", not_here)
+    monkeypatch.setattr(tessellate, "mesh_task", not_here)  # the worker meshed it: welded here
     with LocalPool(2) as pool:
         there = read_step(BOX_SIDES, executor=pool)
         assert (len(pool.workers), pool.prepared) == (1, {PREPARE})

@@ -17,10 +17,16 @@ from meshcheck.execute import Task
 from meshcheck.load import load_bodies
 from meshcheck.load.step import read_step
 from meshcheck.load.step.tessellate import (
+    DEFAULT_ANGULAR_DEFLECTION,
+    _meshed_products,
+    face_arrays,
     face_deviation,
     follows_edges,
     mend_faces,
     product_mesh,
+    products,
+    triangulate,
+    welded_triangles,
 )
 from meshcheck.mesh import is_closed, merge_vertices, split_shells
 
@@ -136,6 +142,50 @@ def test_a_face_left_without_triangles_is_meshed_again_with_its_seams_closed():
     # the chords lie within the deflection of the faces: the volume within their area times it
     area = 2 * (100 - np.pi * 1.7**2) + 40 * 3 + 2 * np.pi * 1.7 * 3 + 2 * np.pi * 2.0 * 0.43
     assert float(mesh.volume) == pytest.approx(chamfered_plate_volume(), abs=area * deviation)
+
+
+def test_triangles_weld_into_the_mesh_product_mesh_makes_unless_a_face_must_be_mended():
+    """A product triangulated apart (``triangulate``: the worker that reads a file ahead) and
+    welded here is the mesh ``product_mesh`` makes; with a face left without triangles it
+    welds open, and ``welded_triangles`` leaves it to ``mesh_task``, which mends it."""
+    from OCP.BRep import BRep_Builder
+
+    deflection = 0.005
+    plate = meshed_chamfered_plate(deflection)
+    welded = welded_triangles([(True, face_arrays(plate))], "plate", 1.0, deflection)
+    made, deviation = product_mesh(plate, "plate", 1.0, deflection, angular=0.5)
+    assert deviation == 0.0 and is_closed(welded)
+    assert np.array_equal(welded.vertices, made.vertices)
+    assert np.array_equal(welded.faces, made.faces)
+    (chamfer,) = [face for face in faces_of(plate) if is_cone(face)]
+    BRep_Builder().UpdateFace(chamfer, None)
+    assert welded_triangles([(True, face_arrays(plate))], "plate", 1.0, deflection) is None
+
+
+def test_products_meshed_from_their_triangles_are_the_products_meshed_here(tmp_path):
+    """``_meshed_products`` with every product's triangles (one of them welding open, so meshed
+    by ``mesh_task`` after all) gives the meshes it gives without them, array for array."""
+    from meshcheck.load.step.document import read_document
+
+    shapes = {"block": box((0, 0, 0), (4, 4, 4)), "pin": cylinder(1.0, 0.0, 9.0)}
+    path = write_step(str(tmp_path / "two.step"), shapes, [("block", EYE), ("pin", EYE)])
+    with open(path, "rb") as f:
+        data = f.read()
+    angular = DEFAULT_ANGULAR_DEFLECTION
+    found = products(read_document(data, path), path, None, angular, "mm")
+    alone = _meshed_products(found, path, angular, 1.0, None)
+    deflection = found.deflection_mm
+    found.triangles = {k: triangulate(t, 1.0, deflection, angular) for k, t in found.texts.items()}
+    first = next(iter(found.triangles))
+    is_solid, (vertices, faces, same) = found.triangles[first][0]
+    found.triangles[first][0] = (is_solid, (vertices, faces[1:], same))  # a triangle missing
+    assert welded_triangles(found.triangles[first], "x", 1.0, deflection) is None
+    welded = _meshed_products(found, path, angular, 1.0, None)
+    assert list(welded) == list(alone)
+    for key, (mesh, deviation) in alone.items():
+        assert np.array_equal(welded[key][0].vertices, mesh.vertices)
+        assert np.array_equal(welded[key][0].faces, mesh.faces)
+        assert welded[key][1] == deviation and welded[key][0].metadata == mesh.metadata
 
 
 def test_mend_faces_leaves_a_fully_meshed_solid_alone():

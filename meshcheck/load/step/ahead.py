@@ -9,9 +9,11 @@ When the run may use a second process (``-j 2`` or more, local), the command sta
 before it imports the pipeline (``start``). The worker imports OpenCASCADE, reads and checks the
 file, and makes its ``tessellate.Products``: the products copied, counted at a coarse deflection
 and written as BRep text, and the products as read written too, for the exact solids
-(``read_task``). This process meanwhile imports the rest, then OpenCASCADE; the load stage takes
-the worker's products (``take``), meshes them, and the worker stays in the run's pool with
-OpenCASCADE loaded, for the pairs decided on the B-rep.
+(``read_task``). A small file's products (the ones the load stage meshes in its own process) it
+triangulates too: BRepMesh's triangles, face by face, which need no trimesh. This process
+meanwhile imports the rest, then OpenCASCADE; the load stage takes the worker's products
+(``take``), welds the triangles (or meshes the products), and the worker stays in the run's pool
+with OpenCASCADE loaded, for the pairs decided on the B-rep.
 
 What it cannot change
 ---------------------
@@ -33,17 +35,21 @@ import os
 from typing import TYPE_CHECKING
 
 from ...execute import has_early, local_jobs, start_early, stop_early, take_early
-from ...units import DEFAULT_UNIT, given_units
+from ...units import DEFAULT_UNIT, METRES, given_units
 from ..formats import STEP_EXTENSIONS
 from ..limits import Limits, read_file
 from .document import read_document
 from .tessellate import (
     DEFAULT_ANGULAR_DEFLECTION,
+    MAX_STEP_TRIANGLES,
     PREPARE,
+    PREPARE_BYTES,
     Products,
     brep_text,
+    estimated_triangles,
     first_instances,
     products,
+    triangulate,
 )
 from .units import mesh_settings
 
@@ -69,27 +75,40 @@ def start(paths: list[str], settings: Settings) -> None:
                 (settings.units or DEFAULT_UNIT) if deflection is not None else None,
                 given_units([path], settings.file_units).get(path),
             )
+            # The most triangles the load stage may allow the file (less when files read before
+            # it took some): the worker meshes a small file only within it.
+            budget = min(settings.max_triangles or Limits().max_triangles, MAX_STEP_TRIANGLES)
             try:
-                start_early(_key(path), READ_TASK, (path, options), prepare=PREPARE)
+                start_early(_key(path), READ_TASK, (path, options, budget), prepare=PREPARE)
             except OSError:  # no process or pipe to be had: the load stage reads it
                 pass
             return
 
 
-def read_task(store: dict, path: str, options: tuple) -> tuple | None:
+def read_task(store: dict, path: str, options: tuple, budget: int) -> tuple | None:
     """In the worker: ``path`` read (within the default limits) and made ``Products`` as
     ``read.read_step`` makes them with ``options`` (deflection, its unit and the unit the user
-    gave the file), with the products as read written too (``solid_texts``). Returns (the
-    bytes' SHA-256, the settings, the products), or None when anything goes wrong: the load
-    stage then reads the file itself, and refuses it (or fails: out of memory, a bug) exactly as
-    it would have without a worker."""
+    gave the file), with the products as read written too (``solid_texts``), and, for a file
+    the load stage meshes in its own process (below ``PREPARE_BYTES``) whose estimate fits
+    ``budget`` triangles, each product triangulated (``triangles``: the load stage only welds
+    them). Returns (the bytes' SHA-256, the settings, the products), or None when anything goes
+    wrong: the load stage then reads the file itself, and refuses it (or fails: out of memory,
+    a bug) exactly as it would have without a worker."""
     try:
         data = read_file(path, Limits())
         _, unit, wanted_mm, ratio = mesh_settings(data, *options)
+        angular = DEFAULT_ANGULAR_DEFLECTION
         instances = read_document(data, path)
-        read = products(instances, path, wanted_mm, DEFAULT_ANGULAR_DEFLECTION, unit, ratio)
+        read = products(instances, path, wanted_mm, angular, unit, ratio)
         first = first_instances(instances)
         read.solid_texts = {key: brep_text(inst.product) for key, inst in first.items()}
+        if len(data) < PREPARE_BYTES and estimated_triangles(read) <= budget:
+            to_unit = 1e-3 / METRES[unit]
+            deflection = read.deflection_mm * to_unit  # as ``tessellate`` passes it
+            read.triangles = {
+                key: triangulate(text, to_unit, deflection, angular)
+                for key, text in read.texts.items()
+            }
     except Exception:  # what it was is the load stage's to say, as without a worker
         return None
     settings = (unit, wanted_mm, DEFAULT_ANGULAR_DEFLECTION, ratio)
@@ -99,8 +118,9 @@ def read_task(store: dict, path: str, options: tuple) -> tuple | None:
 def take(path: str, data: bytes, settings: tuple, executor: Executor | None) -> Products | None:
     """The products of ``path`` read ahead, when a worker read exactly ``data`` with
     ``settings`` (``(unit, deflection mm, angular, ratio)`` as ``read_step`` has them); None
-    otherwise. OpenCASCADE is imported here first, while the worker reads (the products are
-    meshed here, and B-rep pairs decided). The worker then joins ``executor``'s pool."""
+    otherwise. OpenCASCADE is imported here first, while the worker reads (a product is meshed
+    here when its triangles weld open, and B-rep pairs are decided here too). The worker then
+    joins ``executor``'s pool."""
     key = _key(path)
     if not has_early(key):
         return None

@@ -266,7 +266,8 @@ def read_step(
             read = products(instances, path, wanted_mm, angular, unit, ratio)
         else:
             texts = {n: read.solid_texts[i.product_key] for n, i in named_instances(read.instances)}
-        # A small file's products are meshed here: a worker would import trimesh for them.
+        # A small file's products are meshed here (or welded here, from the triangles of the
+        # worker that read it ahead): a worker would import trimesh to weld them.
         meshers = executor if len(data) >= PREPARE_BYTES else None
         found = _tessellation(read, path, angular, budget, unit, meshers)
         if cache is not None:

@@ -2,8 +2,10 @@
 
 ``BRepMesh_IncrementalMesh``, one thread per product. Each distinct product is meshed from its
 BRep text (``mesh_task``), in this process or, for a large file whose workers loaded OpenCASCADE
-while it was read (``PREPARE``), in them too: the same text gives the same triangles wherever it
-is meshed, so the tessellation does not depend on ``-j``.
+while it was read (``PREPARE``), in them too; a small file read ahead (``ahead``) is triangulated
+by the worker that read it (``triangulate``) and only welded here (``welded_triangles``). The
+same text gives the same triangles wherever it is meshed, so the tessellation does not depend on
+``-j``.
 
 The chords of a curved face lie inside it, by at most the linear deflection: a pin in a hole, both
 faceted, shows a gap up to one deflection wider (or an overlap up to two deflections shallower)
@@ -115,6 +117,10 @@ class Products:
     solid_texts : dict or None
         BRep text of each product as read, by product key (the exact solids' text,
         ``read.StepSolids.product_text``), when the file was read ahead; None otherwise.
+    triangles : dict or None
+        Each product's parts as ``triangulate`` gives them, by product key, when the worker
+        that read the file ahead meshed it too (a small file: ``ahead.read_task``); None
+        otherwise.
     """
 
     instances: list[Instance]
@@ -123,6 +129,7 @@ class Products:
     costs: dict[str, int]
     texts: dict[str, bytes]
     solid_texts: dict[str, bytes] | None = None
+    triangles: dict[str, list] | None = None
 
 
 def products(
@@ -206,9 +213,7 @@ def tessellate(
     """
     to_unit = 1e-3 / METRES[unit]
     deflection_mm, coarse = found.deflection_mm, found.coarse_mm
-    estimate = 0.0
-    for count in found.costs.values():
-        estimate += count * coarse / deflection_mm
+    estimate = estimated_triangles(found)
     if estimate > budget:
         fits = coarse * max(1.0, sum(found.costs.values()) / budget)
         raise InputError(
@@ -220,6 +225,15 @@ def tessellate(
     return _meshed_products(found, path, angular, to_unit, executor)
 
 
+def estimated_triangles(found: Products) -> float:
+    """The triangles meshing ``found`` at its deflection makes, estimated from the coarse
+    counts (an overestimate, ``products``)."""
+    estimate = 0.0
+    for count in found.costs.values():
+        estimate += count * found.coarse_mm / found.deflection_mm
+    return estimate
+
+
 def _meshed_products(
     found: Products,
     path: str,
@@ -228,7 +242,9 @@ def _meshed_products(
     executor: Executor | None,
 ) -> dict[str, tuple[trimesh.Trimesh, float]]:
     """``tessellate``'s meshes: one ``mesh_task`` per distinct product, each named after its
-    first instance in name order, the costliest first (``found.costs``)."""
+    first instance in name order, the costliest first (``found.costs``). A product the worker
+    that read the file ahead triangulated (``found.triangles``) is only welded here, unless a
+    face of it must be meshed again (``welded_triangles``)."""
     import trimesh
 
     from ...cache.store import checksum
@@ -236,7 +252,16 @@ def _meshed_products(
 
     deflection = found.deflection_mm * to_unit
     named = first_instances(found.instances)
-    keys = list(named)
+    welded = {}
+    for key, parts in (found.triangles or {}).items():
+        try:
+            mesh = welded_triangles(parts, f"{path}#{named[key].name}", to_unit, deflection)
+        except InputError as exc:  # raised in order below, as ``mesh_task`` returns it
+            welded[key] = (exc.path, exc.reason)
+            continue
+        if mesh is not None:
+            welded[key] = (np.asarray(mesh.vertices), np.asarray(mesh.faces), 0.0)
+    keys = [key for key in named if key not in welded]
     # The texts travel as shared values, not in the tasks: a task sent ahead to a busy worker
     # would block this process on a large one until that worker finished (``LocalPool``). A
     # worker keeps what it was sent for the next map (another file's products): by content.
@@ -255,16 +280,18 @@ def _meshed_products(
         tasks.append(Task(args, needs=(stored[key],), size=size))
     runner = executor if in_workers else Executor()
     function = "meshcheck.load.step.tessellate:mesh_task"
-    results = runner.map(function, tasks, shared=shared, here=True)
+    results = dict(zip(keys, runner.map(function, tasks, shared=shared, here=True), strict=True))
+    tasks = dict(zip(keys, tasks, strict=True))
     out = {}
-    for key, task, result in zip(keys, tasks, results, strict=True):
+    for key in named:
+        result = welded[key] if key in welded else results[key]
         if result is None:  # its worker died: mesh it here (a bug then shows its traceback)
-            result = Executor().map(function, [task], shared=shared)[0]
+            result = Executor().map(function, [tasks[key]], shared=shared)[0]
         if isinstance(result[0], str):  # (part name, reason): the product cannot be meshed
             raise InputError(*result)
         vertices, faces, deviation = result
         mesh = trimesh.Trimesh(vertices, faces, process=False)
-        mesh.metadata["brep"] = stored[key][1]  # what its parts' finding IDs hash (``Body``)
+        mesh.metadata["brep"] = checksum(found.texts[key]).hex()  # its parts' finding IDs hash
         out[key] = (mesh, deviation)
     return out
 
@@ -299,20 +326,38 @@ def mesh_task(
     ``deflection`` (file units) and ``angular``, closed (``product_mesh``): its vertices (file
     units), faces and the largest distance, mm, of a face meshed again; or ``(name, reason)``
     when it cannot be."""
+    shape = _meshed_text(store[text], to_unit, deflection, angular)
+    try:
+        mesh, deviation = product_mesh(shape, name, to_unit, deflection, angular=angular)
+    except InputError as exc:
+        return exc.path, exc.reason
+    return np.asarray(mesh.vertices), np.asarray(mesh.faces), deviation
+
+
+def triangulate(
+    text: bytes, to_unit: float, deflection: float, angular: float
+) -> list[tuple[bool, tuple[np.ndarray, np.ndarray, np.ndarray]]]:
+    """A product read from its BRep text and meshed as ``mesh_task`` meshes it, not welded:
+    ``(is a solid, face_arrays)`` of each of its parts (``_solids_and_rest``). OpenCASCADE and
+    numpy only: what the worker that reads a small file ahead does while this process imports
+    trimesh (``welded_triangles`` welds them)."""
+    shape = _meshed_text(text, to_unit, deflection, angular)
+    return [(is_solid, face_arrays(part)) for part, is_solid in _solids_and_rest(shape)]
+
+
+def _meshed_text(text: bytes, to_unit: float, deflection: float, angular: float):
+    """The shape of a BRep text, meshed by BRepMesh at ``deflection`` (file units, ``to_unit``
+    file units per mm) and ``angular``."""
     from OCP.BRep import BRep_Builder
     from OCP.BRepMesh import BRepMesh_IncrementalMesh
     from OCP.BRepTools import BRepTools
     from OCP.TopoDS import TopoDS_Shape
 
     shape = TopoDS_Shape()
-    BRepTools.Read_s(shape, io.BytesIO(store[text]), BRep_Builder())
+    BRepTools.Read_s(shape, io.BytesIO(text), BRep_Builder())
     with captured_output():
         BRepMesh_IncrementalMesh(shape, deflection / to_unit, False, angular, False)
-    try:
-        mesh, deviation = product_mesh(shape, name, to_unit, deflection, angular=angular)
-    except InputError as exc:
-        return exc.path, exc.reason
-    return np.asarray(mesh.vertices), np.asarray(mesh.faces), deviation
+    return shape
 
 
 def preload() -> None:
@@ -506,31 +551,60 @@ def product_mesh(
     deviation : float
         The largest distance, mm, between a face meshed again and its triangles (0 if none).
     """
-    import trimesh
-
     from ...mesh import is_closed
 
     deflection_mm = deflection / to_unit
     shells, deviation = [], 0.0
     for part, is_solid in _solids_and_rest(shape):
-        mesh = _welded(part, name, to_unit, deflection)
+        mesh = _welded(face_arrays(part), name, to_unit, deflection)
         if is_solid and not is_closed(mesh):
             measured = mend_faces(part, deflection_mm, angular)
             if measured is not None:
                 deviation = max(deviation, measured)
-                mesh = _welded(part, name, to_unit, deflection)
+                mesh = _welded(face_arrays(part), name, to_unit, deflection)
         shells.append(mesh)
+    return _one_mesh(shells), deviation
+
+
+def welded_triangles(
+    parts: list, name: str, to_unit: float, deflection: float
+) -> trimesh.Trimesh | None:
+    """A product's mesh from its parts' triangles (``triangulate``), the one ``product_mesh``
+    makes when no face must be meshed again; None when one must (a solid's mesh is not closed):
+    ``mesh_task`` meshes that product.
+
+    Raises
+    ------
+    InputError
+        A vertex is not finite (as ``product_mesh``).
+    """
+    from ...mesh import is_closed
+
+    shells = []
+    for is_solid, arrays in parts:
+        mesh = _welded(arrays, name, to_unit, deflection)
+        if is_solid and not is_closed(mesh):
+            return None
+        shells.append(mesh)
+    return _one_mesh(shells)
+
+
+def _one_mesh(shells: list[trimesh.Trimesh]) -> trimesh.Trimesh:
+    """The shells as one mesh, one after the other, no vertex shared between two of them."""
+    import trimesh
+
     if len(shells) == 1:
-        return shells[0], deviation
+        return shells[0]
     offsets = np.cumsum([0] + [len(m.vertices) for m in shells[:-1]])
     vertices = np.concatenate([m.vertices for m in shells]) if shells else np.zeros((0, 3))
     faces = np.concatenate([m.faces + k for m, k in zip(shells, offsets, strict=True)])
-    return trimesh.Trimesh(vertices, faces.reshape(-1, 3), process=False), deviation
+    return trimesh.Trimesh(vertices, faces.reshape(-1, 3), process=False)
 
 
-def _welded(shape, name: str, to_unit: float, deflection: float) -> trimesh.Trimesh:
-    """``shape``'s triangles welded into one surface (``close_mesh``), file units."""
-    vertices, faces, same = face_arrays(shape)
+def _welded(arrays: tuple, name: str, to_unit: float, deflection: float) -> trimesh.Trimesh:
+    """A shape's triangles (``face_arrays``) welded into one surface (``close_mesh``), file
+    units."""
+    vertices, faces, same = arrays
     if not np.all(np.isfinite(vertices)):
         raise InputError(name, "vertices have NaN or infinite coordinates")
     return close_mesh(vertices * to_unit, faces, deflection, same=same)
