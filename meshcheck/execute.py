@@ -125,6 +125,7 @@ class Executor:
         progress: Callable[[int], None] | None = None,
         time_limit: float | None = None,
         here: bool = False,
+        grow: bool = True,
     ) -> list:
         """Results of ``function`` on each task, in task order.
 
@@ -143,6 +144,10 @@ class Executor:
         here : bool
             This process may take tasks too, while it waits (``LocalPool``: it then starts one
             worker fewer; only for maps without time limits). The results are the same.
+        grow : bool
+            ``LocalPool``: False when only the workers already started take the tasks (one is
+            started if none is); the others would start and import first. The results are the
+            same.
         """
         store = dict(shared or {})
         out = []
@@ -398,7 +403,7 @@ class LocalPool(Executor):
         return tuple(sorted(tasks + ([] if self.here_task is None else [self.here_task])))
 
     def map(
-        self, function, tasks, *, shared=None, progress=None, time_limit=None, here=False
+        self, function, tasks, *, shared=None, progress=None, time_limit=None, here=False, grow=True
     ) -> list:
         if not tasks:
             return []
@@ -411,6 +416,8 @@ class LocalPool(Executor):
             and len(self.workers) < self.jobs
         )
         wanted = min(self.jobs - 1 if here else self.jobs, len(tasks))
+        if not grow:
+            wanted = min(wanted, max(len(self.workers), 0 if here else 1))
         while len(self.workers) < wanted:
             self.workers.append(_Worker())
         run = _LocalRun(self, function, tasks, shared or {}, progress, time_limit, wanted, here)
@@ -685,11 +692,11 @@ class DaskExecutor(Executor):
         self.task_count = 0
 
     def map(
-        self, function, tasks, *, shared=None, progress=None, time_limit=None, here=False
+        self, function, tasks, *, shared=None, progress=None, time_limit=None, here=False, grow=True
     ) -> list:
         """See ``Executor.map``; ``time_limit`` is not enforced on a cluster (a Dask worker
-        cannot be killed per task): a CoACD overrun only takes longer there; ``here`` is
-        ignored (the cluster's workers do the work)."""
+        cannot be killed per task): a CoACD overrun only takes longer there; ``here`` and
+        ``grow`` are ignored (the cluster's workers do the work)."""
         if not tasks:
             return []
         run = _DaskRun(self, function, tasks, shared or {}, progress)

@@ -180,6 +180,18 @@ def test_prepared_workers_import_before_their_first_task():
     assert time.monotonic() - started < 0.5
 
 
+def test_a_map_that_does_not_grow_runs_on_the_workers_already_started():
+    """``grow=False``: the tasks go to the started worker, none is started beside it; a map
+    that grows starts the pool's others."""
+    with LocalPool(3) as pool:
+        (started,) = pool.map("meshcheck.execute:sleep_then_pid", [Task((0.0,))])  # one worker
+        tasks = [Task((0.05,)) for _ in range(4)]
+        assert pool.map("meshcheck.execute:sleep_then_pid", tasks, grow=False) == [started] * 4
+        assert len(pool.workers) == 1
+        pids = pool.map("meshcheck.execute:sleep_then_pid", tasks)
+        assert len(pool.workers) == 3 and len(set(pids)) > 1
+
+
 def test_a_worker_whose_prepare_fails_leaves_quietly_and_is_replaced(capfd):
     """A prepare function that raises (here: called without its argument) ends its worker
     before it is ready, with no traceback on the user's terminal; the pool starts a worker

@@ -148,6 +148,30 @@ def test_the_command_reports_the_same_bytes_with_and_without_reading_ahead(tmp_p
     assert json.loads(reports[0])["summary"]["interference"] > 0
 
 
+def test_a_small_file_read_ahead_is_decided_by_its_worker_without_opencascade_here(tmp_path):
+    """The worker that read a small file ahead triangulates it and decides its pairs on the
+    B-rep; the command's process never loads OpenCASCADE, and its report is the one-process
+    report, byte for byte."""
+    script = (
+        "import sys\n"
+        "from meshcheck import cli\n"
+        "try:\n"
+        "    cli.main(sys.argv[1:], standalone_mode=False)\n"
+        "finally:\n"
+        "    print('OpenCASCADE here:', 'OCP.OCP' in sys.modules, file=sys.stderr)\n"
+    )
+    reports = []
+    for jobs in ("1", "2"):
+        out = tmp_path / f"j{jobs}.json"
+        command = [sys.executable, "-c", script, BOX_SIDES, "-j", jobs, "--no-cache"]
+        command += ["--format", "json", "-o", str(out)]
+        done = subprocess.run(command, capture_output=True, text=True, cwd=tmp_path, timeout=300)
+        assert f"OpenCASCADE here: {jobs == '1'}" in done.stderr, done.stderr[-2000:]
+        reports.append(out.read_bytes())
+    assert reports[0] == reports[1]
+    assert json.loads(reports[0])["summary"]["interference"] > 0
+
+
 def test_the_command_reads_its_first_step_file_ahead(monkeypatch, tmp_path):
     from meshcheck import cli
 

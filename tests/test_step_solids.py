@@ -336,6 +336,25 @@ def test_pairs_timed_here_then_sent_to_workers_give_the_same_findings(tmp_path, 
     assert here == there
 
 
+def test_pairs_left_to_the_started_worker_grow_the_pool_when_the_rest_repays_it(monkeypatch):
+    """Pairs left to the workers already started (``_by_started_workers``: this process has
+    not loaded OpenCASCADE) stay with them while the rest would not repay starting another
+    (``WORKER_SECONDS``); once it would, the pool's others start and take part."""
+    from meshcheck.execute import Task
+
+    def run(executor, chosen, done=0, **where):
+        return executor.map("meshcheck.execute:sleep_then_pid", chosen, **where)
+
+    tasks = [Task((0.2,)) for _ in range(8)]
+    with LocalPool(2) as pool:
+        (first,) = pool.map("meshcheck.execute:sleep_then_pid", [Task((0.0,))])
+        assert brep._by_started_workers(run, pool, tasks) == [first] * 8  # 1.6 s: not enough
+        assert len(pool.workers) == 1
+        monkeypatch.setattr(brep, "WORKER_SECONDS", 0.0)
+        pids = brep._by_started_workers(run, pool, tasks)
+        assert pids[0] == first and len(set(pids)) == 2 and len(pool.workers) == 2
+
+
 def test_the_solids_travel_to_workers_as_brep_text(tmp_path):
     # the text a worker reads back is the product as read, with no triangulation
     path = fastened(tmp_path / "fastened.step")

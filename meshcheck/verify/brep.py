@@ -49,11 +49,13 @@ in each of forty identical nuts), the verdict is kept in the run's pair cache (a
 no STEP document), and each pair gets it moved to its own placement (``to_world``).
 
 The solids are decided in the run's worker processes when that pays (``_pays_in_workers``), one
-pair per task. OpenCASCADE shapes are not pickled: each product travels once per worker as
-BRep text (``StepSolids.product_text``, a few milliseconds to read, where reading the STEP file
-again costs a fraction of a second), and the solids are never modified (non-destructive
-booleans on copies), so a verdict does not depend on the pairs decided before it in the same
-process.
+pair per task. A process that has not loaded OpenCASCADE (a small file read ahead by a worker
+that has) leaves them to the workers started, and starts the pool's others only when the pairs'
+measured seconds repay it (``_by_started_workers``). OpenCASCADE shapes are not pickled: each
+product travels once per worker as BRep text (``StepSolids.product_text``, a few milliseconds
+to read, where reading the STEP file again costs a fraction of a second), and the solids are
+never modified (non-destructive booleans on copies), so a verdict does not depend on the pairs
+decided before it in the same process.
 
 A product whose faces are B-splines lying on planes, cylinders, cones, spheres or tori (as some
 CAD systems export every face) is decided on the same solid rebuilt on those surfaces
@@ -74,6 +76,7 @@ import dataclasses
 import functools
 import json
 import os
+import sys
 import time
 import warnings
 from collections.abc import Sequence
@@ -500,6 +503,36 @@ def _may_pay(executor: Executor) -> bool:
     return executor.is_distributed or executor.jobs > 1
 
 
+def _left_to_workers(executor: Executor) -> bool:
+    """Whether this process leaves the solids to ``executor``'s workers: it has not loaded
+    OpenCASCADE (a small file read ahead, ``load.step.ahead.take``), they have (``PREPARE``).
+    Loading it here (0.6-0.8 s of CPU) would cost more than such a file's pairs, and while it
+    loads, no worker is sent a task."""
+    return (
+        not executor.is_distributed
+        and PREPARE in executor.prepared
+        and executor.is_started
+        and "OCP.OCP" not in sys.modules
+    )
+
+
+def _by_started_workers(run, executor: Executor, tasks: list[Task]) -> list:
+    """Results of ``tasks`` decided by the workers already started, in batches of 1, 2, 4...
+    tasks, until the batches' mean seconds say the rest repay starting the pool's others
+    (``WORKER_SECONDS`` each, OpenCASCADE loaded): these then take the rest with them.
+    ``run(executor, tasks, done, here=..., grow=...)`` is ``_decide_all``'s map."""
+    results: list = []
+    started = time.monotonic()
+    while len(results) < len(tasks):
+        done = len(results)
+        mean = (time.monotonic() - started) / max(done, 1)  # seconds per task, these workers
+        spare = 1.0 - len(executor.workers) / executor.jobs  # of the rest, what others take
+        if done and (len(tasks) - done) * mean * spare > WORKER_SECONDS:
+            return results + run(executor, tasks[done:], done, here=False)
+        results += run(executor, tasks[done : 2 * done + 1], done, here=False, grow=False)
+    return results
+
+
 def _decide_all(bodies, jobs: list[_PairJob], executor) -> dict[str, PairVerdict | str]:
     """Verdicts (or why not) of ``jobs`` by key: here, or in ``executor``'s workers when their
     expected seconds repay them."""
@@ -538,16 +571,19 @@ def _decide_all(bodies, jobs: list[_PairJob], executor) -> dict[str, PairVerdict
     shared[SHAPES] = {}
     with Progress("checking on the B-rep", len(tasks)) as bar:
 
-        def run(runner: Executor, chosen: list[Task], done: int = 0) -> list:
+        def run(runner: Executor, chosen: list[Task], done: int = 0, **where) -> list:
             return runner.map(
                 "meshcheck.verify.solids:brep_task",
                 chosen,
                 shared=shared,
                 progress=lambda n: bar.update(done + n),
-                here=True,
+                **({"here": True} | where),
             )
 
-        if _pays_in_workers(executor, len(tasks)):
+        pays = _pays_in_workers(executor, len(tasks))
+        if pays and _left_to_workers(executor):
+            results = _by_started_workers(run, executor, tasks)
+        elif pays:
             results = run(executor, tasks)
         elif executor is None or not _may_pay(executor):
             results = run(Executor(), tasks)

@@ -11,9 +11,11 @@ file, and makes its ``tessellate.Products``: the products copied, counted at a c
 and written as BRep text, and the products as read written too, for the exact solids
 (``read_task``). A small file's products (the ones the load stage meshes in its own process) it
 triangulates too: BRepMesh's triangles, face by face, which need no trimesh. This process
-meanwhile imports the rest, then OpenCASCADE; the load stage takes the worker's products
-(``take``), welds the triangles (or meshes the products), and the worker stays in the run's pool
-with OpenCASCADE loaded, for the pairs decided on the B-rep.
+meanwhile imports the rest (and OpenCASCADE, for a large file, whose products it meshes too);
+the load stage takes the worker's products (``take``), welds the triangles (or meshes the
+products), and the worker stays in the run's pool with OpenCASCADE loaded, for the pairs decided
+on the B-rep. A small file's pairs are all its to decide: this process does not load
+OpenCASCADE for them (``verify.brep._left_to_workers``).
 
 What it cannot change
 ---------------------
@@ -118,13 +120,18 @@ def read_task(store: dict, path: str, options: tuple, budget: int) -> tuple | No
 def take(path: str, data: bytes, settings: tuple, executor: Executor | None) -> Products | None:
     """The products of ``path`` read ahead, when a worker read exactly ``data`` with
     ``settings`` (``(unit, deflection mm, angular, ratio)`` as ``read_step`` has them); None
-    otherwise. OpenCASCADE is imported here first, while the worker reads (a product is meshed
-    here when its triangles weld open, and B-rep pairs are decided here too). The worker then
-    joins ``executor``'s pool."""
+    otherwise. The worker then joins ``executor``'s pool.
+
+    For a large file (``PREPARE_BYTES``), OpenCASCADE is imported here first, while the worker
+    reads: its products are meshed here too, and B-rep pairs decided. A small file's worker
+    triangulates it, and this process does not load OpenCASCADE for it: the worker decides its
+    B-rep pairs (``verify.brep._left_to_workers``; a product whose triangles weld open is
+    meshed here, loading it then)."""
     key = _key(path)
     if not has_early(key):
         return None
-    import OCP.TopoDS  # noqa: F401
+    if len(data) >= PREPARE_BYTES:
+        import OCP.TopoDS  # noqa: F401
 
     result = take_early(key, executor)
     if result is None:
