@@ -19,9 +19,9 @@ trimesh and scipy.
 
 from __future__ import annotations
 
-import importlib
 from typing import TYPE_CHECKING
 
+from ._lazy import lazy_names
 from .errors import ConfigError, ExitStatus, InputError, MeshcheckError, MeshcheckWarning
 
 # The name pip installs meshcheck by ("meshcheck" on PyPI is an unrelated project); the command
@@ -73,14 +73,13 @@ __all__ = [
 ]
 
 
+_lazy_getattr, _lazy_dir = lazy_names(__name__, _LAZY)
+
+
 def __getattr__(name: str):
     if name == "__version__":  # the one version: pyproject.toml's, as installed
         return _installed_version()
-    if name in _LAZY:
-        value = getattr(importlib.import_module(_LAZY[name], __name__), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module 'meshcheck' has no attribute {name!r}")
+    return _lazy_getattr(name)
 
 
 def _installed_version() -> str:
@@ -95,4 +94,4 @@ def _installed_version() -> str:
 
 
 def __dir__():
-    return sorted(set(globals()) | set(__all__) | {"__version__"})
+    return sorted(set(_lazy_dir()) | set(__all__) | {"__version__"})
