@@ -37,7 +37,7 @@ import os
 from typing import TYPE_CHECKING
 
 from ...execute import has_early, local_jobs, start_early, stop_early, take_early
-from ...units import DEFAULT_UNIT, METRES, given_units
+from ...units import DEFAULT_UNIT, given_units
 from ..formats import STEP_EXTENSIONS
 from ..limits import Limits, read_file
 from .document import read_document
@@ -51,7 +51,7 @@ from .tessellate import (
     estimated_triangles,
     first_instances,
     products,
-    triangulate,
+    triangulated,
 )
 from .units import mesh_settings
 
@@ -105,15 +105,10 @@ def read_task(store: dict, path: str, options: tuple, budget: int) -> tuple | No
         first = first_instances(instances)
         read.solid_texts = {key: brep_text(inst.product) for key, inst in first.items()}
         if len(data) < PREPARE_BYTES and estimated_triangles(read) <= budget:
-            to_unit = 1e-3 / METRES[unit]
-            deflection = read.deflection_mm * to_unit  # as ``tessellate`` passes it
-            read.triangles = {
-                key: triangulate(text, to_unit, deflection, angular)
-                for key, text in read.texts.items()
-            }
+            read.triangles = triangulated(read, unit, angular)
     except Exception:  # what it was is the load stage's to say, as without a worker
         return None
-    settings = (unit, wanted_mm, DEFAULT_ANGULAR_DEFLECTION, ratio)
+    settings = (unit, wanted_mm, angular, ratio)
     return hashlib.sha256(data).hexdigest(), settings, read
 
 

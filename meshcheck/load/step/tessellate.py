@@ -211,7 +211,7 @@ def tessellate(
     InputError
         The estimate exceeds ``budget``, or a product cannot be meshed.
     """
-    to_unit = 1e-3 / METRES[unit]
+    to_unit = _file_units_per_mm(unit)
     deflection_mm, coarse = found.deflection_mm, found.coarse_mm
     estimate = estimated_triangles(found)
     if estimate > budget:
@@ -223,6 +223,24 @@ def tessellate(
             "or more, or raise --max-triangles",
         )
     return _meshed_products(found, path, angular, to_unit, executor)
+
+
+def triangulated(found: Products, unit: str, angular: float) -> dict[str, list]:
+    """Each product of ``found`` triangulated (``triangulate``) as ``tessellate`` meshes it in
+    the file's ``unit`` and ``angular``, by product key: what the worker that read a small
+    file ahead sends (``Products.triangles``)."""
+    to_unit = _file_units_per_mm(unit)
+    deflection = _deflection(found, to_unit)
+    return {key: triangulate(t, to_unit, deflection, angular) for key, t in found.texts.items()}
+
+
+def _file_units_per_mm(unit: str) -> float:
+    return 1e-3 / METRES[unit]
+
+
+def _deflection(found: Products, to_unit: float) -> float:
+    """The deflection ``found`` is meshed at, file units, as every mesher is given it."""
+    return found.deflection_mm * to_unit
 
 
 def estimated_triangles(found: Products) -> float:
@@ -250,7 +268,7 @@ def _meshed_products(
     from ...cache.store import checksum
     from ...execute import Executor, Task
 
-    deflection = found.deflection_mm * to_unit
+    deflection = _deflection(found, to_unit)
     named = first_instances(found.instances)
     welded = {}
     for key, parts in (found.triangles or {}).items():
@@ -265,7 +283,8 @@ def _meshed_products(
     # The texts travel as shared values, not in the tasks: a task sent ahead to a busy worker
     # would block this process on a large one until that worker finished (``LocalPool``). A
     # worker keeps what it was sent for the next map (another file's products): by content.
-    stored = {key: ("step-product", checksum(found.texts[key]).hex()) for key in keys}
+    digests = {key: checksum(found.texts[key]).hex() for key in named}
+    stored = {key: ("step-product", digests[key]) for key in keys}
     shared = {stored[key]: found.texts[key] for key in keys}
     sizes = [found.costs[key] for key in keys]
     in_workers = _meshes_in_workers(executor, len(keys))
@@ -291,7 +310,7 @@ def _meshed_products(
             raise InputError(*result)
         vertices, faces, deviation = result
         mesh = trimesh.Trimesh(vertices, faces, process=False)
-        mesh.metadata["brep"] = checksum(found.texts[key]).hex()  # its parts' finding IDs hash
+        mesh.metadata["brep"] = digests[key]  # what its parts' finding IDs hash (``Body``)
         out[key] = (mesh, deviation)
     return out
 
