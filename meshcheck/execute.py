@@ -280,9 +280,8 @@ class _Worker:
     process never waits on the pipe, not even for a worker inside one long OpenCASCADE call,
     which reads nothing until the call returns."""
 
-    def __init__(self, prepare: str | None = None):
+    def __init__(self, prepare: str | None = None, *, twin: bool = False):
         import subprocess
-        from multiprocessing.connection import Connection
 
         env = dict(os.environ)
         env.update(dict.fromkeys(_ONE_THREAD, "1"))
@@ -291,17 +290,48 @@ class _Worker:
         # compiled kernels) or any folder named meshcheck would be imported instead.
         package_root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
         env["PYTHONPATH"] = os.pathsep.join(p for p in (package_root, env.get("PYTHONPATH")) if p)
-        self.process = subprocess.Popen(
-            [sys.executable, "-P", "-m", "meshcheck._worker", *([prepare] if prepare else [])],
-            stdin=subprocess.PIPE,
-            stdout=subprocess.PIPE,
-            env=env,
-            close_fds=True,
+        arguments = [prepare] if prepare else []
+        # A twin is killed and awaited through a pidfd (Linux): none elsewhere.
+        twin = twin and bool(prepare) and hasattr(os, "pidfd_open")
+        to_twin, from_twin = (os.pipe(), os.pipe()) if twin else ((), ())
+        passed = (to_twin[0], from_twin[1]) if to_twin else ()
+        if passed:
+            arguments.append(f"{passed[0]},{passed[1]}")
+        try:
+            self.process = subprocess.Popen(
+                [sys.executable, "-P", "-m", "meshcheck._worker", *arguments],
+                stdin=subprocess.PIPE,
+                stdout=subprocess.PIPE,
+                env=env,
+                close_fds=True,
+                pass_fds=passed,
+            )
+        except BaseException:
+            for end in (*to_twin, *from_twin):
+                os.close(end)
+            raise
+        self._connect(
+            os.dup(self.process.stdin.fileno()), os.dup(self.process.stdout.fileno()), prepare
         )
-        self.send_end = Connection(os.dup(self.process.stdin.fileno()), readable=False)
-        self.receive_end = Connection(os.dup(self.process.stdout.fileno()), writable=False)
         self.process.stdin.close()
         self.process.stdout.close()
+        #: The worker it forks once its ``prepare`` imports are made (``twin=True``), not started
+        #: by this process: it serves it over the pipes made here, the worker's imports loaded.
+        self.twin: _Worker | None = None
+        if passed:
+            for end in passed:  # the worker's and its twin's now
+                os.close(end)
+            self.twin = _Worker.__new__(_Worker)
+            self.twin.process, self.twin.twin = _Forked(), None
+            self.twin._connect(to_twin[1], from_twin[0], prepare)
+
+    def _connect(self, send: int, receive: int, prepare: str | None) -> None:
+        """Talk to the worker over the pipe ends ``send`` and ``receive`` (file descriptors this
+        object owns from now on)."""
+        from multiprocessing.connection import Connection
+
+        self.send_end = Connection(send, readable=False)
+        self.receive_end = Connection(receive, writable=False)
         self.keys: set = set()
         self.task: int | None = None  # index of the task running, None when idle
         self.queued: int | None = None  # index of the task sent to run after it (``run_here``)
@@ -309,6 +339,17 @@ class _Worker:
         self.is_ready = False
         self.prepare = prepare
         self._writer = Writer(self.send_end)
+
+    def ready(self, message: tuple) -> None:
+        """Take the worker's ready message (``("ready", pid)``): a twin's names its process."""
+        self.is_ready = True
+        if self.is_twin:
+            self.process.found(message[1])
+
+    @property
+    def is_twin(self) -> bool:
+        """Forked by another worker (``twin``), not started by this process."""
+        return isinstance(self.process, _Forked)
 
     def fileno(self) -> int:
         return self.receive_end.fileno()
@@ -325,26 +366,94 @@ class _Worker:
             raise BrokenPipeError("the worker is gone")
 
     def kill(self) -> None:
+        """Kill the worker, then its twin, when no pool took that (``LocalPool.adopt``): the
+        worker may still be making the imports it forks the twin after, which ``_find_twin``
+        would wait for."""
+        self._find_twin()
         self.process.kill()
         self.process.wait()
         self._writer.close()  # a write to a worker that is gone fails at once
         self.send_end.close()
         self.receive_end.close()
+        if self.twin is not None:
+            self.twin.kill()
 
     def stop(self, timeout: float = 5.0) -> None:
-        """Close the pipe (the worker exits at EOF); kill it if it does not."""
+        """Close the pipe (the worker exits at EOF); kill it if it does not. Its twin, when no
+        pool took that, first (this worker then reaps it)."""
         import subprocess
 
+        if self.twin is not None:
+            self.twin.stop(timeout)
         if not self._writer.close(timeout):  # it does not read: stuck in a task
+            self._find_twin()
             self.process.kill()
             self._writer.close()
         self.send_end.close()
+        self._find_twin(timeout)
         try:
             self.process.wait(timeout=timeout)
         except subprocess.TimeoutExpired:
             self.process.kill()
             self.process.wait()
         self.receive_end.close()
+
+    def _find_twin(self, timeout: float = 5.0) -> None:
+        """A twin that has not been heard from: read its ready message (its process id, which
+        it sends before it reads anything), so it can be killed and its exit awaited. Its end of
+        the stream (its worker died before forking it) leaves nothing to wait for."""
+        if self.is_ready or not self.is_twin:
+            return
+        try:
+            if self.receive_end.poll(timeout):
+                message = self.receive_end.recv()
+                if message[0] == "ready":
+                    self.ready(message)
+        except (EOFError, OSError):
+            pass
+
+
+class _Forked:
+    """The process of a twin (``_Worker(twin=True)``): forked by a worker, so not a child of
+    this process, with the two calls ``_Worker`` makes of a ``subprocess.Popen``. Its id comes
+    in its ready message (``found``), and a pidfd then holds it: the signal and the wait reach
+    this very process even once it is gone and its id taken by another. Before that it is not
+    killed: its stream closed, it exits as soon as it reads (it runs no task before it is
+    ready)."""
+
+    def __init__(self):
+        self.pid: int | None = None
+        self._handle: int | None = None
+        self._is_gone = False
+
+    def found(self, pid) -> None:
+        self.pid = int(pid)
+        try:
+            self._handle = os.pidfd_open(self.pid)
+        except OSError:  # gone already, or a kernel without pidfds (before Linux 5.3): its
+            self._handle = None  # stream's end stops it
+
+    def kill(self) -> None:
+        import signal
+
+        if self._handle is not None and not self._is_gone:
+            try:
+                signal.pidfd_send_signal(self._handle, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+
+    def wait(self, timeout: float | None = None) -> None:
+        import select
+        import subprocess
+
+        if self._handle is None or self._is_gone:
+            return
+        poller = select.poll()
+        poller.register(self._handle, select.POLLIN)  # readable once the process has exited
+        if not poller.poll(None if timeout is None else max(0, int(timeout * 1000))):
+            raise subprocess.TimeoutExpired("a meshcheck worker's twin", timeout)
+        self._is_gone = True
+        os.close(self._handle)
 
 
 class LocalPool(Executor):
@@ -369,6 +478,10 @@ class LocalPool(Executor):
     def __init__(self, jobs: int | None = None):
         self.jobs = int(jobs or default_jobs())
         self.workers: list[_Worker] = []
+        #: Started workers kept out of ``workers`` (an early worker's twin): one joins a map
+        #: that wants more workers than are in it, in place of a new one. A map this process
+        #: takes tasks in leaves them out, so no more than ``jobs`` processes run its tasks.
+        self.reserve: list[_Worker] = []
         self.failed_starts = 0
 
     @property
@@ -386,13 +499,26 @@ class LocalPool(Executor):
     def adopt(self, worker: _Worker) -> bool:
         """Take ``worker`` (ready and idle: an early one whose task was taken, ``take_early``)
         as one of the pool's, when the pool has room for it (one worker fewer than ``jobs``:
-        this process takes tasks too). False when it has none."""
+        this process takes tasks too), and its twin, if any, into ``reserve``. False when it
+        has no room."""
         if len(self.workers) >= self.jobs - 1:
             return False
         called = frozenset({worker.prepare} - {None})
         self.prepared = called if not self.workers else self.prepared & called
         self.workers.append(worker)
+        if worker.twin is not None:
+            self.reserve.append(worker.twin)
+            worker.twin = None
         return True
+
+    def another(self) -> _Worker:
+        """A worker for ``workers``: from the reserve, or a new one."""
+        return self.reserve.pop(0) if self.reserve else _Worker()
+
+    @property
+    def started(self) -> int:
+        """Worker processes started, the reserve's too."""
+        return len(self.workers) + len(self.reserve)
 
     #: Index of the task this process runs itself (``map(here=True)``), None otherwise.
     here_task: int | None = None
@@ -417,9 +543,9 @@ class LocalPool(Executor):
         )
         wanted = min(self.jobs - 1 if here else self.jobs, len(tasks))
         if not grow:
-            wanted = min(wanted, max(len(self.workers), 0 if here else 1))
+            wanted = min(wanted, max(self.started, 0 if here else 1))
         while len(self.workers) < wanted:
-            self.workers.append(_Worker())
+            self.workers.append(self.another())
         run = _LocalRun(self, function, tasks, shared or {}, progress, time_limit, wanted, here)
         try:
             return run.results_when_done()
@@ -443,12 +569,13 @@ class LocalPool(Executor):
                 )
 
     def close(self) -> None:
-        for worker in self.workers:
-            if worker.task is None and worker.is_ready:
-                worker.stop()
+        # Twins first: the workers that forked them, still running, reap them.
+        for worker in sorted(self.reserve + self.workers, key=lambda w: not w.is_twin):
+            if worker.task is None and (worker.is_ready or worker in self.reserve):
+                worker.stop()  # a twin in reserve is idle: it says it is ready, then reads
             else:  # busy, or still starting (a prepared worker importing for a run that
                 worker.kill()  # needed none of it: a warm run)
-        self.workers = []
+        self.workers, self.reserve = [], []
         self.prepared = frozenset()
 
 
@@ -460,10 +587,13 @@ class LocalPool(Executor):
 _EARLY: dict[object, _Worker] = {}
 
 
-def start_early(key, function: str, args: tuple, *, prepare: str | None = None) -> None:
+def start_early(
+    key, function: str, args: tuple, *, prepare: str | None = None, twin: bool = False
+) -> None:
     """Start a worker now, before the run's pool exists: it calls ``prepare`` (imports), then
     ``function(store, *args)``, while this process goes on. ``take_early(key)`` waits for the
-    result; the worker then joins the run's pool.
+    result; the worker then joins the run's pool, with its twin (``twin``: forked once
+    ``prepare`` is done) in the pool's reserve.
 
     Examples
     --------
@@ -472,7 +602,7 @@ def start_early(key, function: str, args: tuple, *, prepare: str | None = None) 
     7
     """
     stop_early(key)
-    worker = _Worker(prepare)
+    worker = _Worker(prepare, twin=twin)
     worker.send(("run", function, (), args))
     _EARLY[key] = worker
 
@@ -493,7 +623,7 @@ def take_early(key, pool: Executor | None = None):
     try:
         message = worker.receive_end.recv()
         if message[0] == "ready":
-            worker.is_ready = True
+            worker.ready(message)
             message = worker.receive_end.recv()
     except (EOFError, OSError):
         worker.kill()
@@ -550,7 +680,7 @@ class _LocalRun:
                 if worker.task is not None and now - worker.started > self.limit_of(worker.task):
                     self.lost(worker)
             if not pool.workers and self.pending:
-                pool.workers.append(_Worker())
+                pool.workers.append(pool.another())
         return self.results
 
     def run_here(self) -> None:
@@ -603,7 +733,7 @@ class _LocalRun:
         if message[0] == "error":
             raise RuntimeError(f"a meshcheck worker failed:\n{message[1]}")
         if message[0] == "ready":
-            worker.is_ready = True
+            worker.ready(message)
         else:
             self.results[worker.task] = message[1]
             self.count_finished()
@@ -621,7 +751,7 @@ class _LocalRun:
         if worker.task is not None:
             self.count_finished()  # results[task] stays None: the caller decides what it means
         if self.pending and len(self.pool.workers) < self.wanted:
-            self.pool.workers.append(_Worker())
+            self.pool.workers.append(self.pool.another())
 
     def start(self, worker: _Worker, *, queued: bool = False, index: int | None = None) -> None:
         """Send ``worker`` the largest pending task (or the pending task ``index``): to run now,

@@ -232,6 +232,72 @@ def test_a_worker_started_early_joins_the_pool_that_takes_its_result():
     assert process.wait(timeout=5) is not None and not has_early("c")
 
 
+def _parent(pid: int) -> int:
+    with open(f"/proc/{pid}/stat", encoding="ascii") as f:
+        return int(f.read().rsplit(")", 1)[1].split()[1])
+
+
+def _is_gone(pid: int) -> bool:
+    """No process ``pid`` runs (none, or one that exited and waits for a parent to reap it)."""
+    try:
+        with open(f"/proc/{pid}/stat", encoding="ascii") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] in ("Z", "X")
+    except FileNotFoundError:
+        return True
+
+
+@pytest.mark.linux_only
+def test_an_early_worker_forks_a_twin_that_waits_in_the_pools_reserve():
+    """``twin=True``: once its prepare imports are made, the early worker forks a second
+    worker that has them (not this process's child). The pool keeps it in reserve: a map this
+    process helps in leaves it out (no more than ``jobs`` processes take tasks), a map it does
+    not help in takes it instead of starting a worker; closing the pool ends both."""
+    from meshcheck.execute import start_early, take_early
+
+    preload = "meshcheck.load.step.tessellate:preload"
+    start_early("t", "meshcheck.execute:sleep_then_pid", (0.0,), prepare=preload, twin=True)
+    tasks = [Task((0.2,)) for _ in range(4)]
+    with LocalPool(2) as pool:
+        first = take_early("t", pool)
+        assert [w.process.pid for w in pool.workers] == [first] and len(pool.reserve) == 1
+        helped = pool.map("meshcheck.execute:sleep_then_pid", tasks, here=True)
+        assert set(helped) == {first, os.getpid()} and len(pool.reserve) == 1
+        pids = pool.map("meshcheck.execute:sleep_then_pid", tasks, grow=False)
+        (twin,) = set(pids) - {first}
+        assert pool.started == len(pool.workers) == 2 and pool.reserve == []
+        assert _parent(twin) == first
+        with open(f"/proc/{twin}/maps", encoding="utf-8") as f:  # OpenCASCADE's extension
+            assert "/OCP." in f.read()
+    assert _is_gone(first) and _is_gone(twin)
+
+
+@pytest.mark.linux_only
+def test_a_twin_is_killed_with_its_unclaimed_worker_and_when_it_overruns():
+    """``stop_early`` ends an early worker's twin with it; a twin whose task overruns is
+    killed (by its process id: it is no child of this process) and the map goes on."""
+    from meshcheck.execute import _EARLY, start_early, stop_early, take_early
+
+    preload = "meshcheck.load.step.tessellate:preload"
+    start_early("u", "meshcheck.execute:sleep_then_pid", (0.0,), prepare=preload, twin=True)
+    worker = _EARLY["u"]
+    assert worker.receive_end.poll(30)  # its imports are made: the twin is forked
+    twin = worker.twin
+    stop_early()
+    assert twin.process.pid is not None and _is_gone(twin.process.pid)
+    assert _is_gone(worker.process.pid)
+
+    start_early("v", "meshcheck.execute:sleep_then_pid", (0.0,), prepare=preload, twin=True)
+    tasks = [Task((30.0, "slow")), Task((30.0, "slower")), Task((0.0, "quick"))]
+    started = time.monotonic()
+    with LocalPool(2) as pool:
+        take_early("v", pool)
+        forked = pool.reserve[0]
+        out = pool.map("meshcheck.execute:sleep_then_echo", tasks, time_limit=2.0)
+        assert out == [None, None, "quick"] and forked not in pool.workers
+        assert _is_gone(forked.process.pid)
+    assert time.monotonic() - started < 25
+
+
 def test_shared_values_travel_once_per_worker():
     shared = {"m": list(range(1000))}
     tasks = [Task(("m",), needs=("m",)) for _ in range(6)]

@@ -48,6 +48,8 @@ def _same_assembly(one, two) -> None:
 
 
 def test_a_file_read_ahead_is_the_file_read_here_and_its_worker_joins_the_pool(monkeypatch):
+    """The worker that read the file ahead joins the run's pool, and the twin it forked (a
+    small file: its pairs are the workers' alone) the pool's reserve."""
     here = read_step(BOX_SIDES)
     ahead.start([BOX_SIDES], _settings())
     assert has_early(ahead._key(BOX_SIDES))
@@ -63,6 +65,10 @@ def test_a_file_read_ahead_is_the_file_read_here_and_its_worker_joins_the_pool(m
         worker = pool.workers[0].process.pid
         task = Task((0.0,))
         assert pool.map("meshcheck.execute:sleep_then_pid", [task]) == [worker]
+        # its twin, forked with OpenCASCADE loaded, waits for the pairs this process leaves
+        # (on Linux: a twin is killed through a pidfd)
+        twins = 1 if hasattr(os, "pidfd_open") else 0
+        assert [w.prepare for w in pool.reserve] == [PREPARE] * twins
     assert not has_early(ahead._key(BOX_SIDES))
     _same_assembly(here, there)
 

@@ -355,6 +355,25 @@ def test_pairs_left_to_the_started_worker_grow_the_pool_when_the_rest_repays_it(
         assert pids[0] == first and len(set(pids)) == 2 and len(pool.workers) == 2
 
 
+@pytest.mark.linux_only  # a twin is killed through a pidfd: none elsewhere
+def test_pairs_left_to_a_worker_and_its_twin_are_one_map_over_both():
+    """With the early worker's twin in reserve, every core has a worker: the pairs go to both
+    in one map (no batches to measure), and no other worker starts."""
+    from meshcheck.execute import Task, start_early, take_early
+
+    def run(executor, chosen, done=0, **where):
+        calls.append(len(chosen))
+        return executor.map("meshcheck.execute:sleep_then_pid", chosen, **where)
+
+    calls: list = []
+    start_early("p", "meshcheck.execute:sleep_then_pid", (0.0,), prepare=brep.PREPARE, twin=True)
+    with LocalPool(2) as pool:
+        first = take_early("p", pool)
+        pids = brep._by_started_workers(run, pool, [Task((0.2,)) for _ in range(6)])
+        assert calls == [6] and first in pids and len(set(pids)) == 2
+        assert pool.started == 2
+
+
 def test_the_solids_travel_to_workers_as_brep_text(tmp_path):
     # the text a worker reads back is the product as read, with no triangulation
     path = fastened(tmp_path / "fastened.step")

@@ -517,16 +517,19 @@ def _left_to_workers(executor: Executor) -> bool:
 
 
 def _by_started_workers(run, executor: Executor, tasks: list[Task]) -> list:
-    """Results of ``tasks`` decided by the workers already started, in batches of 1, 2, 4...
-    tasks, until the batches' mean seconds say the rest repay starting the pool's others
-    (``WORKER_SECONDS`` each, OpenCASCADE loaded): these then take the rest with them.
+    """Results of ``tasks`` decided by the workers already started (the pool's reserve too: the
+    early worker's twin), in batches of 1, 2, 4... tasks, until the batches' mean seconds say
+    the rest repay starting the pool's others (``WORKER_SECONDS`` each, OpenCASCADE loaded):
+    these then take the rest with them. One map when the started ones fill every core.
     ``run(executor, tasks, done, here=..., grow=...)`` is ``_decide_all``'s map."""
     results: list = []
     started = time.monotonic()
     while len(results) < len(tasks):
         done = len(results)
         mean = (time.monotonic() - started) / max(done, 1)  # seconds per task, these workers
-        spare = 1.0 - len(executor.workers) / executor.jobs  # of the rest, what others take
+        spare = 1.0 - executor.started / executor.jobs  # of the rest, what others would take
+        if spare <= 0:  # every core has its worker: no batches to measure
+            return results + run(executor, tasks[done:], done, here=False, grow=False)
         if done and (len(tasks) - done) * mean * spare > WORKER_SECONDS:
             return results + run(executor, tasks[done:], done, here=False)
         results += run(executor, tasks[done : 2 * done + 1], done, here=False, grow=False)

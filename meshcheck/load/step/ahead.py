@@ -15,7 +15,9 @@ meanwhile imports the rest (and OpenCASCADE, for a large file, whose products it
 the load stage takes the worker's products (``take``), welds the triangles (or meshes the
 products), and the worker stays in the run's pool with OpenCASCADE loaded, for the pairs decided
 on the B-rep. A small file's pairs are all its to decide: this process does not load
-OpenCASCADE for them (``verify.brep._left_to_workers``).
+OpenCASCADE for them (``verify.brep._left_to_workers``). For such a file the worker forks a
+twin as soon as OpenCASCADE is loaded (``execute._Worker``): a second worker with the import
+made, which the pool keeps in reserve and which takes half of the pairs.
 
 What it cannot change
 ---------------------
@@ -80,8 +82,13 @@ def start(paths: list[str], settings: Settings) -> None:
             # The most triangles the load stage may allow the file (less when files read before
             # it took some): the worker meshes a small file only within it.
             budget = min(settings.max_triangles or Limits().max_triangles, MAX_STEP_TRIANGLES)
+            # A small file's pairs are its workers' alone (this process does not load
+            # OpenCASCADE for it): the worker forks a twin as soon as OpenCASCADE is loaded.
+            twin = os.path.getsize(path) < PREPARE_BYTES
             try:
-                start_early(_key(path), READ_TASK, (path, options, budget), prepare=PREPARE)
+                start_early(
+                    _key(path), READ_TASK, (path, options, budget), prepare=PREPARE, twin=twin
+                )
             except OSError:  # no process or pipe to be had: the load stage reads it
                 pass
             return
