@@ -21,6 +21,7 @@ keep per-process memos under keys of its own).
 
 from __future__ import annotations
 
+import functools
 import importlib
 import math
 import os
@@ -291,8 +292,8 @@ class _Worker:
         package_root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
         env["PYTHONPATH"] = os.pathsep.join(p for p in (package_root, env.get("PYTHONPATH")) if p)
         arguments = [prepare] if prepare else []
-        # A twin is killed and awaited through a pidfd (Linux): none elsewhere.
-        twin = twin and bool(prepare) and hasattr(os, "pidfd_open")
+        # A twin is killed and awaited through a pidfd: none without them.
+        twin = twin and bool(prepare) and _has_pidfds()
         to_twin, from_twin = (os.pipe(), os.pipe()) if twin else ((), ())
         passed = (to_twin[0], from_twin[1]) if to_twin else ()
         if passed:
@@ -413,6 +414,17 @@ class _Worker:
             pass
 
 
+@functools.cache
+def _has_pidfds() -> bool:
+    """Whether this process can hold another by a pidfd: Linux 5.3 or later, and not refused by
+    a sandbox (a container's seccomp profile)."""
+    try:
+        os.close(os.pidfd_open(os.getpid()))
+    except (AttributeError, OSError):
+        return False
+    return True
+
+
 class _Forked:
     """The process of a twin (``_Worker(twin=True)``): forked by a worker, so not a child of
     this process, with the two calls ``_Worker`` makes of a ``subprocess.Popen``. Its id comes
@@ -430,8 +442,8 @@ class _Forked:
         self.pid = int(pid)
         try:
             self._handle = os.pidfd_open(self.pid)
-        except OSError:  # gone already, or a kernel without pidfds (before Linux 5.3): its
-            self._handle = None  # stream's end stops it
+        except OSError:  # gone already
+            self._handle = None
 
     def kill(self) -> None:
         import signal

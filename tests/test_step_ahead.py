@@ -15,7 +15,7 @@ import pytest
 
 from meshcheck.cache import TessellationCache
 from meshcheck.errors import InputError
-from meshcheck.execute import LocalPool, Task, has_early, stop_early
+from meshcheck.execute import LocalPool, Task, _has_pidfds, has_early, stop_early
 from meshcheck.load.step import ahead, read, read_step, tessellate
 from meshcheck.load.step.tessellate import PREPARE
 from meshcheck.settings import Settings
@@ -66,8 +66,8 @@ def test_a_file_read_ahead_is_the_file_read_here_and_its_worker_joins_the_pool(m
         task = Task((0.0,))
         assert pool.map("meshcheck.execute:sleep_then_pid", [task]) == [worker]
         # its twin, forked with OpenCASCADE loaded, waits for the pairs this process leaves
-        # (on Linux: a twin is killed through a pidfd)
-        twins = 1 if hasattr(os, "pidfd_open") else 0
+        # (where there are pidfds: a twin is killed through one)
+        twins = 1 if _has_pidfds() else 0
         assert [w.prepare for w in pool.reserve] == [PREPARE] * twins
     assert not has_early(ahead._key(BOX_SIDES))
     _same_assembly(here, there)
