@@ -298,6 +298,22 @@ def test_a_twin_is_killed_with_its_unclaimed_worker_and_when_it_overruns():
     assert time.monotonic() - started < 25
 
 
+def test_no_twin_where_this_process_cannot_hold_one_by_a_pidfd(monkeypatch):
+    """A twin that could be neither killed nor awaited (no pidfds: macOS, Windows, a sandbox
+    refusing them) is not forked: the early worker is the pool's one worker, as without it."""
+    from meshcheck import execute
+    from meshcheck.execute import start_early, take_early
+
+    monkeypatch.setattr(execute, "_has_pidfds", lambda: False)
+    preload = "meshcheck.load.step.tessellate:preload"
+    start_early("w", "meshcheck.execute:sleep_then_pid", (0.0,), prepare=preload, twin=True)
+    with LocalPool(2) as pool:
+        first = take_early("w", pool)
+        assert pool.reserve == [] and pool.started == 1
+        tasks = [Task((0.1,))] * 2
+        assert pool.map("meshcheck.execute:sleep_then_pid", tasks, grow=False) == [first] * 2
+
+
 def test_shared_values_travel_once_per_worker():
     shared = {"m": list(range(1000))}
     tasks = [Task(("m",), needs=("m",)) for _ in range(6)]
