@@ -17,7 +17,7 @@ products), and the worker stays in the run's pool with OpenCASCADE loaded, for t
 on the B-rep. A small file's pairs are all its to decide: this process does not load
 OpenCASCADE for them (``verify.brep._left_to_workers``). For such a file the worker forks a
 twin as soon as OpenCASCADE is loaded (``execute._Worker``): a second worker with the import
-made, which the pool keeps in reserve and which takes half of the pairs.
+made, which the pool keeps in reserve and which shares the pairs with it.
 
 What it cannot change
 ---------------------
