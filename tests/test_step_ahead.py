@@ -141,6 +141,13 @@ def test_nothing_is_read_ahead_for_one_process_a_cluster_or_no_step_file(monkeyp
     ahead.start([str(tmp_path), plate], _settings())  # a folder's files are not looked for
     assert not has_early(ahead._key(str(tmp_path / "in_a_folder.step")))
 
+    def removed(path):  # the file went away after it was found: the load stage says so
+        raise FileNotFoundError(path)
+
+    monkeypatch.setattr(ahead.os.path, "getsize", removed)
+    ahead.start([BOX_SIDES], _settings())
+    assert not has_early(key)
+
 
 def test_the_command_reports_the_same_bytes_with_and_without_reading_ahead(tmp_path):
     reports = []

@@ -82,15 +82,15 @@ def start(paths: list[str], settings: Settings) -> None:
             # The most triangles the load stage may allow the file (less when files read before
             # it took some): the worker meshes a small file only within it.
             budget = min(settings.max_triangles or Limits().max_triangles, MAX_STEP_TRIANGLES)
-            # A small file's pairs are its workers' alone (this process does not load
-            # OpenCASCADE for it): the worker forks a twin as soon as OpenCASCADE is loaded.
-            twin = os.path.getsize(path) < PREPARE_BYTES
             try:
+                # A small file's pairs are its workers' alone (this process does not load
+                # OpenCASCADE for it): the worker forks a twin as soon as OpenCASCADE is loaded.
+                twin = os.path.getsize(path) < PREPARE_BYTES
                 start_early(
                     _key(path), READ_TASK, (path, options, budget), prepare=PREPARE, twin=twin
                 )
-            except OSError:  # no process or pipe to be had: the load stage reads it
-                pass
+            except OSError:  # gone since, or no process or pipe to be had: the load stage
+                pass  # reads it, or says why it cannot
             return
 
 
