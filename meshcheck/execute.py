@@ -299,7 +299,7 @@ class _Worker:
         if passed:
             arguments.append(f"{passed[0]},{passed[1]}")
         try:
-            self.process = subprocess.Popen(
+            process = subprocess.Popen(
                 [sys.executable, "-P", "-m", "meshcheck._worker", *arguments],
                 stdin=subprocess.PIPE,
                 stdout=subprocess.PIPE,
@@ -312,25 +312,25 @@ class _Worker:
                 os.close(end)
             raise
         self._connect(
-            os.dup(self.process.stdin.fileno()), os.dup(self.process.stdout.fileno()), prepare
+            process, os.dup(process.stdin.fileno()), os.dup(process.stdout.fileno()), prepare
         )
-        self.process.stdin.close()
-        self.process.stdout.close()
-        #: The worker it forks once its ``prepare`` imports are made (``twin=True``), not started
-        #: by this process: it serves it over the pipes made here, the worker's imports loaded.
-        self.twin: _Worker | None = None
+        process.stdin.close()
+        process.stdout.close()
         if passed:
             for end in passed:  # the worker's and its twin's now
                 os.close(end)
-            self.twin = _Worker.__new__(_Worker)
-            self.twin.process, self.twin.twin = _Forked(), None
-            self.twin._connect(to_twin[1], from_twin[0], prepare)
+            self.twin = _Worker.__new__(_Worker)  # started by the worker, not here
+            self.twin._connect(_Forked(), to_twin[1], from_twin[0], prepare)
 
-    def _connect(self, send: int, receive: int, prepare: str | None) -> None:
-        """Talk to the worker over the pipe ends ``send`` and ``receive`` (file descriptors this
-        object owns from now on)."""
+    def _connect(self, process, send: int, receive: int, prepare: str | None) -> None:
+        """Talk to the worker ``process`` over the pipe ends ``send`` and ``receive`` (file
+        descriptors this object owns from now on)."""
         from multiprocessing.connection import Connection
 
+        self.process = process
+        #: The worker it forks once its ``prepare`` imports are made (``twin=True``), not started
+        #: by this process: it serves it over pipes made here, the worker's imports loaded.
+        self.twin: _Worker | None = None
         self.send_end = Connection(send, readable=False)
         self.receive_end = Connection(receive, writable=False)
         self.keys: set = set()
@@ -386,12 +386,11 @@ class _Worker:
 
         if self.twin is not None:
             self.twin.stop(timeout)
+        self._find_twin(timeout)
         if not self._writer.close(timeout):  # it does not read: stuck in a task
-            self._find_twin()
             self.process.kill()
             self._writer.close()
         self.send_end.close()
-        self._find_twin(timeout)
         try:
             self.process.wait(timeout=timeout)
         except subprocess.TimeoutExpired:
@@ -435,8 +434,7 @@ class _Forked:
 
     def __init__(self):
         self.pid: int | None = None
-        self._handle: int | None = None
-        self._is_gone = False
+        self._handle: int | None = None  # None too once the process is gone (``wait``)
 
     def found(self, pid) -> None:
         self.pid = int(pid)
@@ -448,7 +446,7 @@ class _Forked:
     def kill(self) -> None:
         import signal
 
-        if self._handle is not None and not self._is_gone:
+        if self._handle is not None:
             try:
                 signal.pidfd_send_signal(self._handle, signal.SIGKILL)
             except ProcessLookupError:
@@ -458,14 +456,14 @@ class _Forked:
         import select
         import subprocess
 
-        if self._handle is None or self._is_gone:
+        if self._handle is None:
             return
         poller = select.poll()
         poller.register(self._handle, select.POLLIN)  # readable once the process has exited
         if not poller.poll(None if timeout is None else max(0, int(timeout * 1000))):
             raise subprocess.TimeoutExpired("a meshcheck worker's twin", timeout)
-        self._is_gone = True
         os.close(self._handle)
+        self._handle = None
 
 
 class LocalPool(Executor):
