@@ -18,6 +18,8 @@ import numpy as np
 import pytest
 import trimesh
 from click.testing import CliRunner
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from step_writer import box, cut, cylinder, fuse, placement, write_step
 
 from meshcheck.cache import open_caches
@@ -307,6 +309,93 @@ def _every_candidate_classified(shape) -> float:
 def test_the_ball_is_the_largest_of_its_candidates_inside(make):
     shape = make()
     assert solids._largest_ball(shape) == _every_candidate_classified(shape) > 0.0
+
+
+# --------------------------------------------------------------------------------------------
+# The distance of two solids that share no volume, on the faces near each other only
+
+
+def _plate():
+    """A plate with a 3.2 mm hole and a pocket."""
+    return cut(box((-10, -10, 0), (10, 10, 4)), cylinder(3.2, -1.0, 5.0), box((4, 4, 2), (8, 8, 5)))
+
+
+def _bolt():
+    """A 3 mm shank under a 5 mm head."""
+    return fuse(cylinder(3.0, -2.0, 6.0), cylinder(5.0, 6.0, 8.0))
+
+
+def _placed(shape, matrix):
+    return shape.Moved(solids._location(matrix))
+
+
+def _extrema(found) -> tuple[float, list]:
+    distance, points = found
+    return distance, [(a.tolist(), b.tolist()) for a, b in points]
+
+
+def _shares_volume(shape_a, shape_b) -> bool:
+    from OCP.BRepAlgoAPI import BRepAlgoAPI_Common
+
+    return solids._volume(BRepAlgoAPI_Common(shape_a, shape_b).Shape()) > 0.0
+
+
+@pytest.mark.parametrize(
+    "other",
+    [
+        _placed(_bolt(), placement((0.1, 0.0, 0.0))),  # in the hole, 0.1 from its wall
+        _placed(_bolt(), placement((0.2, 0.0, -1.9))),  # on the wall, the head 0.1 over the top
+        _placed(_bolt(), placement((0.0, 0.0, -2.0))),  # the head resting on the plate
+        box((5, 5, 2.5), (7, 7, 3.5)),  # in the pocket, its box inside the plate's
+        _placed(_plate(), placement((0.0, 20.001, 0.0), 180.0)),  # side by side
+    ],
+)
+def test_the_distance_on_near_faces_is_the_solids_distance(other):
+    plate = _plate()
+    assert not _shares_volume(plate, other)
+    whole = _extrema(solids._distance(plate, other))
+    for may_nest in (False, True):
+        assert _extrema(solids._boundary_distance(plate, other, may_nest=may_nest)) == whole
+        assert _extrema(solids._boundary_distance(other, plate, may_nest=may_nest)) == _extrema(
+            solids._distance(other, plate)
+        )
+
+
+@settings(derandomize=True, deadline=None, max_examples=30)
+@given(
+    st.floats(-12.0, 12.0),
+    st.floats(-12.0, 12.0),
+    st.floats(0.0, 2.0),
+    st.floats(0.0, 180.0),
+    st.tuples(*[st.floats(-1.0, 1.0)] * 3).filter(lambda v: np.linalg.norm(v) > 0.1),
+)
+def test_the_distance_on_near_faces_is_the_solids_distance_over_the_plate(x, y, gap, angle, axis):
+    tilted = _placed(_bolt(), placement((x, y, 0.0), angle, axis))
+    lowest = solids._box(tilted)[0][2]
+    bolt = _placed(tilted, placement((0.0, 0.0, 4.0 + 1e-3 + gap - lowest)))
+    assert _extrema(solids._boundary_distance(_plate(), bolt, may_nest=False)) == _extrema(
+        solids._distance(_plate(), bolt)
+    )
+
+
+@settings(derandomize=True, deadline=None, max_examples=30)
+@given(st.floats(0.0, 0.19), st.floats(0.0, 2 * math.pi), st.floats(-1.9, 2.0), st.floats(0, 90))
+def test_the_distance_on_near_faces_is_the_solids_distance_in_the_hole(off, towards, z, spin):
+    move = (off * math.cos(towards), off * math.sin(towards), z)
+    bolt = _placed(_bolt(), placement(move, spin))
+    assert _extrema(solids._boundary_distance(_plate(), bolt)) == _extrema(
+        solids._distance(_plate(), bolt)
+    )
+
+
+def test_a_solid_inside_the_other_is_at_distance_0_when_no_boolean_said_otherwise():
+    # As solids: OpenCASCADE's distance finds one inside the other (0), not in compounds.
+    plate, inside = solids._solids(_plate())[0], solids._solids(box((-9, -9, 1), (-8, -8, 2)))[0]
+    assert _extrema(solids._boundary_distance(plate, inside)) == _extrema(
+        solids._distance(plate, inside)
+    )
+    assert solids._boundary_distance(plate, inside)[0] == 0.0
+    assert solids._boundary_distance(inside, plate)[0] == 0.0
 
 
 def test_pairs_timed_here_then_sent_to_workers_give_the_same_findings(tmp_path, monkeypatch):

@@ -26,6 +26,10 @@ BALL_SEEDS = 24
 SOLID_DEFLECTION = 2e-3
 #: The key of a process's solids (read from their BRep text) in a task's store.
 SHAPES = ("brep", "shapes")
+#: How much farther than the bound on two solids' distance a face's box may be and the face
+#: still be searched for its solutions (``_boundary_distance``): well above the 1e-7 within
+#: which ``BRepExtrema`` counts a solution.
+NEAR_MARGIN = 1e-5
 #: Why a pair is not decided when a product is not a closed solid.
 NOT_ONE_SOLID = "the part is not one closed solid of its file"
 
@@ -229,8 +233,8 @@ def decide(
         distance = 0.0  # they share volume: no distance to compute
     elif meeting is not None and _meets_within(meeting.section, tolerance):
         distance = 0.0  # the boundaries meet (within their own tolerances, at most ``tolerance``)
-    else:
-        distance, points = _distance(shape_a, shape_b)
+    else:  # no shared volume (the boolean says so, or the caller knows them apart)
+        distance, points = _boundary_distance(shape_a, shape_b, may_nest=not may_overlap)
     if distance > tolerance:
         if clearance is not None and distance <= clearance:
             centre, lower, upper = _box_of(points)
@@ -425,6 +429,163 @@ def _distance(shape_a, shape_b) -> tuple[float, list[tuple[np.ndarray, np.ndarra
         for k in range(1, extrema.NbSolution() + 1)
     ]
     return float(extrema.Value()), points
+
+
+def _boundary_distance(
+    shape_a, shape_b, *, may_nest: bool = True
+) -> tuple[float, list[tuple[np.ndarray, np.ndarray]]]:
+    """``_distance`` of two solids that share no volume, on the faces that can hold its
+    solutions only: the same distance and solutions, found among fewer faces (on a screw
+    5 um from its hole's wall, 6 and 4 faces of 433 and 77: 0.03 s against 0.34 s).
+
+    First a bound on the distance: the nearest two vertices, or the nearest farthest points of
+    two faces' boxes. A face is kept when its box comes within the bound (and ``NEAR_MARGIN``)
+    of a box of the other solid's faces: any pair of faces not both kept is farther apart than
+    that, so when the kept faces' distance is within the bound it is the solids' distance, and
+    every solution (``BRepExtrema``'s, within 1e-7 of it) is among them. Otherwise (a vertex
+    off its faces by its tolerance) that distance is the bound, and the faces are kept again.
+
+    ``may_nest``: no boolean has said that the solids share no volume, so one may hold the
+    other (the caller's screen would be wrong). When one's box holds the other's and a vertex
+    of the inner one is not outside the outer one, the whole ``_distance`` decides (0 for a
+    solid inside the other)."""
+    faces_a, lower_a, upper_a = _face_boxes(shape_a)
+    faces_b, lower_b, upper_b = _face_boxes(shape_b)
+    if not faces_a or not faces_b or (may_nest and _may_hold(shape_a, shape_b)):
+        return _distance(shape_a, shape_b)
+    bound = min(
+        _nearest_vertices(shape_a, shape_b), _nearest_farthest(lower_a, upper_a, lower_b, upper_b)
+    )
+    for _ in range(2):
+        kept_a, kept_b = _near_boxes(lower_a, upper_a, lower_b, upper_b, bound + NEAR_MARGIN)
+        if kept_a.all() and kept_b.all():
+            break
+        distance, points = _distance(_compound(faces_a, kept_a), _compound(faces_b, kept_b))
+        if distance <= bound:
+            return distance, points
+        bound = distance
+    return _distance(shape_a, shape_b)
+
+
+def _face_boxes(shape) -> tuple[list, np.ndarray, np.ndarray]:
+    """The faces of ``shape`` and their boxes' lower and upper corners ((n, 3) each), boxes
+    that hold them (enlarged by their tolerances)."""
+    from OCP.Bnd import Bnd_Box
+    from OCP.BRepBndLib import BRepBndLib
+    from OCP.TopAbs import TopAbs_FACE
+
+    faces = _sub_shapes(shape, TopAbs_FACE)
+    corners = np.empty((len(faces), 6))
+    for i, face in enumerate(faces):
+        box = Bnd_Box()
+        BRepBndLib.Add_s(face, box, False)
+        if box.IsVoid():  # no geometry to bound: kept, as if it were everywhere
+            corners[i] = (-math.inf,) * 3 + (math.inf,) * 3
+        else:
+            corners[i] = (*box.CornerMin().Coord(), *box.CornerMax().Coord())
+    return faces, corners[:, :3], corners[:, 3:]
+
+
+def _sub_shapes(shape, kind) -> list:
+    """The distinct sub-shapes of ``shape`` of one kind (``TopAbs_FACE``, ``TopAbs_VERTEX``)."""
+    from OCP.OCP.collections import IndexedMap_TopoDS_Shape_TopTools_ShapeMapHasher as Found
+    from OCP.TopExp import TopExp
+
+    found = Found()
+    TopExp.MapShapes_s(shape, kind, found)
+    return [found.FindKey(i) for i in range(1, found.Extent() + 1)]
+
+
+def _row_blocks(rows: int, columns: int):
+    """Slices of ``rows`` whose blocks of ``columns`` boxes or points stay small."""
+    step = max(1, (1 << 20) // max(columns, 1))
+    return (slice(i, i + step) for i in range(0, rows, step))
+
+
+def _near_boxes(lower_a, upper_a, lower_b, upper_b, reach: float) -> tuple[np.ndarray, np.ndarray]:
+    """Which boxes of ``a`` come within ``reach`` of a box of ``b``, and which of ``b`` do."""
+    kept_a = np.zeros(len(lower_a), dtype=bool)
+    kept_b = np.zeros(len(lower_b), dtype=bool)
+    for rows in _row_blocks(len(lower_a), len(lower_b)):
+        gaps = np.maximum(
+            np.maximum(lower_b[None] - upper_a[rows, None], lower_a[rows, None] - upper_b[None]),
+            0.0,
+        )
+        near = np.einsum("ijk,ijk->ij", gaps, gaps) <= reach * reach
+        kept_a[rows] = near.any(axis=1)
+        kept_b |= near.any(axis=0)
+    return kept_a, kept_b
+
+
+def _nearest_farthest(lower_a, upper_a, lower_b, upper_b) -> float:
+    """The least, over pairs of boxes, of the farthest two points of the two: no two faces in
+    those boxes are farther apart, so the solids are not."""
+    least = math.inf
+    for rows in _row_blocks(len(lower_a), len(lower_b)):
+        spans = np.maximum(
+            np.abs(upper_b[None] - lower_a[rows, None]), np.abs(upper_a[rows, None] - lower_b[None])
+        )
+        least = min(least, float(np.einsum("ijk,ijk->ij", spans, spans).min()))
+    return math.sqrt(least)
+
+
+def _nearest_vertices(shape_a, shape_b) -> float:
+    """The distance of the nearest two vertices of two shapes (inf when one has none)."""
+    a, b = _vertex_points(shape_a), _vertex_points(shape_b)
+    least = math.inf
+    for rows in _row_blocks(len(a), len(b)):
+        gaps = a[rows, None] - b[None]
+        least = min(least, float(np.einsum("ijk,ijk->ij", gaps, gaps).min(initial=math.inf)))
+    return math.sqrt(least)
+
+
+def _vertex_points(shape) -> np.ndarray:
+    from OCP.BRep import BRep_Tool
+    from OCP.TopAbs import TopAbs_VERTEX
+    from OCP.TopoDS import TopoDS
+
+    vertices = _sub_shapes(shape, TopAbs_VERTEX)
+    return np.array(
+        [BRep_Tool.Pnt_s(TopoDS.Vertex(v)).Coord() for v in vertices], dtype=np.float64
+    ).reshape(-1, 3)
+
+
+def _compound(faces: list, kept: np.ndarray):
+    """The ``kept`` faces, in their order, as one compound shape."""
+    from OCP.BRep import BRep_Builder
+    from OCP.TopoDS import TopoDS_Compound
+
+    compound, builder = TopoDS_Compound(), BRep_Builder()
+    builder.MakeCompound(compound)
+    for face in np.flatnonzero(kept):
+        builder.Add(compound, faces[face])
+    return compound
+
+
+def _may_hold(shape_a, shape_b) -> bool:
+    """Whether one solid may hold the other: its box holds the other's, and a vertex of the
+    other is not outside it (or the other has none)."""
+    from OCP.BRepClass3d import BRepClass3d_SolidClassifier
+    from OCP.TopAbs import TopAbs_OUT
+
+    lower_a, upper_a = _box(shape_a)
+    lower_b, upper_b = _box(shape_b)
+    # Boxes enlarged by the faces' tolerances: a solid inside the other may poke out by those.
+    slack = 1e-3 * max(np.linalg.norm(upper_a - lower_a), np.linalg.norm(upper_b - lower_b))
+    for outer, inner, holds in (
+        (shape_a, shape_b, (lower_a <= lower_b + slack).all() & (upper_b <= upper_a + slack).all()),
+        (shape_b, shape_a, (lower_b <= lower_a + slack).all() & (upper_a <= upper_b + slack).all()),
+    ):
+        if not holds:
+            continue
+        points = _vertex_points(inner)
+        if not len(points):  # nothing to classify
+            return True
+        classifier = BRepClass3d_SolidClassifier(outer)
+        classifier.Perform(_pnt(points[0]), 1e-9)
+        if classifier.State() != TopAbs_OUT:
+            return True
+    return False
 
 
 def _tessellation(shape) -> tuple[np.ndarray, np.ndarray]:
