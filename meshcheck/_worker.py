@@ -10,6 +10,9 @@ Messages from the parent::
 
     ("put", key, value)          keep ``value`` under ``key`` for later tasks
     ("run", function, needs, args)  call the named meshcheck function, reply with its result
+    ("withdraw",)                take back the task sent to run after the one running, if it
+                                 has not started: reply ``("withdrawn", True)``, or
+                                 ``("withdrawn", False)`` when it has (or there is none)
 
 Its first optional argument names a function (``module:name``) it calls first, before it says
 it is ready: the imports its tasks will need, made while the parent loads the inputs. The second,
@@ -20,7 +23,8 @@ freshly started worker would spend again). The twin is not the parent's child: i
 process id in its ready message, and the kernel reaps it (its worker ignores ``SIGCHLD``).
 
 Replies: ``("ready", pid)`` once at start, then ``("ok", result)`` or ``("error", text)`` per
-task. The worker exits when its standard input closes (the parent finished or died).
+task, and ``("withdrawn", ...)`` per withdraw, in the order they are made. The worker exits
+when its standard input closes (the parent finished or died).
 """
 
 from __future__ import annotations
@@ -52,9 +56,9 @@ def main() -> None:
     if len(sys.argv) > 2:  # the twin's pipes: fork it now, while this is the only thread
         receive, send = _fork_twin(receive, send, sys.argv[2])
     replies = Writer(send)
-    messages = _Messages(receive)
-    store: dict = {}
     replies.put(("ready", os.getpid()))
+    messages = _Messages(receive, replies)
+    store: dict = {}
     while True:
         message = messages.get()
         if message is None:  # the parent closed the stream, or is gone
@@ -113,13 +117,17 @@ class _Messages:
     The parent sends a busy worker its next task, with the shared values it needs, before it
     runs one of its own (``execute._LocalRun.run_here``), and reads no reply until that one is
     done: a value larger than the pipe's buffer, read only when this worker finished its task,
-    would block the parent that long."""
+    would block the parent that long.
 
-    def __init__(self, connection):
+    The parent may take that next task back, to run it itself when it has none left
+    (``execute._LocalRun.take_back``): this thread answers a withdraw itself, as soon as it runs
+    (a task inside one long OpenCASCADE call lets it run only when the call returns)."""
+
+    def __init__(self, connection, replies):
         import queue
         import threading
 
-        self.connection, self.queue = connection, queue.Queue()
+        self.connection, self.queue, self.replies = connection, queue.Queue(), replies
         threading.Thread(target=self._read, daemon=True).start()
 
     def get(self):
@@ -133,7 +141,20 @@ class _Messages:
             except (EOFError, OSError):
                 self.queue.put(None)
                 return
-            self.queue.put(message)
+            if message[0] == "withdraw":
+                self.replies.put(("withdrawn", self._withdraw()))
+            else:
+                self.queue.put(message)
+
+    def _withdraw(self) -> bool:
+        """Drop the task waiting to run, if the loop has not taken it: whether there was one."""
+        with self.queue.mutex:
+            waiting = self.queue.queue
+            for i in range(len(waiting) - 1, -1, -1):
+                if waiting[i] is not None and waiting[i][0] == "run":
+                    del waiting[i]
+                    return True
+        return False
 
 
 if __name__ == "__main__":

@@ -336,6 +336,7 @@ class _Worker:
         self.keys: set = set()
         self.task: int | None = None  # index of the task running, None when idle
         self.queued: int | None = None  # index of the task sent to run after it (``run_here``)
+        self.withdrawing: int | None = None  # the queued task asked back, until it answers
         self.started = 0.0
         self.is_ready = False
         self.prepare = prepare
@@ -670,6 +671,7 @@ class _LocalRun:
         self.pending = deque(sorted(range(len(tasks)), key=lambda i: -tasks[i].size))
         self.finished = 0
         self.here = here  # this process takes tasks too (``LocalPool.map``)
+        self.ran_here = False
         self.store: dict | None = None  # its store, as a worker's
 
     def results_when_done(self) -> list:
@@ -681,6 +683,8 @@ class _LocalRun:
                 self.start(worker)
         while self.finished < len(self.tasks):
             helps = self.here and self.pending
+            if self.here and not self.pending:
+                self.take_back()
             for worker in wait(list(pool.workers), timeout=0.0 if helps else self.wait_timeout()):
                 self.receive(worker)
             if self.here and self.pending:
@@ -694,19 +698,23 @@ class _LocalRun:
         return self.results
 
     def run_here(self) -> None:
-        """Run the smallest pending task in this process (the workers take the largest first).
+        """Run a pending task in this process: first the largest the workers left (they
+        started on the largest), so the two largest run side by side, not one after the other
+        in a worker; then the smallest, the workers taking the largest.
 
-        This process reads no message while it runs a task, so each busy worker is first sent
-        its next task as well, with the shared values it needs: it starts it as soon as it
-        finishes the one it runs, instead of waiting idle for this one (which may be as long as
-        its own when every task is large). A worker reads its messages as they come, while it
-        runs a task (``_worker._Messages``), so a large value does not block this process.
+        This process reads no message while it runs a task, so each busy worker is sent its
+        next task as well, with the shared values it needs: it starts it as soon as it finishes
+        the one it runs, instead of waiting idle for this one (which may be as long as its own
+        when every task is large). A worker reads its messages as they come, while it runs a
+        task (``_worker._Messages``), so a large value does not block this process. Once this
+        process has no task left, it takes back a next task not started (``take_back``).
         """
+        index = self.pending.pop() if self.ran_here else self.pending.popleft()
+        self.ran_here = True
         for worker in self.pool.workers:
-            if worker.task is None or worker.queued is not None or len(self.pending) < 2:
+            if worker.task is None or worker.queued is not None or not self.pending:
                 continue
             self.start(worker, queued=True)
-        index = self.pending.pop()
         task = self.tasks[index]
         if self.store is None:
             self.store = dict(self.shared)
@@ -716,6 +724,20 @@ class _LocalRun:
         finally:
             self.pool.here_task = None
         self.count_finished()
+
+    def take_back(self) -> None:
+        """Ask each busy worker for the task sent to run after its own (``run_here``), which
+        this process, with no task left, can start now instead of once the worker's is done:
+        the run ends no later, and sooner by as much as the worker's task has left to run. The
+        worker gives it back only if it has not started it (``receive``)."""
+        for worker in self.pool.workers:
+            if worker.queued is None or worker.withdrawing is not None:
+                continue
+            try:
+                worker.send(("withdraw",))
+            except (BrokenPipeError, OSError):  # gone: its stream's end says so
+                continue
+            worker.withdrawing = worker.queued
 
     def limit_of(self, index: int) -> float:
         task_limit = self.tasks[index].time_limit
@@ -744,14 +766,33 @@ class _LocalRun:
             raise RuntimeError(f"a meshcheck worker failed:\n{message[1]}")
         if message[0] == "ready":
             worker.ready(message)
+        elif message[0] == "withdrawn":
+            self.withdrawn(worker, message[1])
         else:
             self.results[worker.task] = message[1]
             self.count_finished()
             worker.task = None
-        if worker.queued is not None:  # already sent: it runs now
+        if worker.task is not None:
+            return
+        if worker.queued is not None:  # already sent: it runs now (unless it is given back)
             worker.task, worker.queued, worker.started = worker.queued, None, time.monotonic()
         elif self.pending:
             self.start(worker)
+
+    def withdrawn(self, worker: _Worker, given_back: bool) -> None:
+        """The worker's answer to ``take_back``: the task asked back is pending again when it
+        gives it back (it had not started it, whether or not its result for the task before
+        came first), and stays its own when it does not."""
+        index, worker.withdrawing = worker.withdrawing, None
+        if not given_back or index is None:
+            return
+        if worker.queued == index:
+            worker.queued = None
+        elif worker.task == index:  # taken as started when the result before it came
+            worker.task = None
+        else:
+            return
+        self.pending.append(index)  # the smallest end: this process takes it next
 
     def lost(self, worker: _Worker) -> None:
         if worker.queued is not None:  # sent, never started: another process takes it

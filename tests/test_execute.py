@@ -101,14 +101,14 @@ def test_here_this_process_works_beside_one_worker_fewer():
 def test_a_worker_starts_its_next_task_while_this_process_runs_a_long_one():
     """While this process runs a task it reads no reply; a worker whose reply is larger than
     the pipe holds must still go on to its next task at once, not wait for it."""
-    tasks = [  # the worker takes the two larger tasks, this process the long small one
+    tasks = [  # the worker takes the largest task and the smallest, this process the long one
         Task((0.5, 1 << 20), size=3),
-        Task((0.5, 1 << 20), size=2),
-        Task((2.0, 1 << 20), size=1),
+        Task((2.0, 1 << 20), size=2),
+        Task((0.5, 1 << 20), size=1),
     ]
     with LocalPool(2) as pool:
         pool.map("meshcheck.execute:echo", [Task((0,))])  # started and ready
-        (pid, first, _), (_, second, _), (here, long_one, _) = pool.map(
+        (pid, first, _), (here, long_one, _), (_, second, _) = pool.map(
             "meshcheck.execute:sleep_then_bulk", tasks, here=True
         )
     assert here == os.getpid() != pid
@@ -121,15 +121,15 @@ def test_a_busy_worker_is_sent_its_next_task_and_its_large_values_without_waitin
     values larger than a pipe holds: the worker reads them while it works, so neither it nor
     this process waits for the other."""
     shared = {key: bytes(4 << 20) for key in ("a", "b", "c")}
-    tasks = [  # the worker takes the two larger tasks, this process the long small one
+    tasks = [  # the worker takes the largest task and the smallest, this process the long one
         Task((1.5, "a"), needs=("a",), size=3),
-        Task((0.5, "b"), needs=("b",), size=2),
-        Task((3.0, "c"), needs=("c",), size=1),
+        Task((3.0, "c"), needs=("c",), size=2),
+        Task((0.5, "b"), needs=("b",), size=1),
     ]
     with LocalPool(2) as pool:
         pool.map("meshcheck.execute:echo", [Task((0,))])  # started and ready
         begun = time.time()
-        (pid, first, _), (_, second, _), (here, long_one, size) = pool.map(
+        (pid, first, _), (here, long_one, size), (_, second, _) = pool.map(
             "meshcheck.execute:sleep_then_shared", tasks, shared=shared, here=True
         )
     assert here == os.getpid() != pid and size == 4 << 20
@@ -138,20 +138,97 @@ def test_a_busy_worker_is_sent_its_next_task_and_its_large_values_without_waitin
     # after this process's 3 s one
 
 
+def test_with_no_task_left_this_process_takes_back_the_one_a_busy_worker_has_not_started():
+    """The task sent to a busy worker to run after its own is run here once this process has
+    none left: the map ends with the worker's task, not after both."""
+    tasks = [
+        Task((1.5,), size=3),  # the worker's
+        Task((0.1,), size=2),  # this process's
+        Task((0.6,), size=1),  # sent to the worker to run next, then taken back
+    ]
+    with LocalPool(2) as pool:
+        pool.map("meshcheck.execute:echo", [Task((0,))])  # started and ready
+        begun = time.monotonic()
+        pids = pool.map("meshcheck.execute:sleep_then_pid", tasks, here=True)
+        took = time.monotonic() - begun
+        worker = pool.workers[0]
+        assert pids == [worker.process.pid, os.getpid(), os.getpid()]
+        assert took < 2.0  # the worker's 1.5 s, not 2.1 s
+        assert worker.task is worker.queued is worker.withdrawing is None
+        # The worker serves the next map as before.
+        assert pool.map("meshcheck.execute:echo", [Task((k,), size=k) for k in range(4)]) == [
+            0,
+            1,
+            2,
+            3,
+        ]
+
+
+def test_this_process_starts_on_the_largest_task_the_worker_left_then_takes_the_smallest():
+    """The two largest tasks run side by side, not one after the other in the worker; the
+    worker is sent the next largest to run after its own, this process takes the smallest."""
+    tasks = [Task((0.1,), size=0), Task((1.0,), size=3), Task((1.0,), size=2), Task((0.1,), size=1)]
+    with LocalPool(2) as pool:
+        pool.map("meshcheck.execute:echo", [Task((0,))])  # started and ready
+        begun = time.monotonic()
+        pids = pool.map("meshcheck.execute:sleep_then_pid", tasks, here=True)
+        took = time.monotonic() - begun
+        worker = pool.workers[0].process.pid
+    assert pids == [os.getpid(), worker, os.getpid(), worker]
+    assert took < 1.6  # 1.1 s, not 2.0 s and more
+
+
+def test_a_task_taken_back_after_the_result_before_it_is_pending_again():
+    """The worker's answer to a withdraw may come after the result of the task before the one
+    asked back, which then looked started: it is pending again, and the worker idle."""
+    from meshcheck.execute import _LocalRun
+
+    tasks = [Task((k,), size=k) for k in range(3)]
+    with LocalPool(2) as pool:
+        pool.map("meshcheck.execute:echo", [Task((0,))])  # started and ready
+        run = _LocalRun(pool, "meshcheck.execute:echo", tasks, {}, None, None, 1, here=True)
+        worker = pool.workers[0]
+        run.pending.clear()
+        worker.task, worker.withdrawing = 1, 1  # its result before it came: taken as started
+        run.withdrawn(worker, True)
+        assert worker.task is None and list(run.pending) == [1]
+        worker.queued, worker.withdrawing = 2, 2  # asked back while queued
+        run.withdrawn(worker, True)
+        assert worker.queued is None and list(run.pending) == [1, 2]
+        worker.queued, worker.withdrawing = 0, 0  # started already: it stays the worker's
+        run.withdrawn(worker, False)
+        assert worker.queued == 0 and worker.withdrawing is None and list(run.pending) == [1, 2]
+        worker.queued = None
+
+
+def test_a_worker_gives_back_only_a_task_it_has_not_started():
+    import queue
+
+    from meshcheck._worker import _Messages
+
+    messages = _Messages.__new__(_Messages)
+    messages.queue = queue.Queue()
+    for message in (("put", "a", 1), ("run", "f", (), ()), ("put", "b", 2)):
+        messages.queue.put(message)
+    assert messages._withdraw() is True
+    assert list(messages.queue.queue) == [("put", "a", 1), ("put", "b", 2)]
+    assert messages._withdraw() is False
+
+
 def test_a_worker_holding_pythons_lock_does_not_hold_this_process_up():
     """A worker inside one long call that holds Python's lock (OpenCASCADE's booleans do) reads
     no message until it returns: the value of its next task, larger than a pipe holds, is
     written by a thread of this process, which runs its own task meanwhile."""
     shared = {key: bytes(4 << 20) for key in ("a", "b", "c")}
-    tasks = [  # the worker takes the two larger tasks, this process the small one
+    tasks = [  # the worker takes the largest task and the smallest, this process the other
         Task((120_000_000, "a"), needs=("a",), size=3),  # about 1.5 s in one call
-        Task((1, "b"), needs=("b",), size=2),
-        Task((1, "c"), needs=("c",), size=1),
+        Task((1, "c"), needs=("c",), size=2),
+        Task((1, "b"), needs=("b",), size=1),
     ]
     with LocalPool(2) as pool:
         pool.map("meshcheck.execute:echo", [Task((0,))])  # started and ready
         begun = time.time()
-        (pid, first, _), _, (here, small, size) = pool.map(
+        (pid, first, _), (here, small, size), _ = pool.map(
             "meshcheck.execute:hold_then_shared", tasks, shared=shared, here=True
         )
         ended = time.time()

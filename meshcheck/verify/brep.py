@@ -565,7 +565,8 @@ def _decide_all(bodies, jobs: list[_PairJob], executor) -> dict[str, PairVerdict
             ),
             needs=job.products,
             # The solids' BRep texts, roughly what intersecting them costs: the workers start
-            # on the costliest pairs, this process takes the cheapest (``LocalPool.map``).
+            # on the costliest pairs, this process on the costliest they left, then the
+            # cheapest (``LocalPool.map``).
             size=len(shared[job.products[0]]) + len(shared[job.products[1]]),
         )
         for job in jobs

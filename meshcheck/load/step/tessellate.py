@@ -286,17 +286,11 @@ def _meshed_products(
     digests = {key: checksum(found.texts[key]).hex() for key in named}
     stored = {key: ("step-product", digests[key]) for key in keys}
     shared = {stored[key]: found.texts[key] for key in keys}
-    sizes = [found.costs[key] for key in keys]
     in_workers = _meshes_in_workers(executor, len(keys))
-    if in_workers and len(keys) > executor.jobs:
-        # The workers start on the largest products and this process on the smallest
-        # (``LocalPool.map``): the largest after the workers' goes last, so this process starts
-        # on it instead of leaving two large ones to one worker (the Bowden module's plates).
-        sizes[sorted(range(len(keys)), key=lambda k: -sizes[k])[executor.jobs - 1]] = -1
     tasks = []
-    for key, size in zip(keys, sizes, strict=True):
+    for key in keys:  # the workers and this process start on the largest (``LocalPool.map``)
         args = (stored[key], f"{path}#{named[key].name}", to_unit, deflection, angular)
-        tasks.append(Task(args, needs=(stored[key],), size=size))
+        tasks.append(Task(args, needs=(stored[key],), size=found.costs[key]))
     runner = executor if in_workers else Executor()
     function = "meshcheck.load.step.tessellate:mesh_task"
     results = dict(zip(keys, runner.map(function, tasks, shared=shared, here=True), strict=True))
