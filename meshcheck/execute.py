@@ -21,6 +21,7 @@ keep per-process memos under keys of its own).
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import importlib
 import math
@@ -340,6 +341,9 @@ class _Worker:
         self.started = 0.0
         self.is_ready = False
         self.prepare = prepare
+        #: Sent imports to make besides ``prepare`` (``prepare_twin_early``): their reply is
+        #: still to come (``preparing``), or has come (``more_prepared``).
+        self.preparing = self.more_prepared = False
         self._writer = Writer(self.send_end)
 
     def ready(self, message: tuple) -> None:
@@ -510,16 +514,19 @@ class LocalPool(Executor):
     def adopt(self, worker: _Worker) -> bool:
         """Take ``worker`` (ready and idle: an early one whose task was taken, ``take_early``)
         as one of the pool's, when the pool has room for it (one worker fewer than ``jobs``:
-        this process takes tasks too), and its twin, if any, into ``reserve``. False when it
-        has no room."""
+        this process takes tasks too), and its twin, if any, into ``reserve``; a twin sent more
+        imports to make (``prepare_twin_early``) takes the worker's place, and the worker waits
+        in ``reserve``. False when it has no room."""
         if len(self.workers) >= self.jobs - 1:
             return False
         called = frozenset({worker.prepare} - {None})
         self.prepared = called if not self.workers else self.prepared & called
+        twin, worker.twin = worker.twin, None
+        if twin is not None and twin.more_prepared:  # it serves; its worker waits in reserve
+            worker, twin = twin, worker
         self.workers.append(worker)
-        if worker.twin is not None:
-            self.reserve.append(worker.twin)
-            worker.twin = None
+        if twin is not None:
+            self.reserve.append(twin)
         return True
 
     def another(self) -> _Worker:
@@ -647,6 +654,32 @@ def take_early(key, pool: Executor | None = None):
     return message[1]
 
 
+def prepare_twin_early(key, function: str) -> bool:
+    """Have the twin of the worker started under ``key`` call ``function`` (imports its
+    worker's task does not need) while that task runs, when it still runs: the twin then takes
+    the worker's place in the pool (``LocalPool.adopt``). Whether it was sent."""
+    worker = _EARLY.get(key)
+    if worker is None or worker.twin is None:
+        return False
+    try:
+        if not worker.is_ready and worker.receive_end.poll(0):
+            worker.ready(worker.receive_end.recv())  # its first message says it is ready
+        if worker.is_ready and worker.receive_end.poll(0):  # its result is in: too late
+            return False
+        worker.twin.send(("run", "meshcheck.execute:call_prepare", (), (function,)))
+    except (EOFError, OSError):  # gone: ``take_early`` finds out
+        return False
+    worker.twin.preparing = worker.twin.more_prepared = True
+    return True
+
+
+def call_prepare(store: dict, function: str) -> None:
+    """A task that calls a prepare function (``prepare_twin_early``); a failure is the later
+    task's to meet, as a worker's failed prepare is (``_worker.main``)."""
+    with contextlib.suppress(Exception):
+        resolve(function)()
+
+
 def has_early(key) -> bool:
     """Whether a worker started under ``key`` (``start_early``) has a result to take."""
     return key in _EARLY
@@ -766,6 +799,8 @@ class _LocalRun:
             raise RuntimeError(f"a meshcheck worker failed:\n{message[1]}")
         if message[0] == "ready":
             worker.ready(message)
+        elif message[0] == "ok" and worker.preparing:  # the imports it was sent first (its
+            worker.preparing = False  # ``prepare_twin_early``) are made
         elif message[0] == "withdrawn":
             self.withdrawn(worker, message[1])
         else:

@@ -375,6 +375,43 @@ def test_a_twin_is_killed_with_its_unclaimed_worker_and_when_it_overruns():
     assert time.monotonic() - started < 25
 
 
+@pytest.mark.linux_only
+def test_a_twin_sent_more_imports_while_its_worker_works_takes_its_place():
+    """``prepare_twin_early`` while the early worker's task runs: the twin imports what the
+    worker's task did not need (trimesh, for the welds of a large STEP file's meshes), beside
+    it, and serves the pool in its place; the worker waits in reserve. Once the worker's
+    result is in, the twin is not sent it (it would be late, not early)."""
+    from meshcheck.execute import prepare_twin_early, start_early, take_early
+
+    preload = "meshcheck.load.step.tessellate:preload"
+    welding = "meshcheck.load.step.tessellate:preload_welding"
+    start_early("p", "meshcheck.execute:sleep_then_pid", (3.0,), prepare=preload, twin=True)
+    assert prepare_twin_early("p", welding)
+    with LocalPool(2) as pool:
+        first = take_early("p", pool)
+        (twin,) = pool.workers
+        assert pool.reserve[0].process.pid == first != twin.process.pid
+        asked = [Task(("trimesh",))]  # one task: the pool's one worker takes it
+        assert pool.map("meshcheck.execute:is_imported", asked, grow=False) == [True]
+        assert twin.preparing is False and twin.task is None
+        assert pool.map("meshcheck.execute:sleep_then_pid", [Task((0.0,))] * 3, here=True)
+    assert _is_gone(first) and _is_gone(twin.process.pid)
+
+    start_early("q", "meshcheck.execute:sleep_then_pid", (0.0,), prepare=preload, twin=True)
+    from meshcheck.execute import _EARLY
+
+    worker = _EARLY["q"]
+    while not worker.receive_end.poll(0.05) or not worker.is_ready:  # its result in
+        if worker.receive_end.poll(0):
+            worker.ready(worker.receive_end.recv())
+    assert not prepare_twin_early("q", welding)
+    with LocalPool(2) as pool:
+        first = take_early("q", pool)
+        assert [w.process.pid for w in pool.workers] == [first] and len(pool.reserve) == 1
+        asked = [Task(("trimesh",))]
+        assert pool.map("meshcheck.execute:is_imported", asked, grow=False) == [False]
+
+
 def test_no_twin_where_this_process_cannot_hold_one_by_a_pidfd(monkeypatch):
     """A twin that could be neither killed nor awaited (no pidfds: macOS, Windows, a sandbox
     refusing them) is not forked: the early worker is the pool's one worker, as without it."""

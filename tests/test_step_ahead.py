@@ -73,6 +73,26 @@ def test_a_file_read_ahead_is_the_file_read_here_and_its_worker_joins_the_pool(m
     _same_assembly(here, there)
 
 
+def test_a_large_files_twin_imports_the_welding_while_the_worker_reads_and_serves(monkeypatch):
+    """A large file's products are meshed here and in one worker, which welds them with
+    trimesh: the twin imports it while the worker reads, and takes the worker's place in the
+    pool (the worker waits in reserve). The meshes are the same."""
+    here = read_step(BOX_SIDES)
+    for module in (ahead, read):
+        monkeypatch.setattr(module, "PREPARE_BYTES", 1)  # every file is large
+    ahead.start([BOX_SIDES], _settings())
+    with LocalPool(2) as pool:
+        there = read_step(BOX_SIDES, executor=pool)
+        if _has_pidfds():  # a twin only where it can be killed through a pidfd
+            (serving,) = pool.workers
+            assert serving.is_twin and serving.more_prepared
+            assert [w.is_twin for w in pool.reserve] == [False]
+            asked = [Task(("trimesh",))]
+            assert pool.map("meshcheck.execute:is_imported", asked, grow=False) == [True]
+            assert not serving.preparing  # its reply to the imports was read first
+    _same_assembly(here, there)
+
+
 def test_other_bytes_than_the_worker_read_are_read_here():
     with open(SAMPLE, "rb") as f:
         other = f.read()
@@ -140,13 +160,6 @@ def test_nothing_is_read_ahead_for_one_process_a_cluster_or_no_step_file(monkeyp
     plate = os.path.join(HERE, "..", "sample_meshes", "plate.stl")
     ahead.start([str(tmp_path), plate], _settings())  # a folder's files are not looked for
     assert not has_early(ahead._key(str(tmp_path / "in_a_folder.step")))
-
-    def removed(path):  # the file went away after it was found: the load stage says so
-        raise FileNotFoundError(path)
-
-    monkeypatch.setattr(ahead.os.path, "getsize", removed)
-    ahead.start([BOX_SIDES], _settings())
-    assert not has_early(key)
 
 
 def test_the_command_reports_the_same_bytes_with_and_without_reading_ahead(tmp_path):

@@ -14,10 +14,14 @@ triangulates too: BRepMesh's triangles, face by face, which need no trimesh. Thi
 meanwhile imports the rest (and OpenCASCADE, for a large file, whose products it meshes too);
 the load stage takes the worker's products (``take``), welds the triangles (or meshes the
 products), and the worker stays in the run's pool with OpenCASCADE loaded, for the pairs decided
-on the B-rep. A small file's pairs are all its to decide: this process does not load
-OpenCASCADE for them (``verify.brep._left_to_workers``). For such a file the worker forks a
-twin as soon as OpenCASCADE is loaded (``execute._Worker``): a second worker with the import
-made, which the pool keeps in reserve and which shares the pairs with it.
+on the B-rep. The worker forks a twin as soon as OpenCASCADE is loaded (``execute._Worker``):
+a second worker with the import made, which the pool keeps in reserve. A small file's pairs are
+all theirs to decide: this process does not load OpenCASCADE for them
+(``verify.brep._left_to_workers``), and the twin shares them with the worker. A large file's
+products are meshed here and in one worker, which welds them with trimesh: this process has
+the twin import it (``execute.prepare_twin_early``) once its own OpenCASCADE is loaded, while
+the worker still reads and the second core would wait, and the twin takes the worker's place
+in the pool.
 
 What it cannot change
 ---------------------
@@ -38,7 +42,14 @@ import hashlib
 import os
 from typing import TYPE_CHECKING
 
-from ...execute import has_early, local_jobs, start_early, stop_early, take_early
+from ...execute import (
+    has_early,
+    local_jobs,
+    prepare_twin_early,
+    start_early,
+    stop_early,
+    take_early,
+)
 from ...units import DEFAULT_UNIT, given_units
 from ..formats import STEP_EXTENSIONS
 from ..limits import Limits, read_file
@@ -48,6 +59,7 @@ from .tessellate import (
     MAX_STEP_TRIANGLES,
     PREPARE,
     PREPARE_BYTES,
+    PREPARE_WELDING,
     Products,
     brep_text,
     estimated_triangles,
@@ -83,11 +95,9 @@ def start(paths: list[str], settings: Settings) -> None:
             # it took some): the worker meshes a small file only within it.
             budget = min(settings.max_triangles or Limits().max_triangles, MAX_STEP_TRIANGLES)
             try:
-                # A small file's pairs are its workers' alone (this process does not load
-                # OpenCASCADE for it): the worker forks a twin as soon as OpenCASCADE is loaded.
-                twin = os.path.getsize(path) < PREPARE_BYTES
+                # The worker forks a twin as soon as OpenCASCADE is loaded (``take``).
                 start_early(
-                    _key(path), READ_TASK, (path, options, budget), prepare=PREPARE, twin=twin
+                    _key(path), READ_TASK, (path, options, budget), prepare=PREPARE, twin=True
                 )
             except OSError:  # gone since, or no process or pipe to be had: the load stage
                 pass  # reads it, or says why it cannot
@@ -135,6 +145,10 @@ def take(path: str, data: bytes, settings: tuple, executor: Executor | None) -> 
     if len(data) >= PREPARE_BYTES:
         import OCP.TopoDS  # noqa: F401
 
+        # Its products are meshed here and in one worker, which welds them with trimesh and
+        # scipy (0.4-0.5 s of CPU to import): the worker's twin imports them now, while the
+        # worker reads and this process waits, and takes the worker's place in the pool.
+        prepare_twin_early(key, PREPARE_WELDING)
     result = take_early(key, executor)
     if result is None:
         return None

@@ -86,6 +86,8 @@ MAX_STEP_TRIANGLES = 5_000_000
 #: What a run with large STEP files has its workers import while it reads them (``preload``;
 #: ``meshcheck.verify.brep.prepare_workers``).
 PREPARE = "meshcheck.load.step.tessellate:preload"
+#: ... and what a worker that meshes their products imports besides (``preload_welding``).
+PREPARE_WELDING = "meshcheck.load.step.tessellate:preload_welding"
 #: STEP files of this many bytes together have their workers started as the run starts
 #: (``meshcheck.verify.brep.prepare_workers``), and a file this large has its products meshed in
 #: them: the fastener-heavy exports (2.3-3.4 MB) spend 10-30 s of CPU on the B-rep, where the
@@ -376,8 +378,14 @@ def _meshed_text(text: bytes, to_unit: float, deflection: float, angular: float)
 def preload() -> None:
     """What a worker of a run with large STEP files imports while the files are read
     (``PREPARE``): OpenCASCADE's bindings (one extension, 0.7-1.0 s of CPU) for the B-rep and
-    the mesher, and trimesh with this module for ``mesh_task``."""
+    the mesher."""
     import OCP.TopoDS  # noqa: F401
+
+
+def preload_welding() -> None:
+    """What ``mesh_task`` imports besides (``PREPARE_WELDING``): trimesh and scipy, with which
+    ``product_mesh`` welds the triangles (0.4-0.5 s of CPU)."""
+    from ... import mesh  # noqa: F401
 
 
 def _honoured_deflection(
