@@ -6,6 +6,7 @@ errors stay quick.
 
 from __future__ import annotations
 
+import contextlib
 import gc
 import os
 import sys
@@ -371,13 +372,14 @@ def main(**options):
     try:
         _run(click.get_current_context(), **options)
     except KeyboardInterrupt:
-        click.echo("error: interrupted", err=True)
-        sys.exit(130)
+        _interrupted()
     except click.exceptions.ClickException:
         raise
     except MeshcheckError as exc:
         _fail(exc)
     except Exception as exc:
+        if _is_interrupt(exc):  # Ctrl-C inside an extension's initialisation: an ImportError
+            _interrupted()
         exhausted = resource_error(exc)
         if exhausted is None:
             _internal_error(exc)
@@ -550,8 +552,8 @@ def _check(files, settings, baseline, export_path):
     ahead = _read_ahead(files, settings)  # a STEP file read while the pipeline is imported
     error = None
     try:
-        with Progress("starting", 0):  # numba, trimesh, scipy: seconds on a cold disk
-            from .pipeline import check
+        with Progress("starting", 0), _interrupts_held():  # numba, trimesh, scipy: seconds
+            from .pipeline import check  # on a cold disk
 
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", MeshcheckWarning)
@@ -715,6 +717,48 @@ def _fail(exc: MeshcheckError):
     """Print ``error: PATH: reason`` on stderr, as one line, and exit with the error's status."""
     click.echo(f"error: {printable(str(exc))}", err=True)
     sys.exit(int(exc.exit_status))
+
+
+def _interrupted():
+    click.echo("error: interrupted", err=True)
+    sys.exit(130)
+
+
+def _is_interrupt(exc: BaseException) -> bool:
+    """Whether ``exc`` was raised because of a Ctrl-C: a ``KeyboardInterrupt`` among its
+    causes (pybind11 turns one met while an extension initialises, OpenCASCADE's, into
+    ``ImportError("initialization failed")``)."""
+    seen: set[int] = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
+@contextlib.contextmanager
+def _interrupts_held():
+    """Hold Ctrl-C (SIGINT) back while the block runs, and raise it when the block ends:
+    trimesh imports its optional modules under ``except BaseException``, so a Ctrl-C raised
+    during its import would be swallowed and the run go on, a module short. A handler of
+    this process's notes the Ctrl-C instead of raising it (the signal is not masked: an
+    extension that sets OpenCASCADE's own handlers as it loads would receive a masked one as
+    it unmasks it, and crash). Outside the main thread nothing is held."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    pressed: list[bool] = []
+    before = signal.signal(signal.SIGINT, lambda *_: pressed.append(True))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, before)
+    if pressed:
+        raise KeyboardInterrupt
 
 
 def _internal_error(exc: BaseException):

@@ -7,6 +7,7 @@ import os
 import shutil
 import subprocess
 import sys
+import time
 from pathlib import Path
 from xml.etree import ElementTree
 
@@ -374,3 +375,39 @@ def test_split_checks_shells_against_each_other(tmp_path):
     assert [(r["a"], r["b"], r["status"]) for r in doc["results"]] == [
         (f"{path}#1", f"{path}#2", "interference"),
     ]
+
+
+def test_a_ctrl_c_during_an_import_that_catches_everything_still_ends_the_run():
+    """trimesh imports its optional modules under ``except BaseException``: a Ctrl-C raised
+    there would be swallowed and the run go on. While the pipeline is imported it is noted,
+    and raised once the import is over."""
+    import signal
+
+    from meshcheck.cli import _interrupts_held
+
+    swallowed = []
+    with pytest.raises(KeyboardInterrupt), _interrupts_held():
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.05)  # the handler runs between two bytecodes
+        except BaseException as exc:  # an optional import's guard
+            swallowed.append(exc)
+    assert swallowed == []
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_an_error_a_ctrl_c_caused_is_an_interruption_not_a_bug():
+    from meshcheck.cli import _is_interrupt
+
+    try:
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as exc:  # what pybind11 does in an extension's initialisation
+            raise ImportError("initialization failed") from exc
+    except ImportError as exc:
+        assert _is_interrupt(exc)
+    assert not _is_interrupt(ImportError("initialization failed"))
+    looped = ValueError("a")
+    looped.__context__ = ValueError("b")
+    looped.__context__.__context__ = looped
+    assert not _is_interrupt(looped)
