@@ -20,7 +20,9 @@ it is ready: the imports its tasks will need, made while the parent loads the in
 imports are made, and before it starts a thread, the worker forks, and the twin serves the
 parent over those two pipes with the imports already made (OpenCASCADE: 0.6-0.8 s of CPU a
 freshly started worker would spend again). The twin is not the parent's child: it names its
-process id in its ready message, and the kernel reaps it (its worker ignores ``SIGCHLD``).
+process id in its ready message; its worker reaps it as it leaves, once the parent has stopped
+the twin first (``LocalPool.close``), so the twin's CPU time counts in the worker's children and
+so in the parent's.
 
 Replies: ``("ready", pid)`` once at start, then ``("ok", result)`` or ``("error", text)`` per
 task, and ``("withdrawn", ...)`` per withdraw, in the order they are made. The worker exits
@@ -83,18 +85,15 @@ def _fork_twin(receive, send, pipes: str) -> tuple:
     by ``pipes``) in the twin, its own here. Each closes the other's ends, so either one's exit
     is the end of its stream for the parent. A failed fork leaves the twin's stream closed: the
     parent sees a worker that died before it was ready."""
-    import signal
     from multiprocessing.connection import Connection
 
     read, write = (int(end) for end in pipes.split(","))
-    signal.signal(signal.SIGCHLD, signal.SIG_IGN)  # the twin is reaped as it exits
     sys.stderr.flush()
     try:
         pid = os.fork()
     except OSError:
         pid = -1
     if pid == 0:
-        signal.signal(signal.SIGCHLD, signal.SIG_DFL)
         receive.close()
         send.close()
         return Connection(read, writable=False), Connection(write, readable=False)
@@ -106,8 +105,15 @@ def _fork_twin(receive, send, pipes: str) -> tuple:
 def _leave(status: int = 0) -> None:
     """End the process now, without the interpreter's teardown: it holds nothing to save (every
     reply is written), and freeing what its tasks kept (OpenCASCADE's solids, meshes) one object
-    at a time is time its parent waits for (``LocalPool.close``)."""
+    at a time is time its parent waits for (``LocalPool.close``). Its twin, when it has exited
+    (the parent stops twins first), is reaped first: its CPU time then counts in this process's
+    children, which the parent reaps in turn (a benchmark's ``RUSAGE_CHILDREN``)."""
     sys.stderr.flush()
+    try:
+        while os.waitpid(-1, os.WNOHANG)[0]:
+            pass
+    except ChildProcessError:  # no child (left)
+        pass
     os._exit(status)
 
 

@@ -223,6 +223,15 @@ def hold_then_shared(store: dict, count: int, key) -> tuple[int, float, int]:
     return os.getpid(), started, len(store[key])
 
 
+def spin_then_cpu(store: dict, seconds: float) -> tuple[int, float]:
+    """A task that spins for ``seconds`` of CPU, then returns the id of its process and the CPU
+    seconds that process has used (for tests)."""
+    end = time.process_time() + seconds
+    while time.process_time() < end:
+        pass
+    return os.getpid(), time.process_time()
+
+
 def is_imported(store: dict, module: str) -> bool:
     """A task that says whether its process has imported ``module`` (for tests)."""
     return module in sys.modules

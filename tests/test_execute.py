@@ -412,6 +412,29 @@ def test_a_twin_sent_more_imports_while_its_worker_works_takes_its_place():
         assert pool.map("meshcheck.execute:is_imported", asked, grow=False) == [False]
 
 
+@pytest.mark.linux_only
+def test_a_twins_cpu_time_counts_in_this_processs_children():
+    """The twin is its worker's child: the worker reaps it as it leaves (the pool stops twins
+    first), so its CPU time counts in the worker's and then in this process's children, where a
+    benchmark measures a run's CPU."""
+    import resource
+
+    from meshcheck.execute import start_early, take_early
+
+    def children() -> float:
+        usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+        return usage.ru_utime + usage.ru_stime
+
+    before = children()
+    preload = "meshcheck.load.step.tessellate:preload"
+    start_early("c", "meshcheck.execute:sleep_then_pid", (0.0,), prepare=preload, twin=True)
+    with LocalPool(2) as pool:
+        take_early("c", pool)
+        spun = pool.map("meshcheck.execute:spin_then_cpu", [Task((0.5,))] * 2, grow=False)
+        assert len({pid for pid, _ in spun}) == 2  # the worker and its twin
+    assert children() - before >= sum(cpu for _, cpu in spun)
+
+
 def test_no_twin_where_this_process_cannot_hold_one_by_a_pidfd(monkeypatch):
     """A twin that could be neither killed nor awaited (no pidfds: macOS, Windows, a sandbox
     refusing them) is not forked: the early worker is the pool's one worker, as without it."""
