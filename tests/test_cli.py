@@ -377,6 +377,7 @@ def test_split_checks_shells_against_each_other(tmp_path):
     ]
 
 
+@pytest.mark.posix_only  # os.kill(SIGINT) ends a process on Windows
 def test_a_ctrl_c_during_an_import_that_catches_everything_still_ends_the_run():
     """trimesh imports its optional modules under ``except BaseException``: a Ctrl-C raised
     there would be swallowed and the run go on. While the pipeline is imported it is noted,

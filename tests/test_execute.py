@@ -413,6 +413,7 @@ def test_a_twin_sent_more_imports_while_its_worker_works_takes_its_place():
 
 
 @pytest.mark.linux_only
+@pytest.mark.posix_only
 def test_a_twins_cpu_time_counts_in_this_processs_children():
     """The twin is its worker's child: the worker reaps it as it leaves (the pool stops twins
     first), so its CPU time counts in the worker's and then in this process's children, where a
