@@ -713,7 +713,6 @@ class _LocalRun:
         self.pending = deque(sorted(range(len(tasks)), key=lambda i: -tasks[i].size))
         self.finished = 0
         self.here = here  # this process takes tasks too (``LocalPool.map``)
-        self.ran_here = False
         self.store: dict | None = None  # its store, as a worker's
 
     def results_when_done(self) -> list:
@@ -751,8 +750,8 @@ class _LocalRun:
         task (``_worker._Messages``), so a large value does not block this process. Once this
         process has no task left, it takes back a next task not started (``take_back``).
         """
-        index = self.pending.pop() if self.ran_here else self.pending.popleft()
-        self.ran_here = True
+        first = self.store is None  # made for the first task here, below
+        index = self.pending.popleft() if first else self.pending.pop()
         for worker in self.pool.workers:
             if worker.task is None or worker.queued is not None or not self.pending:
                 continue
