@@ -539,7 +539,7 @@ def _baseline(path):
 
 def _check(files, settings, baseline, export_path):
     """Run the check (and the export); print its warnings; exit on an error, after them."""
-    from .execute import RUN_ADDRESS_SPACE, address_space_left
+    from .execute import RUN_ADDRESS_SPACE, address_space_left, stop_spare
     from .progress import Progress
 
     left = address_space_left()
@@ -550,6 +550,7 @@ def _check(files, settings, baseline, export_path):
             f"a check needs {RUN_ADDRESS_SPACE >> 20} MiB",
         )
     ahead = _read_ahead(files, settings)  # a STEP file read while the pipeline is imported
+    stop_spare()  # a worker the command started for a read it does not make (``__main__``)
     error = None
     try:
         with Progress("starting", 0), _interrupts_held():  # numba, trimesh, scipy: seconds

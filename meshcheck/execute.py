@@ -629,9 +629,38 @@ def start_early(
     7
     """
     stop_early(key)
-    worker = _Worker(prepare, twin=twin)
+    worker = _SPARE.pop((prepare, twin), None) or _Worker(prepare, twin=twin)
+    stop_spare()  # one left, started for another task: not wanted
     worker.send(("run", function, (), args))
     _EARLY[key] = worker
+
+
+#: A worker started before the command knew its task (``start_spare``), by its ``prepare`` and
+#: ``twin``.
+_SPARE: dict[tuple[str | None, bool], _Worker] = {}
+
+
+def start_spare(prepare: str | None = None, *, twin: bool = False) -> None:
+    """Start a worker with no task yet: it calls ``prepare`` (imports) while this process reads
+    its command line. The next ``start_early`` with the same ``prepare`` and ``twin`` gives it
+    its task instead of starting a worker (0.1 s later, after the command line's imports); any
+    other ``start_early``, or ``stop_spare``, stops it.
+
+    Examples
+    --------
+    >>> start_spare()
+    >>> start_early("example", "meshcheck.execute:echo", (8,))
+    >>> take_early("example")
+    8
+    """
+    stop_spare()
+    _SPARE[(prepare, twin)] = _Worker(prepare, twin=twin)
+
+
+def stop_spare() -> None:
+    """Kill the spare worker (``start_spare``) no task was given to."""
+    while _SPARE:
+        _SPARE.popitem()[1].kill()
 
 
 def take_early(key, pool: Executor | None = None):

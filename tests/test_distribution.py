@@ -32,7 +32,7 @@ def test_pyproject_builds_the_distribution_the_code_names():
     with open(ROOT / "pyproject.toml", "rb") as f:
         project = tomllib.load(f)["project"]
     assert project["name"] == meshcheck.DISTRIBUTION == "meshcheck-assembly"
-    assert project["scripts"] == {"meshcheck": "meshcheck.cli:main"}
+    assert project["scripts"] == {"meshcheck": "meshcheck.__main__:main"}
 
 
 def test_version_is_read_under_the_distribution_name():

@@ -309,6 +309,38 @@ def test_a_worker_started_early_joins_the_pool_that_takes_its_result():
     assert process.wait(timeout=5) is not None and not has_early("c")
 
 
+def test_a_spare_worker_takes_the_first_early_task_it_was_started_for():
+    """``start_spare`` starts a worker before its task is known: the next ``start_early`` with
+    its ``prepare`` and ``twin`` sends the task to it, without a second start; one with other
+    imports, or ``stop_spare``, kills it."""
+    from meshcheck.execute import (
+        _EARLY,
+        _SPARE,
+        start_early,
+        start_spare,
+        stop_early,
+        stop_spare,
+        take_early,
+    )
+
+    preload = "meshcheck.load.step.tessellate:preload"
+    start_spare(preload)
+    spare = _SPARE[(preload, False)].process
+    start_early("a", "meshcheck.execute:sleep_then_pid", (0.0,), prepare=preload)
+    assert _EARLY["a"].process is spare and not _SPARE
+    assert take_early("a") == spare.pid
+    start_spare(preload)
+    other = _SPARE[(preload, False)].process
+    start_early("b", "meshcheck.execute:echo", (2,))  # no imports asked: a worker of its own
+    assert other.wait(timeout=5) is not None and not _SPARE
+    assert _EARLY["b"].process is not other and take_early("b") == 2
+    start_spare()
+    unused = _SPARE[(None, False)].process
+    stop_spare()
+    assert unused.wait(timeout=5) is not None and not _SPARE
+    stop_early()
+
+
 def _parent(pid: int) -> int:
     with open(f"/proc/{pid}/stat", encoding="ascii") as f:
         return int(f.read().rsplit(")", 1)[1].split()[1])

@@ -211,3 +211,99 @@ def test_the_command_reads_its_first_step_file_ahead(monkeypatch, tmp_path):
         cli.main(args, standalone_mode=True)
     assert done.value.code == 1
     assert json.loads(out.read_text())["summary"]["interference"] > 0
+
+
+@pytest.mark.parametrize(
+    ("arguments", "reads"),
+    [
+        ([BOX_SIDES], True),
+        ([BOX_SIDES, "-j", "2"], True),
+        ([BOX_SIDES, "--jobs=2", "--format", "json"], True),
+        (["--", BOX_SIDES], True),
+        ([BOX_SIDES, "-j", "1"], False),
+        ([BOX_SIDES, "-j1"], False),
+        ([BOX_SIDES, "--jobs=1"], False),
+        ([BOX_SIDES, "-j", "many"], False),  # a usage error
+        ([BOX_SIDES, "--scheduler", "tcp://127.0.0.1:1"], False),
+        ([BOX_SIDES, "--help"], False),
+        ([BOX_SIDES, "--version"], False),
+        ([os.path.join(HERE, "missing.step")], False),
+        ([os.path.join(HERE, "..", "sample_meshes", "plate.stl")], False),
+        ([], False),
+    ],
+)
+def test_the_command_guesses_from_its_arguments_whether_it_reads_a_step_file_ahead(
+    monkeypatch, arguments, reads
+):
+    from meshcheck import __main__, execute
+
+    monkeypatch.setattr(execute, "local_jobs", lambda jobs: min(jobs or 2, 2))
+    monkeypatch.delenv("MESHCHECK_SCHEDULER", raising=False)
+    assert __main__.reads_step_ahead(arguments) is reads
+    monkeypatch.setenv("MESHCHECK_SCHEDULER", "tcp://127.0.0.1:1")
+    assert __main__.reads_step_ahead(arguments) is False
+
+
+def _command(monkeypatch, arguments: list[str], started: list | None = None) -> tuple[int, list]:
+    """``meshcheck ARGUMENTS`` run by the command's entry point in this process: its exit
+    status, and the workers it started to import OpenCASCADE (appended to ``started`` as they
+    start)."""
+    from meshcheck import __main__, execute
+
+    monkeypatch.setattr(execute, "local_jobs", lambda jobs: min(jobs or 2, 2))
+    monkeypatch.delenv("MESHCHECK_SCHEDULER", raising=False)
+    monkeypatch.setattr(sys, "argv", ["meshcheck", *arguments])
+    started = [] if started is None else started
+    original = execute._Worker.__init__
+
+    def recorded(self, prepare=None, **kwargs):
+        original(self, prepare, **kwargs)
+        if prepare == PREPARE:
+            started.append(self.process)
+
+    monkeypatch.setattr(execute._Worker, "__init__", recorded)
+    with pytest.raises(SystemExit) as done:
+        __main__.main()
+    return done.value.code, started
+
+
+def test_the_command_starts_the_worker_that_reads_ahead_before_it_reads_its_options(
+    monkeypatch, tmp_path
+):
+    """The worker the entry point starts (before the command line's imports) is the one that
+    reads the file: no other is started for it, and none is left."""
+
+    def not_here(*args):
+        raise AssertionError("the file was read in this process")
+
+    monkeypatch.setattr(read, "read_document", not_here)
+    out = tmp_path / "report.json"
+    args = [BOX_SIDES, "-j", "2", "--no-cache", "--format", "json", "-o", str(out)]
+    status, started = _command(monkeypatch, args)
+    assert status == 1 and json.loads(out.read_text())["summary"]["interference"] > 0
+    assert len(started) == 1 and started[0].poll() is not None
+
+
+def test_a_worker_started_for_a_read_the_run_does_not_make_is_stopped(monkeypatch, tmp_path):
+    """The guess was wrong (the STEP file named is the report's path, not an input): the worker
+    is stopped before the check starts. A usage error stops it too."""
+    from meshcheck import pipeline
+
+    report = tmp_path / "old_report.step"
+    report.write_text("")
+    plate = os.path.join(HERE, "..", "sample_meshes", "plate.stl")
+    running_at_check = []
+    original = pipeline.check
+
+    def check(*args, **kwargs):
+        running_at_check.append(any(p.poll() is None for p in started))
+        return original(*args, **kwargs)
+
+    started: list = []
+    monkeypatch.setattr(pipeline, "check", check)
+    args = [plate, "--no-cache", "--format", "json", "-o", str(report)]
+    status, _ = _command(monkeypatch, args, started)
+    assert status == 0 and len(started) == 1 and running_at_check == [False]
+    assert json.loads(report.read_text())["summary"]["parts"] == 1
+    status, workers = _command(monkeypatch, [BOX_SIDES, "--tolerance", "-1"])
+    assert status == 2 and len(workers) == 1 and workers[0].poll() is not None

@@ -24,6 +24,11 @@ from typing import TYPE_CHECKING
 
 from ..._lazy import lazy_names
 
+#: What a worker that reads or meshes STEP files imports before its first task
+#: (``tessellate.preload``: OpenCASCADE): named here, where the command line finds it before it
+#: imports numpy (``meshcheck.__main__``).
+PREPARE = "meshcheck.load.step.tessellate:preload"
+
 if TYPE_CHECKING:
     from .assembly import check_structure
     from .read import StepAssembly, StepSolids, read_step

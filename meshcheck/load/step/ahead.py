@@ -6,7 +6,9 @@ Why
 A cold check of a small STEP file spends most of its time importing, one import after the other
 on one core: trimesh with scipy (0.4-0.5 s of CPU), then OpenCASCADE (0.6-0.8 s), then the read.
 When the run may use a second process (``-j 2`` or more, local), the command starts one worker
-before it imports the pipeline (``start``). The worker imports OpenCASCADE, reads and checks the
+before it imports the pipeline (``start``): the worker the command's entry point started
+before it even imported the command line's modules, when the arguments named a STEP file
+(``meshcheck.__main__``), else a new one. The worker imports OpenCASCADE, reads and checks the
 file, and makes its ``tessellate.Products``: the products copied, counted at a coarse deflection
 and written as BRep text, and the products as read written too, for the exact solids
 (``read_task``). A small file's products (the ones the load stage meshes in its own process) it

@@ -47,6 +47,7 @@ import numpy as np
 
 from ...errors import InputError
 from ...units import METRES
+from . import PREPARE  # what workers import first (``preload``)
 from .assembly import Instance, UniqueNames, order_key
 from .document import captured_output
 
@@ -83,9 +84,6 @@ MEND_INTERIOR_FACTORS = (4, 8, 16)
 # Triangles one STEP file may be tessellated into (every distinct product once), unless the run's
 # budget (``--max-triangles``) has less left: a million triangles take about 200 MB here.
 MAX_STEP_TRIANGLES = 5_000_000
-#: What a run with large STEP files has its workers import while it reads them (``preload``;
-#: ``meshcheck.verify.brep.prepare_workers``).
-PREPARE = "meshcheck.load.step.tessellate:preload"
 #: ... and what a worker that meshes their products imports besides (``preload_welding``).
 PREPARE_WELDING = "meshcheck.load.step.tessellate:preload_welding"
 #: STEP files of this many bytes together have their workers started as the run starts
