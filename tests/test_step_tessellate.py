@@ -26,6 +26,7 @@ from meshcheck.load.step.tessellate import (
     product_mesh,
     products,
     triangulate,
+    triangulated,
     welded_triangles,
 )
 from meshcheck.mesh import is_closed, merge_vertices, split_shells
@@ -186,6 +187,34 @@ def test_products_meshed_from_their_triangles_are_the_products_meshed_here(tmp_p
         assert np.array_equal(welded[key][0].vertices, mesh.vertices)
         assert np.array_equal(welded[key][0].faces, mesh.faces)
         assert welded[key][1] == deviation and welded[key][0].metadata == mesh.metadata
+
+
+@pytest.mark.parametrize("name", ["tests/data/step/box_sides.STEP", "sample_meshes/assembly.step"])
+def test_products_meshed_in_threads_are_the_products_meshed_in_one(name):
+    """The worker that reads a file ahead meshes in threads (``in_parallel``): the coarse
+    counts and every face's triangles are the ones one thread makes."""
+    import os
+
+    from meshcheck.load.step.document import read_document
+
+    path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", name)
+    with open(path, "rb") as f:
+        data = f.read()
+    angular = DEFAULT_ANGULAR_DEFLECTION
+    made = []
+    for threads in (1, 2):
+        found = products(read_document(data, path), path, None, angular, "mm", threads=threads)
+        made.append((found.costs, triangulated(found, "mm", angular, threads)))
+    (costs, one), (costs_threads, threaded) = made
+    assert costs == costs_threads and list(one) == list(threaded)
+    for key, parts in one.items():
+        assert len(parts) == len(threaded[key])
+        for (is_solid, arrays), (is_solid_threads, arrays_threads) in zip(
+            parts, threaded[key], strict=True
+        ):
+            assert is_solid == is_solid_threads
+            for a, b in zip(arrays, arrays_threads, strict=True):
+                assert np.array_equal(a, b)
 
 
 def test_mend_faces_leaves_a_fully_meshed_solid_alone():

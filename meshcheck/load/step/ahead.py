@@ -98,33 +98,42 @@ def start(paths: list[str], settings: Settings) -> None:
             budget = min(settings.max_triangles or Limits().max_triangles, MAX_STEP_TRIANGLES)
             try:
                 # The worker forks a twin as soon as OpenCASCADE is loaded (``take``).
+                # It meshes in as many threads as the run has processes: the others wait.
+                threads = local_jobs(settings.jobs)
                 start_early(
-                    _key(path), READ_TASK, (path, options, budget), prepare=PREPARE, twin=True
+                    _key(path),
+                    READ_TASK,
+                    (path, options, budget, threads),
+                    prepare=PREPARE,
+                    twin=True,
                 )
             except OSError:  # gone since, or no process or pipe to be had: the load stage
                 pass  # reads it, or says why it cannot
             return
 
 
-def read_task(store: dict, path: str, options: tuple, budget: int) -> tuple | None:
+def read_task(
+    store: dict, path: str, options: tuple, budget: int, threads: int = 1
+) -> tuple | None:
     """In the worker: ``path`` read (within the default limits) and made ``Products`` as
     ``read.read_step`` makes them with ``options`` (deflection, its unit and the unit the user
     gave the file), with the products as read written too (``solid_texts``), and, for a file
     the load stage meshes in its own process (below ``PREPARE_BYTES``) whose estimate fits
     ``budget`` triangles, each product triangulated (``triangles``: the load stage only welds
-    them). Returns (the bytes' SHA-256, the settings, the products), or None when anything goes
-    wrong: the load stage then reads the file itself, and refuses it (or fails: out of memory,
-    a bug) exactly as it would have without a worker."""
+    them), the meshes made in ``threads`` threads (``tessellate.in_parallel``). Returns (the
+    bytes' SHA-256, the settings, the products), or None when anything goes wrong: the load
+    stage then reads the file itself, and refuses it (or fails: out of memory, a bug) exactly
+    as it would have without a worker."""
     try:
         data = read_file(path, Limits())
         _, unit, wanted_mm, ratio = mesh_settings(data, *options)
         angular = DEFAULT_ANGULAR_DEFLECTION
         instances = read_document(data, path)
-        read = products(instances, path, wanted_mm, angular, unit, ratio)
+        read = products(instances, path, wanted_mm, angular, unit, ratio, threads)
         first = first_instances(instances)
         read.solid_texts = {key: brep_text(inst.product) for key, inst in first.items()}
         if len(data) < PREPARE_BYTES and estimated_triangles(read) <= budget:
-            read.triangles = triangulated(read, unit, angular)
+            read.triangles = triangulated(read, unit, angular, threads)
     except Exception:  # what it was is the load stage's to say, as without a worker
         return None
     settings = (unit, wanted_mm, angular, ratio)

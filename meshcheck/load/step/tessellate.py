@@ -139,11 +139,13 @@ def products(
     angular: float,
     unit: str,
     default_scale: float = 1.0,
+    threads: int = 1,
 ) -> Products:
     """The distinct products of ``instances`` (as read), ready to mesh at ``deflection_mm``
     (None: the default for their size, ``DEFAULT_DEFLECTION_MM`` times ``default_scale``,
     OpenCASCADE's millimetres per real one): each copied (``with_copied_topology``), meshed
-    coarse to count what it costs, and written as BRep text. OpenCASCADE and numpy only.
+    coarse in ``threads`` threads (``in_parallel``) to count what it costs, and written as BRep
+    text. OpenCASCADE and numpy only.
 
     Raises
     ------
@@ -162,10 +164,11 @@ def products(
     # 1/deflection from a coarse mesh overestimates, which is the safe side.
     coarse = max(deflection_mm, 1e-3 * diagonal)
     costs = {}
+    parallel = in_parallel(threads)
     with captured_output():
         for key, shape in by_key.items():
             BRepTools.Clean_s(shape)  # from no triangulation, whatever meshed it before
-            BRepMesh_IncrementalMesh(shape, coarse, False, angular, False)
+            BRepMesh_IncrementalMesh(shape, coarse, False, angular, parallel)
             costs[key] = _triangle_count(shape)
     named = first_instances(meshed)
     # The texts travel as shared values, not in the tasks (``_meshed_products``).
@@ -225,13 +228,16 @@ def tessellate(
     return _meshed_products(found, path, angular, to_unit, executor)
 
 
-def triangulated(found: Products, unit: str, angular: float) -> dict[str, list]:
+def triangulated(found: Products, unit: str, angular: float, threads: int = 1) -> dict[str, list]:
     """Each product of ``found`` triangulated (``triangulate``) as ``tessellate`` meshes it in
-    the file's ``unit`` and ``angular``, by product key: what the worker that read a small
-    file ahead sends (``Products.triangles``)."""
+    the file's ``unit`` and ``angular``, by product key, in ``threads`` threads
+    (``in_parallel``): what the worker that read a small file ahead sends
+    (``Products.triangles``)."""
     to_unit = _file_units_per_mm(unit)
     deflection = _deflection(found, to_unit)
-    return {key: triangulate(t, to_unit, deflection, angular) for key, t in found.texts.items()}
+    return {
+        key: triangulate(t, to_unit, deflection, angular, threads) for key, t in found.texts.items()
+    }
 
 
 def _file_units_per_mm(unit: str) -> float:
@@ -348,19 +354,20 @@ def mesh_task(
 
 
 def triangulate(
-    text: bytes, to_unit: float, deflection: float, angular: float
+    text: bytes, to_unit: float, deflection: float, angular: float, threads: int = 1
 ) -> list[tuple[bool, tuple[np.ndarray, np.ndarray, np.ndarray]]]:
-    """A product read from its BRep text and meshed as ``mesh_task`` meshes it, not welded:
-    ``(is a solid, face_arrays)`` of each of its parts (``_solids_and_rest``). OpenCASCADE and
-    numpy only: what the worker that reads a small file ahead does while this process imports
-    trimesh (``welded_triangles`` welds them)."""
-    shape = _meshed_text(text, to_unit, deflection, angular)
+    """A product read from its BRep text and meshed as ``mesh_task`` meshes it (in ``threads``
+    threads: the same triangles, ``in_parallel``), not welded: ``(is a solid, face_arrays)`` of
+    each of its parts (``_solids_and_rest``). OpenCASCADE and numpy only: what the worker that
+    reads a small file ahead does while this process imports trimesh (``welded_triangles``
+    welds them)."""
+    shape = _meshed_text(text, to_unit, deflection, angular, threads)
     return [(is_solid, face_arrays(part)) for part, is_solid in _solids_and_rest(shape)]
 
 
-def _meshed_text(text: bytes, to_unit: float, deflection: float, angular: float):
+def _meshed_text(text: bytes, to_unit: float, deflection: float, angular: float, threads: int = 1):
     """The shape of a BRep text, meshed by BRepMesh at ``deflection`` (file units, ``to_unit``
-    file units per mm) and ``angular``."""
+    file units per mm) and ``angular``, in ``threads`` threads (``in_parallel``)."""
     from OCP.BRep import BRep_Builder
     from OCP.BRepMesh import BRepMesh_IncrementalMesh
     from OCP.BRepTools import BRepTools
@@ -368,9 +375,27 @@ def _meshed_text(text: bytes, to_unit: float, deflection: float, angular: float)
 
     shape = TopoDS_Shape()
     BRepTools.Read_s(shape, io.BytesIO(text), BRep_Builder())
+    parallel = in_parallel(threads)
     with captured_output():
-        BRepMesh_IncrementalMesh(shape, deflection / to_unit, False, angular, False)
+        BRepMesh_IncrementalMesh(shape, deflection / to_unit, False, angular, parallel)
     return shape
+
+
+def in_parallel(threads: int) -> bool:
+    """Whether BRepMesh is to mesh in parallel: in up to ``threads`` threads of OpenCASCADE's
+    pool (sized by the first call in a process), when ``threads`` is more than one.
+
+    Each edge, then each face, is meshed on its own, so the triangles are the same in any
+    number of threads (every STEP file of the tests and benchmarks checked, array for array).
+    Only a worker that reads a file ahead meshes in threads (``ahead.read_task``): the run's
+    other processes wait for it then. It forks its twin before: a process forked after the
+    pool's threads started would have none."""
+    if threads < 2:
+        return False
+    from OCP.OSD import OSD_ThreadPool
+
+    OSD_ThreadPool.DefaultPool_s(threads).SetNbDefaultThreadsToLaunch(threads)
+    return True
 
 
 def preload() -> None:
