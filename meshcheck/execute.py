@@ -258,13 +258,22 @@ class Writer:
         import threading
 
         self.connection, self.queue, self.is_broken = connection, queue.Queue(), False
+        self.put_count = self.written = 0  # messages queued, and written, so far
+        self.condition = threading.Condition()
         self.thread = threading.Thread(target=self._write, daemon=True)
         self.thread.start()
 
     def put(self, message) -> bool:
         """Queue ``message``; False once the other end is gone (a write failed)."""
+        self.put_count += 1
         self.queue.put(message)
         return not self.is_broken
+
+    def wait_written(self, count: int, timeout: float) -> bool:
+        """Wait until the first ``count`` messages are written, or writing failed, at most
+        ``timeout`` seconds; whether they are."""
+        with self.condition:
+            return self.condition.wait_for(lambda: self.written >= count or self.is_broken, timeout)
 
     def close(self, timeout: float | None = None) -> bool:
         """Write the messages queued, then stop; False when that takes over ``timeout`` seconds
@@ -278,9 +287,14 @@ class Writer:
             try:
                 self.connection.send(message)
             except (BrokenPipeError, OSError):
-                self.is_broken = True
+                with self.condition:
+                    self.is_broken = True
+                    self.condition.notify_all()
                 return
             message = None  # not kept while it waits for the next (a mesh, a product's text)
+            with self.condition:
+                self.written += 1
+                self.condition.notify_all()
 
 
 class _Worker:
@@ -346,6 +360,8 @@ class _Worker:
         self.keys: set = set()
         self.task: int | None = None  # index of the task running, None when idle
         self.queued: int | None = None  # index of the task sent to run after it (``run_here``)
+        #: How many messages it is sent up to its task's, and up to its queued task's.
+        self.task_sent = self.queued_sent = 0
         self.withdrawing: int | None = None  # the queued task asked back, until it answers
         self.started = 0.0
         self.is_ready = False
@@ -368,6 +384,15 @@ class _Worker:
 
     def fileno(self) -> int:
         return self.receive_end.fileno()
+
+    @property
+    def sent(self) -> int:
+        """How many messages it has been sent (``send``), written or not yet."""
+        return self._writer.put_count
+
+    def wait_written(self, count: int, timeout: float) -> bool:
+        """Wait until its first ``count`` messages are written, at most ``timeout`` seconds."""
+        return self._writer.wait_written(count, timeout)
 
     def send(self, message) -> None:
         """Queue ``message`` for the worker, in order; its writing thread sends it.
@@ -735,6 +760,10 @@ def stop_early(key=None) -> None:
 class _LocalRun:
     """One ``LocalPool.map``: the tasks not started yet, the results, and the worker loop."""
 
+    #: Seconds this process waits at most, before it runs a task, for its workers' tasks to be
+    #: written to them (``written_to_workers``).
+    WRITE_WAIT = 0.5
+
     def __init__(self, pool, function, tasks, shared, progress, time_limit, wanted, here=False):
         self.pool, self.function, self.tasks, self.shared = pool, function, tasks, shared
         self.progress, self.time_limit, self.wanted = progress, time_limit, wanted
@@ -788,12 +817,27 @@ class _LocalRun:
         task = self.tasks[index]
         if self.store is None:
             self.store = dict(self.shared)
+        self.written_to_workers()
         self.pool.here_task = index
         try:
             self.results[index] = call(self.function, self.store, task.needs, task.args)
         finally:
             self.pool.here_task = None
         self.count_finished()
+
+    def written_to_workers(self) -> None:
+        """Wait until each ready worker's task is written to it (its shared values too), before
+        this process runs one: its writing thread runs only when this process lets Python run,
+        which a task inside one long OpenCASCADE call (a mesh, a boolean) does not until the
+        call returns, and the worker would wait idle for it (0.15 s for a product's text). A
+        worker that is ready reads its messages as they come; one still importing is not
+        waited for, nor any worker past ``WRITE_WAIT`` seconds in all."""
+        deadline = time.monotonic() + self.WRITE_WAIT
+        for worker in self.pool.workers:
+            if worker.task is not None and worker.is_ready:
+                left = deadline - time.monotonic()
+                if left <= 0.0 or not worker.wait_written(worker.task_sent, left):
+                    return
 
     def take_back(self) -> None:
         """Ask each busy worker for the task sent to run after its own (``run_here``), which
@@ -848,6 +892,7 @@ class _LocalRun:
             return
         if worker.queued is not None:  # already sent: it runs now (unless it is given back)
             worker.task, worker.queued, worker.started = worker.queued, None, time.monotonic()
+            worker.task_sent = worker.queued_sent
         elif self.pending:
             self.start(worker)
 
@@ -897,9 +942,9 @@ class _LocalRun:
             self.lost(worker)
             return
         if queued:
-            worker.queued = index
+            worker.queued, worker.queued_sent = index, worker.sent
         else:
-            worker.task, worker.started = index, time.monotonic()
+            worker.task, worker.started, worker.task_sent = index, time.monotonic(), worker.sent
 
 
 class DaskExecutor(Executor):

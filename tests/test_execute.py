@@ -309,6 +309,28 @@ def test_a_worker_started_early_joins_the_pool_that_takes_its_result():
     assert process.wait(timeout=5) is not None and not has_early("c")
 
 
+def test_a_workers_task_is_written_to_it_before_this_process_runs_one(monkeypatch):
+    """This process runs a task of its own only once the task it gave an idle worker is
+    written, with the shared value it needs (its writing thread does not run while this
+    process is inside one long call): else the worker waits idle that long."""
+    import meshcheck.execute as execute
+
+    seen = []
+    with LocalPool(2) as pool:
+        assert pool.map("meshcheck.execute:echo", [Task((0,))]) == [0]  # a ready worker
+
+        def here(store, value):
+            (worker,) = pool.workers
+            seen.append(worker._writer.written >= worker.task_sent > 0)
+            return value
+
+        monkeypatch.setattr(execute, "echo", here)  # this process's tasks, not the worker's
+        tasks = [Task((1,), ("blob",), size=2), Task((2,), ("blob",), size=1)]
+        blob = b"x" * (16 << 20)
+        assert pool.map("meshcheck.execute:echo", tasks, shared={"blob": blob}, here=True) == [1, 2]
+    assert seen == [True]
+
+
 def test_a_spare_worker_takes_the_first_early_task_it_was_started_for():
     """``start_spare`` starts a worker before its task is known: the next ``start_early`` with
     its ``prepare`` and ``twin`` sends the task to it, without a second start; one with other
