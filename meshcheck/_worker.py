@@ -10,8 +10,8 @@ Messages from the parent::
 
     ("put", key, value)          keep ``value`` under ``key`` for later tasks
     ("run", function, needs, args)  call the named meshcheck function, reply with its result
-    ("withdraw",)                take back the task sent to run after the one running, if it
-                                 has not started: reply ``("withdrawn", True)``, or
+    ("withdraw",)                take back the last task sent to run after the one running,
+                                 if it has not started: reply ``("withdrawn", True)``, or
                                  ``("withdrawn", False)`` when it has (or there is none)
 
 Its first optional argument names a function (``module:name``) it calls first, before it says

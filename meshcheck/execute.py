@@ -359,9 +359,10 @@ class _Worker:
         self.receive_end = Connection(receive, writable=False)
         self.keys: set = set()
         self.task: int | None = None  # index of the task running, None when idle
-        self.queued: int | None = None  # index of the task sent to run after it (``run_here``)
-        #: How many messages it is sent up to its task's, and up to its queued task's.
-        self.task_sent = self.queued_sent = 0
+        #: The tasks sent to run after it (``run_here``), in order: (index, how many messages
+        #: it had been sent with that task's).
+        self.queued: deque[tuple[int, int]] = deque()
+        self.task_sent = 0  # how many messages it had been sent with its task's
         self.withdrawing: int | None = None  # the queued task asked back, until it answers
         self.started = 0.0
         self.is_ready = False
@@ -802,19 +803,21 @@ class _LocalRun:
         in a worker; then the smallest, the workers taking the largest.
 
         This process reads no message while it runs a task, so each busy worker is sent its
-        next task as well, with the shared values it needs: it starts it as soon as it finishes
-        the one it runs, instead of waiting idle for this one (which may be as long as its own
-        when every task is large). A worker reads its messages as they come, while it runs a
-        task (``_worker._Messages``), so a large value does not block this process. Once this
-        process has no task left, it takes back a next task not started (``take_back``).
+        next tasks as well, with the shared values they need: one at least, and as many as
+        this one is large (``Task.size``) in all. It starts each as soon as it finishes the one
+        before, instead of waiting idle for this one (which may be as long as its own when
+        every task is large, and as long as several of its own when this one is the largest).
+        A worker reads its messages as they come, while it runs a task
+        (``_worker._Messages``), so a large value does not block this process. Once this
+        process has no task left, it takes back the last next task not started, one at a
+        time (``take_back``).
         """
         first = self.store is None  # made for the first task here, below
         index = self.pending.popleft() if first else self.pending.pop()
-        for worker in self.pool.workers:
-            if worker.task is None or worker.queued is not None or not self.pending:
-                continue
-            self.start(worker, queued=True)
         task = self.tasks[index]
+        for worker in self.pool.workers:  # a next task at least, as large as this one in all
+            while worker.task is not None and self.pending and self._queue_short(worker, task):
+                self.start(worker, queued=True)
         if self.store is None:
             self.store = dict(self.shared)
         self.written_to_workers()
@@ -824,6 +827,11 @@ class _LocalRun:
         finally:
             self.pool.here_task = None
         self.count_finished()
+
+    def _queue_short(self, worker: _Worker, task: Task) -> bool:
+        """Whether ``worker`` has no task sent to run after its own, or fewer than ``task`` is
+        large (``Task.size``): it would wait idle for this process to run ``task``."""
+        return not worker.queued or sum(self.tasks[i].size for i, _ in worker.queued) < task.size
 
     def written_to_workers(self) -> None:
         """Wait until each ready worker's task is written to it (its shared values too), before
@@ -840,18 +848,18 @@ class _LocalRun:
                     return
 
     def take_back(self) -> None:
-        """Ask each busy worker for the task sent to run after its own (``run_here``), which
+        """Ask each busy worker for the last task sent to run after its own (``run_here``), which
         this process, with no task left, can start now instead of once the worker's is done:
         the run ends no later, and sooner by as much as the worker's task has left to run. The
         worker gives it back only if it has not started it (``receive``)."""
         for worker in self.pool.workers:
-            if worker.queued is None or worker.withdrawing is not None:
+            if not worker.queued or worker.withdrawing is not None:
                 continue
             try:
                 worker.send(("withdraw",))
             except (BrokenPipeError, OSError):  # gone: its stream's end says so
                 continue
-            worker.withdrawing = worker.queued
+            worker.withdrawing = worker.queued[-1][0]  # the last sent: it drops the last
 
     def limit_of(self, index: int) -> float:
         task_limit = self.tasks[index].time_limit
@@ -890,9 +898,9 @@ class _LocalRun:
             worker.task = None
         if worker.task is not None:
             return
-        if worker.queued is not None:  # already sent: it runs now (unless it is given back)
-            worker.task, worker.queued, worker.started = worker.queued, None, time.monotonic()
-            worker.task_sent = worker.queued_sent
+        if worker.queued:  # already sent: it runs now (unless it is given back)
+            worker.task, worker.task_sent = worker.queued.popleft()
+            worker.started = time.monotonic()
         elif self.pending:
             self.start(worker)
 
@@ -903,18 +911,17 @@ class _LocalRun:
         index, worker.withdrawing = worker.withdrawing, None
         if not given_back or index is None:
             return
-        if worker.queued == index:
-            worker.queued = None
-        elif worker.task == index:  # taken as started when the result before it came
-            worker.task = None
+        if worker.queued and worker.queued[-1][0] == index:
+            worker.queued.pop()
+        elif worker.task == index and not worker.queued:  # taken as started when the result
+            worker.task = None  # before it came
         else:
             return
         self.pending.append(index)  # the smallest end: this process takes it next
 
     def lost(self, worker: _Worker) -> None:
-        if worker.queued is not None:  # sent, never started: another process takes it
-            self.pending.appendleft(worker.queued)
-            worker.queued = None
+        while worker.queued:  # sent, never started: another process takes them
+            self.pending.appendleft(worker.queued.pop()[0])
         self.pool.replace_lost(worker)
         if worker.task is not None:
             self.count_finished()  # results[task] stays None: the caller decides what it means
@@ -942,7 +949,7 @@ class _LocalRun:
             self.lost(worker)
             return
         if queued:
-            worker.queued, worker.queued_sent = index, worker.sent
+            worker.queued.append((index, worker.sent))
         else:
             worker.task, worker.started, worker.task_sent = index, time.monotonic(), worker.sent
 

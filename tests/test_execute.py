@@ -154,7 +154,7 @@ def test_with_no_task_left_this_process_takes_back_the_one_a_busy_worker_has_not
         worker = pool.workers[0]
         assert pids == [worker.process.pid, os.getpid(), os.getpid()]
         assert took < 2.0  # the worker's 1.5 s, not 2.1 s
-        assert worker.task is worker.queued is worker.withdrawing is None
+        assert worker.task is worker.withdrawing is None and not worker.queued
         # The worker serves the next map as before.
         assert pool.map("meshcheck.execute:echo", [Task((k,), size=k) for k in range(4)]) == [
             0,
@@ -178,6 +178,23 @@ def test_this_process_starts_on_the_largest_task_the_worker_left_then_takes_the_
     assert took < 1.6  # 1.1 s, not 2.0 s and more
 
 
+def test_a_worker_is_sent_next_tasks_as_large_as_the_one_this_process_runs():
+    """This process reads no message while it runs a task: a busy worker is sent enough next
+    tasks to last while it does (by ``Task.size``), not one, which it would finish early and
+    then wait. Here the sizes mislead (the worker's first task is short, this process's long):
+    the worker runs all the short ones while this process runs its one."""
+    sizes_and_seconds = [(10, 0.1), (9, 1.5)] + [(2, 0.1)] * 5
+    tasks = [Task((seconds,), size=size) for size, seconds in sizes_and_seconds]
+    with LocalPool(2) as pool:
+        pool.map("meshcheck.execute:echo", [Task((0,))])  # started and ready
+        begun = time.monotonic()
+        pids = pool.map("meshcheck.execute:sleep_then_pid", tasks, here=True)
+        took = time.monotonic() - begun
+        worker = pool.workers[0].process.pid
+    assert pids == [worker, os.getpid()] + [worker] * 5
+    assert took < 2.1  # this process's 1.5 s, not 1.5 s and two rounds more
+
+
 def test_a_task_taken_back_after_the_result_before_it_is_pending_again():
     """The worker's answer to a withdraw may come after the result of the task before the one
     asked back, which then looked started: it is pending again, and the worker idle."""
@@ -192,13 +209,15 @@ def test_a_task_taken_back_after_the_result_before_it_is_pending_again():
         worker.task, worker.withdrawing = 1, 1  # its result before it came: taken as started
         run.withdrawn(worker, True)
         assert worker.task is None and list(run.pending) == [1]
-        worker.queued, worker.withdrawing = 2, 2  # asked back while queued
+        worker.queued.extend([(0, 0), (2, 0)])  # the last asked back while queued
+        worker.withdrawing = 2
         run.withdrawn(worker, True)
-        assert worker.queued is None and list(run.pending) == [1, 2]
-        worker.queued, worker.withdrawing = 0, 0  # started already: it stays the worker's
+        assert list(worker.queued) == [(0, 0)] and list(run.pending) == [1, 2]
+        worker.withdrawing = 0  # started already: it stays the worker's
         run.withdrawn(worker, False)
-        assert worker.queued == 0 and worker.withdrawing is None and list(run.pending) == [1, 2]
-        worker.queued = None
+        assert list(worker.queued) == [(0, 0)] and worker.withdrawing is None
+        assert list(run.pending) == [1, 2]
+        worker.queued.clear()
 
 
 def test_a_worker_gives_back_only_a_task_it_has_not_started():
