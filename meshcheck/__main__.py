@@ -5,7 +5,8 @@ a cold run): when the arguments name a STEP file and the run may use a second lo
 worker starts importing OpenCASCADE at once (``execute.start_spare``), and the command gives it
 the file to read once its options are read (``load.step.ahead``). The arguments are only
 looked at, not parsed: ``cli.main`` parses them, and stops the worker when the run turns out to
-want none (``-j 1`` in the configuration file, a usage error, a cached file).
+want none (a scheduler in the configuration file, a report path ending in ``.step``, a usage
+error); the load stage stops it when the file's tessellation is in the cache.
 """
 
 from __future__ import annotations
@@ -38,7 +39,8 @@ def reads_step_ahead(arguments: list[str]) -> bool:
     """Whether a run with these arguments will likely read a STEP file ahead
     (``load.step.ahead.start``): one of them names a STEP file, the run may use a second local
     process (``-j``, default all cores), and no option asks for a scheduler or only a message
-    (help, version). A guess: the configuration file can still say otherwise.
+    (help, version). A guess: the configuration file can still name a scheduler, and an
+    option's value can look like a file.
 
     Examples
     --------
