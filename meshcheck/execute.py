@@ -815,9 +815,9 @@ class _LocalRun:
         first = self.store is None  # made for the first task here, below
         index = self.pending.popleft() if first else self.pending.pop()
         task = self.tasks[index]
-        for worker in self.pool.workers:  # a next task at least, as large as this one in all
-            while worker.task is not None and self.pending and self._queue_short(worker, task):
-                self.start(worker, queued=True)
+        for worker in list(self.pool.workers):  # a next task at least, as large as this one
+            while self._queue_short(worker, task) and self.start(worker, queued=True):
+                pass
         if self.store is None:
             self.store = dict(self.shared)
         self.written_to_workers()
@@ -829,8 +829,12 @@ class _LocalRun:
         self.count_finished()
 
     def _queue_short(self, worker: _Worker, task: Task) -> bool:
-        """Whether ``worker`` has no task sent to run after its own, or fewer than ``task`` is
-        large (``Task.size``): it would wait idle for this process to run ``task``."""
+        """Whether busy ``worker`` has no task sent to run after its own, or fewer than ``task``
+        is large (``Task.size``), and one is pending: it would wait idle for this process to
+        run ``task``. Not while it is asked to give one back (``take_back``): it drops the last
+        one it was sent, which must be the one asked for."""
+        if worker.task is None or worker.withdrawing is not None or not self.pending:
+            return False
         return not worker.queued or sum(self.tasks[i].size for i, _ in worker.queued) < task.size
 
     def written_to_workers(self) -> None:
@@ -928,9 +932,9 @@ class _LocalRun:
         if self.pending and len(self.pool.workers) < self.wanted:
             self.pool.workers.append(self.pool.another())
 
-    def start(self, worker: _Worker, *, queued: bool = False, index: int | None = None) -> None:
+    def start(self, worker: _Worker, *, queued: bool = False, index: int | None = None) -> bool:
         """Send ``worker`` the largest pending task (or the pending task ``index``): to run now,
-        or ``queued`` after the one it runs."""
+        or ``queued`` after the one it runs. False when the worker is gone (``lost``)."""
         if index is None:
             index = self.pending.popleft()
         else:
@@ -947,11 +951,12 @@ class _LocalRun:
             if not queued:
                 worker.task = None
             self.lost(worker)
-            return
+            return False
         if queued:
             worker.queued.append((index, worker.sent))
         else:
             worker.task, worker.started, worker.task_sent = index, time.monotonic(), worker.sent
+        return True
 
 
 class DaskExecutor(Executor):

@@ -217,6 +217,12 @@ def test_a_task_taken_back_after_the_result_before_it_is_pending_again():
         run.withdrawn(worker, False)
         assert list(worker.queued) == [(0, 0)] and worker.withdrawing is None
         assert list(run.pending) == [1, 2]
+        # While it is asked to give one back, it is sent no other: it drops the last it was sent.
+        worker.task, worker.withdrawing = 1, 0
+        assert not run._queue_short(worker, Task((0,), size=99))
+        worker.withdrawing = None
+        assert run._queue_short(worker, Task((0,), size=99))
+        worker.task = None
         worker.queued.clear()
 
 
