@@ -164,16 +164,22 @@ def test_with_no_task_left_this_process_takes_back_the_one_a_busy_worker_has_not
         ]
 
 
-def test_this_process_starts_on_the_largest_task_the_worker_left_then_takes_the_smallest():
-    """The two largest tasks run side by side, not one after the other in the worker; the
-    worker is sent the next largest to run after its own, this process takes the smallest."""
-    tasks = [Task((0.1,), size=0), Task((1.0,), size=3), Task((1.0,), size=2), Task((0.1,), size=1)]
+def _slept_here_and_in_a_worker(tasks: list[Task]) -> tuple[list[int], float, int]:
+    """``sleep_then_pid`` of each task, in a map this process helps in with one ready worker:
+    the process ids that ran them, the seconds the map took, the worker's process id."""
     with LocalPool(2) as pool:
         pool.map("meshcheck.execute:echo", [Task((0,))])  # started and ready
         begun = time.monotonic()
         pids = pool.map("meshcheck.execute:sleep_then_pid", tasks, here=True)
         took = time.monotonic() - begun
-        worker = pool.workers[0].process.pid
+        return pids, took, pool.workers[0].process.pid
+
+
+def test_this_process_starts_on_the_largest_task_the_worker_left_then_takes_the_smallest():
+    """The two largest tasks run side by side, not one after the other in the worker; the
+    worker is sent the next largest to run after its own, this process takes the smallest."""
+    tasks = [Task((0.1,), size=0), Task((1.0,), size=3), Task((1.0,), size=2), Task((0.1,), size=1)]
+    pids, took, worker = _slept_here_and_in_a_worker(tasks)
     assert pids == [os.getpid(), worker, os.getpid(), worker]
     assert took < 1.6  # 1.1 s, not 2.0 s and more
 
@@ -185,12 +191,7 @@ def test_a_worker_is_sent_next_tasks_as_large_as_the_one_this_process_runs():
     the worker runs all the short ones while this process runs its one."""
     sizes_and_seconds = [(10, 0.1), (9, 1.5)] + [(2, 0.1)] * 5
     tasks = [Task((seconds,), size=size) for size, seconds in sizes_and_seconds]
-    with LocalPool(2) as pool:
-        pool.map("meshcheck.execute:echo", [Task((0,))])  # started and ready
-        begun = time.monotonic()
-        pids = pool.map("meshcheck.execute:sleep_then_pid", tasks, here=True)
-        took = time.monotonic() - begun
-        worker = pool.workers[0].process.pid
+    pids, took, worker = _slept_here_and_in_a_worker(tasks)
     assert pids == [worker, os.getpid()] + [worker] * 5
     assert took < 2.1  # this process's 1.5 s, not 1.5 s and two rounds more
 
