@@ -18,18 +18,24 @@ from . import _process  # noqa: F401  (first: it sets the process up before nump
 
 
 def main(prog_name: str = "meshcheck") -> None:
-    from . import execute
-
+    execute = None
     try:
-        if reads_step_ahead(sys.argv[1:]):
-            from .load.step import PREPARE
+        from . import execute
 
-            execute.start_spare(PREPARE, twin=True)
-    except OSError:  # no process or pipe to be had: the run goes on without it
-        pass
-    try:
+        try:
+            if reads_step_ahead(sys.argv[1:]):
+                from .load.step import PREPARE
+
+                execute.start_spare(PREPARE, twin=True)
+        except OSError:  # no process or pipe to be had: the run goes on without it
+            pass
         from .cli import main as command
-
+    except KeyboardInterrupt:  # Ctrl-C before the command line can say so (``cli``)
+        if execute is not None:
+            execute.stop_spare()
+        sys.stderr.write("error: interrupted\n")
+        raise SystemExit(130) from None
+    try:
         command(prog_name=prog_name)
     finally:
         execute.stop_spare()

@@ -307,3 +307,18 @@ def test_a_worker_started_for_a_read_the_run_does_not_make_is_stopped(monkeypatc
     assert json.loads(report.read_text())["summary"]["parts"] == 1
     status, workers = _command(monkeypatch, [BOX_SIDES, "--tolerance", "-1"])
     assert status == 2 and len(workers) == 1 and workers[0].poll() is not None
+
+
+def test_a_ctrl_c_while_the_command_line_is_imported_is_one_line(monkeypatch, capsys):
+    """Ctrl-C after the worker started, before the command line's modules are imported (they
+    say it themselves from then on): exit 130, one line, the worker stopped."""
+    import types
+
+    class Interrupted(types.ModuleType):
+        def __getattr__(self, name):
+            raise KeyboardInterrupt
+
+    monkeypatch.setitem(sys.modules, "meshcheck.cli", Interrupted("meshcheck.cli"))
+    status, started = _command(monkeypatch, [BOX_SIDES, "-j", "2"])
+    assert status == 130 and capsys.readouterr().err == "error: interrupted\n"
+    assert len(started) == 1 and started[0].poll() is not None
