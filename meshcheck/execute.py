@@ -841,7 +841,7 @@ class _LocalRun:
         """Wait until each ready worker's task is written to it (its shared values too), before
         this process runs one: its writing thread runs only when this process lets Python run,
         which a task inside one long OpenCASCADE call (a mesh, a boolean) does not until the
-        call returns, and the worker would wait idle for it (0.15 s for a product's text). A
+        call returns, and the worker would wait idle for it (for a product's text, say). A
         worker that is ready reads its messages as they come; one still importing is not
         waited for, nor any worker past ``WRITE_WAIT`` seconds in all."""
         deadline = time.monotonic() + self.WRITE_WAIT

@@ -84,7 +84,7 @@ MEND_INTERIOR_FACTORS = (4, 8, 16)
 # Triangles one STEP file may be tessellated into (every distinct product once), unless the run's
 # budget (``--max-triangles``) has less left: a million triangles take about 200 MB here.
 MAX_STEP_TRIANGLES = 5_000_000
-#: ... and what a worker that meshes their products imports besides (``preload_welding``).
+#: What a worker that meshes STEP products imports besides ``PREPARE`` (``preload_welding``).
 PREPARE_WELDING = "meshcheck.load.step.tessellate:preload_welding"
 #: STEP files of this many bytes together have their workers started as the run starts
 #: (``meshcheck.verify.brep.prepare_workers``), and a file this large has its products meshed in
