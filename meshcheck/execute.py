@@ -29,7 +29,7 @@ import os
 import sys
 import time
 from collections import deque
-from collections.abc import Callable, Hashable, Sequence
+from collections.abc import Callable, Hashable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 
 from .errors import ExecutionError
@@ -121,7 +121,7 @@ class Executor:
     def map(
         self,
         function: str,
-        tasks: Sequence[Task],
+        tasks: Iterable[Task],
         *,
         shared: dict | None = None,
         progress: Callable[[int], None] | None = None,
@@ -135,7 +135,11 @@ class Executor:
         ----------
         function : str
             ``"meshcheck.module:name"``, called as ``name(store, *task.args)``.
-        tasks : sequence of Task
+        tasks : sequence or iterator of Task
+            An iterator is drawn from in this process while the map runs: making a task may
+            take work (a screen), and each task made goes to an idle worker at once
+            (``LocalPool``), before this process takes any. It may put the shared values a task
+            needs into ``shared`` before it gives the task.
         shared : dict, optional
             Values tasks read by key (``Task.needs``).
         progress : callable, optional
@@ -151,9 +155,12 @@ class Executor:
             started if none is); the others would start and import first. The results are the
             same.
         """
-        store = dict(shared or {})
-        out = []
+        shared = {} if shared is None else shared
+        store, out = dict(shared), []
         for done, task in enumerate(tasks, start=1):
+            for key in task.needs:  # put into ``shared`` by an iterator as it made the task
+                if key not in store and key in shared:
+                    store[key] = shared[key]
             self.running = (done - 1,)
             out.append(call(function, store, task.needs, task.args))
             self.running = ()
@@ -584,22 +591,28 @@ class LocalPool(Executor):
     def map(
         self, function, tasks, *, shared=None, progress=None, time_limit=None, here=False, grow=True
     ) -> list:
-        if not tasks:
+        source = None if isinstance(tasks, Sequence) else iter(tasks)
+        tasks = [] if source is not None else list(tasks)
+        if not tasks and source is None:
             return []
         # This process helps only where it cannot be asked to stop (no time limits) and the
-        # workers already started leave a core to it.
+        # workers already started leave a core to it. An iterator's tasks, not known yet, are
+        # refused a time limit of their own there (``_LocalRun.add``).
         here = (
             here
             and time_limit is None
             and all(t.time_limit is None for t in tasks)
             and len(self.workers) < self.jobs
         )
-        wanted = min(self.jobs - 1 if here else self.jobs, len(tasks))
+        wanted = min(
+            self.jobs - 1 if here else self.jobs, len(tasks) if source is None else self.jobs
+        )
         if not grow:
             wanted = min(wanted, max(self.started, 0 if here else 1))
         while len(self.workers) < wanted:
             self.workers.append(self.another())
-        run = _LocalRun(self, function, tasks, shared or {}, progress, time_limit, wanted, here)
+        shared = {} if shared is None else shared  # the iterator's to fill: the same dict
+        run = _LocalRun(self, function, tasks, shared, progress, time_limit, wanted, here, source)
         try:
             return run.results_when_done()
         except BaseException:
@@ -765,14 +778,19 @@ class _LocalRun:
     #: written to them (``written_to_workers``).
     WRITE_WAIT = 0.5
 
-    def __init__(self, pool, function, tasks, shared, progress, time_limit, wanted, here=False):
-        self.pool, self.function, self.tasks, self.shared = pool, function, tasks, shared
+    def __init__(
+        self, pool, function, tasks, shared, progress, time_limit, wanted, here=False, source=None
+    ):
+        self.pool, self.function, self.tasks, self.shared = pool, function, list(tasks), shared
         self.progress, self.time_limit, self.wanted = progress, time_limit, wanted
         self.results: list = [None] * len(tasks)
         self.pending = deque(sorted(range(len(tasks)), key=lambda i: -tasks[i].size))
         self.finished = 0
         self.here = here  # this process takes tasks too (``LocalPool.map``)
         self.store: dict | None = None  # its store, as a worker's
+        #: The iterator the tasks are drawn from (``Executor.map``), None once it is drawn to
+        #: its end: until then this process makes tasks and takes none.
+        self.source: Iterator[Task] | None = source
 
     def results_when_done(self) -> list:
         from multiprocessing.connection import wait
@@ -781,21 +799,49 @@ class _LocalRun:
         for worker in list(pool.workers):  # idle workers kept from an earlier map
             if worker.is_ready and worker.task is None and self.pending:
                 self.start(worker)
-        while self.finished < len(self.tasks):
-            helps = self.here and self.pending
-            if self.here and not self.pending:
+        while self.source is not None or self.finished < len(self.tasks):
+            drawing = self.source is not None
+            if drawing:
+                self.draw()
+            helps = drawing or (self.here and self.pending)
+            if self.here and not self.pending and not drawing:
                 self.take_back()
             for worker in wait(list(pool.workers), timeout=0.0 if helps else self.wait_timeout()):
                 self.receive(worker)
-            if self.here and self.pending:
+            if drawing:  # the task just made goes to an idle worker now
+                for worker in list(pool.workers):
+                    if worker.is_ready and worker.task is None and self.pending:
+                        self.start(worker)
+            elif self.here and self.pending:
                 self.run_here()
             now = time.monotonic()
             for worker in list(pool.workers):
                 if worker.task is not None and now - worker.started > self.limit_of(worker.task):
                     self.lost(worker)
-            if not pool.workers and self.pending:
+            if not pool.workers and self.pending and not drawing:
                 pool.workers.append(pool.another())
         return self.results
+
+    def draw(self) -> None:
+        """Make the iterator's next task (``source``), or note its end."""
+        task = next(self.source, None)
+        if task is None:
+            self.source = None
+        else:
+            self.add(task)
+
+    def add(self, task: Task) -> None:
+        """Take a task made while the map runs: pending, in its place by size (the largest
+        first, in the order made among equal sizes)."""
+        if self.here and task.time_limit is not None:
+            raise ValueError("a task drawn from an iterator has no time limit of its own")
+        index = len(self.tasks)
+        self.tasks.append(task)
+        self.results.append(None)
+        position = len(self.pending)
+        while position and self.tasks[self.pending[position - 1]].size < task.size:
+            position -= 1
+        self.pending.insert(position, index)
 
     def run_here(self) -> None:
         """Run a pending task in this process: first the largest the workers left (they
@@ -1006,7 +1052,9 @@ class DaskExecutor(Executor):
     ) -> list:
         """See ``Executor.map``; ``time_limit`` is not enforced on a cluster (a Dask worker
         cannot be killed per task): a CoACD overrun only takes longer there; ``here`` and
-        ``grow`` are ignored (the cluster's workers do the work)."""
+        ``grow`` are ignored (the cluster's workers do the work); an iterator of tasks is drawn
+        to its end first."""
+        tasks = list(tasks)
         if not tasks:
             return []
         run = _DaskRun(self, function, tasks, shared or {}, progress)

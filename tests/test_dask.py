@@ -21,6 +21,7 @@ from click.testing import CliRunner
 
 from meshcheck import pipeline
 from meshcheck.cli import main
+from meshcheck.execute import DaskExecutor, Task
 from meshcheck.reports import render
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -120,6 +121,19 @@ def test_a_local_cluster_gives_the_local_report(tmp_path, monkeypatch):
         # the client wrote the caches: a second run reuses them and still agrees
         again = pipeline.check(paths, settings)
         assert render(again, "json") == expected
+        # tasks from an iterator, which puts the shared values they need as it makes them
+        with DaskExecutor(cluster.scheduler_address) as executor:
+            shared: dict = {}
+
+            def tasks():
+                for key in ("a", "bb"):
+                    shared[key] = key * 1000
+                    yield Task((key,), needs=(key,))
+
+            assert executor.map("meshcheck.execute:shared_length", tasks(), shared=shared) == [
+                1000,
+                2000,
+            ]
     finally:
         cluster.close(timeout=20)
     entries = [n for _, _, files in os.walk(tmp_path / "cluster-cache") for n in files]

@@ -164,6 +164,39 @@ def test_with_no_task_left_this_process_takes_back_the_one_a_busy_worker_has_not
         ]
 
 
+def test_tasks_drawn_from_an_iterator_go_to_an_idle_worker_as_each_is_made():
+    """An iterator of tasks is drawn from in this process while the map runs: each task made
+    goes to an idle worker at once, with the shared values the iterator put for it, and this
+    process takes none until the iterator ends. Results stay in the order made."""
+    shared: dict = {}
+    made_at = []
+
+    def tasks():
+        shared["a"] = bytes(3)
+        yield Task((0.5, "a"), needs=("a",), size=1)
+        time.sleep(1.0)  # making the next task takes long: a screen
+        made_at.append(time.time())
+        shared["b"] = bytes(5)
+        yield Task((0.1, "b"), needs=("b",), size=9)
+
+    with LocalPool(2) as pool:
+        pool.map("meshcheck.execute:echo", [Task((0,))])  # started and ready
+        worker = pool.workers[0].process.pid
+        (pid_a, started_a, length_a), (pid_b, _, length_b) = pool.map(
+            "meshcheck.execute:sleep_then_shared", tasks(), shared=shared, here=True, grow=False
+        )
+    assert (length_a, length_b) == (3, 5)
+    assert started_a < made_at[0] - 0.5  # the first ran while the second was being made
+    assert pid_a == pid_b == worker  # idle when the second was made: it took it too
+    # Executor (here, one after another) draws the same way
+    shared.clear()
+    assert [
+        r[2] for r in Executor().map("meshcheck.execute:sleep_then_shared", tasks(), shared=shared)
+    ] == [3, 5]
+    with LocalPool(2) as pool:
+        assert pool.map("meshcheck.execute:echo", iter([])) == []
+
+
 def _slept_here_and_in_a_worker(tasks: list[Task]) -> tuple[list[int], float, int]:
     """``sleep_then_pid`` of each task, in a map this process helps in with one ready worker:
     the process ids that ran them, the seconds the map took, the worker's process id."""
