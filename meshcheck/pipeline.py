@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import functools
 import os
 import warnings
 from collections.abc import Sequence
@@ -181,9 +182,17 @@ def check_bodies(
     if settings is None:
         settings = Settings(**fields)
     names = [_names(b) for b in bodies]
-    if not settings.split:  # a part's own shells that clash are never a finding: say so
-        warn_overlapping_shells(bodies)
-    warn_nothing_to_compare(bodies, is_split=settings.split)
+
+    @functools.cache
+    def warn_of_parts() -> None:
+        """What the check says of the parts alone, once: a part's own shells that clash are
+        never a finding, and one part is compared with nothing. The B-rep stage calls it
+        (``decide_on_brep``'s ``meanwhile``) while its workers decide the first pairs, which
+        this check of meshes does not need."""
+        if not settings.split:
+            warn_overlapping_shells(bodies)
+        warn_nothing_to_compare(bodies, is_split=settings.split)
+
     _check_patterns(settings, names)
     if caches is None:
         caches = open_caches(settings.cache_dir)
@@ -250,7 +259,13 @@ def check_bodies(
             apart = ~surfaces_near(packs, found, plan.settings.clearance, class_margin)
             planned, surfaces = pairs_near[plan.mask], ~apart[found.label]
             solid_findings, on_meshes, unconfirmed = decide_on_brep(
-                bodies, planned, surfaces, plan.settings, executor=executor, cache=caches.verdicts
+                bodies,
+                planned,
+                surfaces,
+                plan.settings,
+                executor=executor,
+                cache=caches.verdicts,
+                meanwhile=warn_of_parts,
             )
             if on_meshes.all():
                 found = dataclasses.replace(found, surfaces_apart=apart)
@@ -274,6 +289,7 @@ def check_bodies(
             findings = [*findings, *solid_findings]
             findings = with_elements(bodies, findings, clearance=plan.settings.clearance)
             verified.append(findings)
+        warn_of_parts()  # when no plan called it
         sweeps = sweep_bodies(bodies, mechanisms, settings, pieces=swept)
         audit = audit_srdf(bodies, mechanisms, settings, pieces=swept, sweeps=sweeps)
     duplicates = duplicate_findings(bodies, copies, geometry)

@@ -28,6 +28,7 @@ from meshcheck.config import parse_test
 from meshcheck.execute import LocalPool
 from meshcheck.load import load_bodies
 from meshcheck.pipeline import check_bodies
+from meshcheck.settings import Settings
 from meshcheck.verify import brep, solids
 
 BOX_SIDES = str(Path(__file__).parent / "data" / "step" / "box_sides.STEP")
@@ -202,6 +203,18 @@ def fastened(path) -> str:
     return write_step(path, {"plate": plate, "bolt": bolt, "nut": nut}, instances)
 
 
+def press_fit(path) -> str:
+    """A pin 0.01 mm larger than its hole, in a housing: one interference."""
+    return write_step(
+        path,
+        {
+            "housing": cut(box((-6, -6, 0), (6, 6, 4)), cylinder(3.0, -1, 5)),
+            "pin": cylinder(3.01, -1, 5),
+        },
+        [("housing", placement((100, 0, 0))), ("pin", placement((100, 0, 0), 7.0))],
+    )
+
+
 def pair_entries(folder) -> int:
     return len(list(Path(folder).glob("pairs-v*/**/*.json")))
 
@@ -223,14 +236,7 @@ def test_pairs_of_the_same_products_at_the_same_relative_placement_are_decided_o
 def test_reports_are_the_same_cold_warm_and_in_workers(tmp_path, monkeypatch):
     monkeypatch.setenv("MESHCHECK_CACHE_SECRET", "test-secret")
     path = fastened(tmp_path / "fastened.step")
-    press = write_step(
-        tmp_path / "press.step",
-        {
-            "housing": cut(box((-6, -6, 0), (6, 6, 4)), cylinder(3.0, -1, 5)),
-            "pin": cylinder(3.01, -1, 5),
-        },
-        [("housing", placement((100, 0, 0))), ("pin", placement((100, 0, 0), 7.0))],
-    )
+    press = press_fit(tmp_path / "press.step")
     args = [path, press, "--format", "json", "--clearance", "1"]
     cache = ["--cache-dir", str(tmp_path / "cache")]
     outputs = [
@@ -423,6 +429,82 @@ def test_pairs_timed_here_then_sent_to_workers_give_the_same_findings(tmp_path, 
     assert answers[0] == (True, False)  # the fixed estimate: here
     assert answers[1] == (False, True)  # the first pair's seconds: the rest in workers
     assert here == there
+
+
+def test_pairs_go_to_a_ready_worker_as_the_screen_makes_them(tmp_path):
+    """With every core's process started and OpenCASCADE loaded (``_streams``), each pair the
+    screen sends to the B-rep goes to the idle worker at once: the worker has pairs before this
+    process does its own work (``meanwhile``) and takes any. The findings are the same."""
+    from meshcheck.execute import Task
+
+    paths = [fastened(tmp_path / "fastened.step"), press_fit(tmp_path / "press.step")]
+    bodies = load_bodies(paths)
+    here = check_bodies(bodies, jobs=1, clearance=1.0).findings
+    sent_before = []
+    with LocalPool(2) as pool:
+        pool.prepare(brep.PREPARE)
+        pool.map("meshcheck.execute:echo", [Task((0,))])  # started and ready
+        assert brep._streams(pool)
+        worker = pool.workers[0]
+
+        def meanwhile():
+            sent_before.append({key[0] for key in worker.keys if isinstance(key, tuple)})
+
+        pairs = np.array([(i, j) for i in range(len(bodies)) for j in range(i + 1, len(bodies))])
+        settings = Settings(clearance=1.0)
+        findings, _, _ = brep.decide_on_brep(
+            bodies, pairs, np.ones(len(pairs), bool), settings, executor=pool, meanwhile=meanwhile
+        )
+        there = check_bodies(bodies, jobs=2, clearance=1.0, executor=pool).findings
+    assert sent_before == [{"brep"}]  # once, with pairs already sent to the worker
+    assert here == there
+    assert {(f.a, f.b, f.status) for f in findings} == {(f.a, f.b, f.status) for f in here}
+
+
+def test_the_screen_gives_each_pair_the_job_it_gives_it_alone(tmp_path):
+    """The screen makes the jobs whose meshes meet first, then measures the others: each
+    pair's job (its key, whether the solids may overlap) or None is what screening that pair
+    on its own gives (``pair.surface_distance`` to the reach, the first triangle pair within
+    the two deflections answering)."""
+    from meshcheck.units import METRES
+    from meshcheck.verify.pair import surface_distance
+
+    paths = [fastened(tmp_path / "fastened.step"), press_fit(tmp_path / "press.step")]
+    bodies = load_bodies(paths)
+    settings = Settings(clearance=1.0)
+    pairs = np.array([(i, j) for i in range(len(bodies)) for j in range(i + 1, len(bodies))])
+    near = np.arange(len(pairs)) % 3 != 0  # some proven apart by their pieces
+    screened = dict(brep._screened(bodies, pairs, near, settings))
+    assert sorted(screened) == list(range(len(pairs)))
+    for k, pair in enumerate(pairs):
+        job = brep._pair_job(bodies, pair, settings)
+        a, b = bodies[job.first], bodies[job.second]
+        deflections = a.deflection + b.deflection
+        reach = job.tolerance_report + deflections + 1.0 * 1e-3 / METRES[a.units]
+        distance = surface_distance(
+            a.world, b.world, reach=reach, surfaces_apart=not near[k], enough=deflections
+        )
+        if distance > reach:
+            assert screened[k] is None, k
+        else:
+            expected = brep._keyed(job, may_overlap=distance <= deflections)
+            assert (screened[k].key, screened[k].may_overlap) == (
+                expected.key,
+                expected.may_overlap,
+            )
+    assert sum(job is not None for job in screened.values()) >= 4
+
+
+def test_the_b_rep_stage_does_its_own_work_once_with_or_without_pairs(tmp_path):
+    bodies = load_bodies([fastened(tmp_path / "fastened.step")])
+    settings = Settings()
+    calls = []
+    for pairs in (np.zeros((0, 2), np.int64), np.array([(0, 1), (0, 2), (1, 2)])):
+        brep.decide_on_brep(
+            bodies, pairs, np.ones(len(pairs), bool), settings, meanwhile=lambda: calls.append(1)
+        )
+        assert len(calls) == 1
+        calls.clear()
 
 
 def test_pairs_left_to_the_started_worker_grow_the_pool_when_the_rest_repays_it(monkeypatch):

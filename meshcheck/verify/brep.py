@@ -49,9 +49,13 @@ in each of forty identical nuts), the verdict is kept in the run's pair cache (a
 no STEP document), and each pair gets it moved to its own placement (``to_world``).
 
 The solids are decided in the run's worker processes when that pays (``_pays_in_workers``), one
-pair per task. A process that has not loaded OpenCASCADE (a small file read ahead by a worker
-that has) leaves them to the workers started, and starts the pool's others only when the pairs'
-measured seconds repay it (``_by_started_workers``). OpenCASCADE shapes are not pickled: each
+pair per task. Where every core's process is started with OpenCASCADE loaded (``_streams``),
+each pair goes to an idle worker as soon as the screen makes it: the pairs whose meshes meet
+within the deflections first (milliseconds each), then those measured to the reach, so a worker
+starts the costliest while this process still screens. A process that has not loaded
+OpenCASCADE (a small file read ahead by a worker that has) leaves them to the workers started,
+and starts the pool's others only when the pairs' measured seconds repay it
+(``_by_started_workers``). OpenCASCADE shapes are not pickled: each
 product travels once per worker as BRep text (``StepSolids.product_text``, a few milliseconds
 to read, where reading the STEP file again costs a fraction of a second), and the solids are
 never modified (non-destructive booleans on copies), so a verdict does not depend on the pairs
@@ -74,12 +78,13 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import functools
+import itertools
 import json
 import os
 import sys
 import time
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 
 import numpy as np
 
@@ -173,6 +178,7 @@ def decide_on_brep(
     *,
     executor: Executor | None = None,
     cache: PairCache | None = None,
+    meanwhile: Callable[[], None] | None = None,
 ) -> tuple[list[Finding], np.ndarray, dict[tuple[str, str], str]]:
     """Decide the pairs of STEP solids among ``pairs`` on their B-rep (see the module docstring).
 
@@ -190,6 +196,10 @@ def decide_on_brep(
         The run's executor; pairs are decided in its workers when that pays.
     cache : cache.PairCache, optional
         The run's pair verdicts, where B-rep verdicts are kept too.
+    meanwhile : callable, optional
+        Work of this process's own (a warning's check), called once the screen has made every
+        job: while the workers decide the first ones when they are sent as made
+        (``_streams``), before any is decided otherwise.
 
     Returns
     -------
@@ -204,18 +214,25 @@ def decide_on_brep(
     pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
     on = np.array([is_on_brep(b) for b in bodies], dtype=bool)
     chosen = np.flatnonzero(on[pairs[:, 0]] & on[pairs[:, 1]]) if len(pairs) else np.zeros(0, int)
-    jobs = _screened(bodies, pairs[chosen], near_surfaces[chosen], settings)
+    jobs: list[_PairJob | None] = [None] * len(chosen)  # None: the meshes proved it clear
     verdicts: dict[str, PairVerdict | str] = {}
-    todo: dict[str, _PairJob] = {}
-    for job in jobs:
-        if job is None or job.key in verdicts or job.key in todo:
-            continue
-        hit = cache.get(job.key) if cache is not None else None
-        if hit is not None:
-            verdicts[job.key] = hit
-        else:
-            todo[job.key] = job
-    fresh = _decide_all(bodies, list(todo.values()), executor)
+    todo: set[str] = set()
+
+    def to_decide() -> Iterator[_PairJob]:
+        """The screen's jobs (each put in ``jobs``) the B-rep has to decide: one per key, not
+        in the cache."""
+        for k, job in _screened(bodies, pairs[chosen], near_surfaces[chosen], settings):
+            jobs[k] = job
+            if job is None or job.key in verdicts or job.key in todo:
+                continue
+            hit = cache.get(job.key) if cache is not None else None
+            if hit is not None:
+                verdicts[job.key] = hit
+            else:
+                todo.add(job.key)
+                yield job
+
+    fresh = _decide_all(bodies, to_decide(), executor, meanwhile)
     for key, verdict in fresh.items():
         verdicts[key] = verdict
         if cache is not None and isinstance(verdict, PairVerdict):
@@ -441,42 +458,62 @@ def to_world(verdict: PairVerdict, first: Body) -> PairVerdict:
 # Many pairs: the meshes' filter, then the B-rep here or in workers
 
 
-def _screened(bodies, pairs, near_surfaces, settings) -> list[_PairJob | None]:
-    """Each pair's job, or None when its meshes stay farther apart than the solids' reach plus
-    the two deflections (``pair.surface_distance``): then the solids are clear. A job's
-    ``may_overlap`` says whether the meshes come within the two deflections (or one holds the
-    other); otherwise the solids are apart, and no boolean is needed."""
-    from .pair import surface_distance
+def _screened(bodies, pairs, near_surfaces, settings) -> Iterator[tuple[int, _PairJob | None]]:
+    """Each pair's index and job, or None when its meshes stay farther apart than the solids'
+    reach plus the two deflections (``pair.surface_distance``): then the solids are clear. A
+    job's ``may_overlap`` says whether the meshes come within the two deflections (or one holds
+    the other); otherwise the solids are apart, and no boolean is needed.
+
+    A job made is sent to a worker at once (``_decide_all``), so the jobs come as early as the
+    screen can tell them, costliest first (``_costliest_first``): first the pairs whose meshes
+    meet within the deflections at first sight (``pair.first_within``, milliseconds), then the
+    others, each measured to the reach (tens of milliseconds on a large mesh)."""
+    from .pair import first_within, surface_distance
 
     memo: dict = {}
-    out: list[_PairJob | None] = []
-    for pair, is_near in zip(pairs, near_surfaces, strict=True):
-        job = _pair_job(bodies, pair, settings)
+    jobs, rest = {}, []
+    for k in _costliest_first(bodies, pairs):
+        job = jobs[k] = _pair_job(bodies, pairs[k], settings)
+        a, b = bodies[job.first], bodies[job.second]
+        deflections = a.deflection + b.deflection
+        if near_surfaces[k] and first_within(a.world, b.world, deflections, memo=memo) is not None:
+            yield k, _keyed(job, may_overlap=True)
+        else:
+            rest.append(k)
+    for k in rest:
+        job = jobs[k]
         a, b = bodies[job.first], bodies[job.second]
         deflections = a.deflection + b.deflection
         reach = job.tolerance_report + deflections
         reach += float(job.clearance or 0.0) * 1e-3 / METRES[a.units]
         distance = surface_distance(
-            a.world,
-            b.world,
-            reach=reach,
-            surfaces_apart=not bool(is_near),
-            memo=memo,
-            enough=deflections,
+            a.world, b.world, reach=reach, surfaces_apart=not bool(near_surfaces[k]), memo=memo
         )
-        if distance > reach:
-            out.append(None)
-            continue
-        may_overlap = distance <= deflections
-        key = pair_key(
-            job.products,
-            job.relative,
-            tolerance=job.tolerance,
-            clearance=job.clearance,
-            may_overlap=may_overlap,
-        )
-        out.append(dataclasses.replace(job, key=key, may_overlap=may_overlap))
-    return out
+        yield k, (None if distance > reach else _keyed(job, may_overlap=distance <= deflections))
+
+
+def _keyed(job: _PairJob, *, may_overlap: bool) -> _PairJob:
+    """``job`` with its key (``pair_key``) and ``may_overlap``."""
+    key = pair_key(
+        job.products,
+        job.relative,
+        tolerance=job.tolerance,
+        clearance=job.clearance,
+        may_overlap=may_overlap,
+    )
+    return dataclasses.replace(job, key=key, may_overlap=may_overlap)
+
+
+def _costliest_first(bodies: Sequence[Body], pairs: np.ndarray) -> np.ndarray:
+    """The order of ``pairs`` by their solids' BRep texts, longest first (``_task``'s size),
+    when every text is in hand (read with the file); as given otherwise, reading none for it."""
+    sizes = []
+    for i, j in pairs:
+        lengths = [bodies[k].brep.text_length(_node(bodies[k])) for k in (i, j)]
+        if None in lengths:
+            return np.arange(len(pairs))
+        sizes.append(sum(lengths))
+    return np.argsort(-np.asarray(sizes, dtype=np.int64), kind="stable")
 
 
 def _pays_in_workers(executor: Executor | None, pairs: int, seconds: float | None = None) -> bool:
@@ -536,46 +573,50 @@ def _by_started_workers(run, executor: Executor, tasks: list[Task]) -> list:
     return results
 
 
-def _decide_all(bodies, jobs: list[_PairJob], executor) -> dict[str, PairVerdict | str]:
+def _decide_all(
+    bodies, jobs: Iterable[_PairJob], executor, meanwhile: Callable[[], None] | None = None
+) -> dict[str, PairVerdict | str]:
     """Verdicts (or why not) of ``jobs`` by key: here, or in ``executor``'s workers when their
-    expected seconds repay them."""
-    if not jobs:
-        return {}
-    shared: dict = {}
-    try:
-        for job in jobs:
-            for body, product in zip(
-                (bodies[job.first], bodies[job.second]), job.products, strict=True
-            ):
-                if product not in shared:
-                    shared[product] = body.brep.product_text(_node(body))
-    except InputError as exc:  # the file is gone or changed since load (a cache miss)
-        return dict.fromkeys((j.key for j in jobs), f"its file cannot be read again ({exc.reason})")
-    tasks = [
-        Task(
-            (
-                (
-                    job.products[0],
-                    job.products[1],
-                    job.relative,
-                    job.tolerance,
-                    job.clearance,
-                    job.may_overlap,
-                ),
-            ),
-            needs=job.products,
-            # The solids' BRep texts, roughly what intersecting them costs: the workers start
-            # on the costliest pairs, this process on the costliest they left, then the
-            # cheapest (``LocalPool.map``).
-            size=len(shared[job.products[0]]) + len(shared[job.products[1]]),
-        )
-        for job in jobs
-    ]
-    # This process's solids, read once and kept from one map here to the next.
-    shared[SHAPES] = {}
-    with Progress("checking on the B-rep", len(tasks)) as bar:
+    expected seconds repay them. Where every core has its process with OpenCASCADE loaded
+    (``_streams``), each job goes to an idle worker as soon as the screen makes it.
+    ``meanwhile`` is called once the last job is made (``decide_on_brep``)."""
+    shared: dict = {SHAPES: {}}  # SHAPES: this process's solids, read once, kept between maps
+    made: list[_PairJob] = []
+    unreadable: list[str] = []  # why the solids cannot be had: then no job is decided
+    counters: list[Progress] = []  # the stage's, once open: it counts the tasks as made
 
-        def run(runner: Executor, chosen: list[Task], done: int = 0, **where) -> list:
+    def tasks() -> Iterator[Task]:
+        for job in jobs:
+            made.append(job)
+            if unreadable:
+                continue  # the screen goes on: its jobs say which pairs it proved clear
+            try:
+                for body, product in zip(
+                    (bodies[job.first], bodies[job.second]), job.products, strict=True
+                ):
+                    if product not in shared:
+                        shared[product] = body.brep.product_text(_node(body))
+            except InputError as exc:  # the file is gone or changed since load (a cache miss)
+                unreadable.append(f"its file cannot be read again ({exc.reason})")
+                continue
+            for bar in counters:
+                bar.update_total(bar.done, len(made))
+            yield _task(job, shared)
+        if meanwhile is not None:
+            meanwhile()
+
+    streams = _streams(executor)
+    made_tasks = tasks()
+    first = next(made_tasks, None)  # the screen up to its first pair for the B-rep
+    if first is None:
+        return dict.fromkeys((job.key for job in made), unreadable[0]) if unreadable else {}
+    made_tasks = itertools.chain([first], made_tasks)
+    if not streams:
+        made_tasks = list(made_tasks)
+    with Progress("checking on the B-rep", len(made)) as bar:
+        counters.append(bar)
+
+        def run(runner: Executor, chosen: Iterable[Task], done: int = 0, **where) -> list:
             return runner.map(
                 "meshcheck.verify.solids:brep_task",
                 chosen,
@@ -584,25 +625,75 @@ def _decide_all(bodies, jobs: list[_PairJob], executor) -> dict[str, PairVerdict
                 **({"here": True} | where),
             )
 
-        pays = _pays_in_workers(executor, len(tasks))
-        if pays and _left_to_workers(executor):
-            results = _by_started_workers(run, executor, tasks)
-        elif pays:
-            results = run(executor, tasks)
-        elif executor is None or not _may_pay(executor):
-            results = run(Executor(), tasks)
-        else:  # pairs here, one at a time, until their mean seconds say the rest repay workers
-            results, started = [], time.process_time()
-            while len(results) < len(tasks):
-                done = len(results)
-                mean = (time.process_time() - started) / max(done, 1)
-                if done and _pays_in_workers(executor, len(tasks) - done, mean):
-                    results += run(executor, tasks[done:], done)
-                else:
-                    results += run(Executor(), tasks[done : done + 1], done)
+        if streams:
+            results = run(executor, made_tasks, grow=False)
+        else:
+            results = _decided(run, executor, made_tasks)
+    if unreadable:
+        return dict.fromkeys((job.key for job in made), unreadable[0])
     out = {}
-    for job, task, result in zip(jobs, tasks, results, strict=True):
+    for job, result in zip(made, results, strict=True):
         if result is None:  # its worker died: decide here (a bug then shows its traceback)
+            task = _task(job, shared)
             result = Executor().map("meshcheck.verify.solids:brep_task", [task], shared=shared)[0]
         out[job.key] = result
     return out
+
+
+def _decided(run, executor: Executor | None, tasks: list[Task]) -> list:
+    """The results of ``tasks`` (``run(executor, tasks, done, **where)``, ``_decide_all``'s
+    map): in ``executor``'s workers when their expected seconds repay them, here otherwise."""
+    pays = _pays_in_workers(executor, len(tasks))
+    if pays and _left_to_workers(executor):
+        return _by_started_workers(run, executor, tasks)
+    if pays:
+        return run(executor, tasks)
+    if executor is None or not _may_pay(executor):
+        return run(Executor(), tasks)
+    # Pairs here, one at a time, until their mean seconds say the rest repay workers.
+    results, started = [], time.process_time()
+    while len(results) < len(tasks):
+        done = len(results)
+        mean = (time.process_time() - started) / max(done, 1)
+        if done and _pays_in_workers(executor, len(tasks) - done, mean):
+            results += run(executor, tasks[done:], done)
+        else:
+            results += run(Executor(), tasks[done : done + 1], done)
+    return results
+
+
+def _streams(executor: Executor | None) -> bool:
+    """Whether the screen's jobs go to ``executor``'s workers as it makes them: every core has
+    its process (the pool grows no further), the workers and this process have OpenCASCADE
+    loaded (``PREPARE``; a process without it leaves the pairs to the workers,
+    ``_left_to_workers``), so a first pair in a worker repays nothing more."""
+    return (
+        executor is not None
+        and not executor.is_distributed
+        and executor.jobs > 1
+        and executor.is_started
+        and executor.started >= executor.jobs - 1
+        and PREPARE in executor.prepared
+        and "OCP.OCP" in sys.modules
+    )
+
+
+def _task(job: _PairJob, shared: dict) -> Task:
+    """A job's task; ``shared`` holds its products' texts."""
+    return Task(
+        (
+            (
+                job.products[0],
+                job.products[1],
+                job.relative,
+                job.tolerance,
+                job.clearance,
+                job.may_overlap,
+            ),
+        ),
+        needs=job.products,
+        # The solids' BRep texts, roughly what intersecting them costs: the workers start on
+        # the costliest pairs, this process on the costliest they left, then the cheapest
+        # (``LocalPool.map``).
+        size=len(shared[job.products[0]]) + len(shared[job.products[1]]),
+    )

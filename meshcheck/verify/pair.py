@@ -139,14 +139,13 @@ def surface_distance(
     >>> surface_distance(a, b, reach=0.2), round(surface_distance(a, b, reach=0.3), 9)
     (inf, 0.25)
     """
-    meshes = _recentred(a, b, {} if memo is None else memo)
-    distance = math.inf
+    memo = {} if memo is None else memo
     if not surfaces_apart and enough is not None:
-        found, _ = placed_surface_distance(
-            meshes.va, meshes.fa, meshes.vb, meshes.fb, np.eye(4), float(enough), settle=True
-        )
-        if found <= enough:
+        found = first_within(a, b, enough, memo=memo)
+        if found is not None:
             return found
+    meshes = _recentred(a, b, memo)
+    distance = math.inf
     if not surfaces_apart:
         near = _near_pairs(meshes, float(reach))
         if len(near.distance) and float(near.distance.min()) <= reach:
@@ -154,6 +153,19 @@ def surface_distance(
     if distance > 0.0 and _is_buried(meshes):
         return 0.0
     return distance
+
+
+def first_within(
+    a: trimesh.Trimesh, b: trimesh.Trimesh, distance: float, *, memo: dict | None = None
+) -> float | None:
+    """The distance of the first triangle pair of ``a`` and ``b`` found within ``distance``
+    (nearest boxes first: ``surface_distance``'s ``enough``), None when none is: the first
+    step of ``surface_distance``, milliseconds where the surfaces meet."""
+    meshes = _recentred(a, b, {} if memo is None else memo)
+    found, _ = placed_surface_distance(
+        meshes.va, meshes.fa, meshes.vb, meshes.fb, np.eye(4), float(distance), settle=True
+    )
+    return found if found <= distance else None
 
 
 # ---------------------------------------------------------------------------------------------

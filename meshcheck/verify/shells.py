@@ -3,8 +3,9 @@
 A part read from a file holding several closed shells (without ``--split``) is checked as one
 part, so a clash between its own shells is never a finding; ``warn_overlapping_shells`` says so.
 The exact test is the verify stage's own (``pair.verify_pair``) on each pair of closed shells
-whose boxes overlap. The check runs it on the loaded bodies before anything else
-(``pipeline.check_bodies``), so its warnings follow the loader's.
+whose boxes overlap. The check runs it on the loaded bodies once the B-rep stage has sent its
+first pairs to the workers (``pipeline.check_bodies``, ``verify.brep.decide_on_brep``'s
+``meanwhile``), so its warnings follow the loader's.
 """
 
 from __future__ import annotations

@@ -136,6 +136,12 @@ class StepSolids:
             self._texts[product] = brep_text(self._named[node].product)
         return self._texts[product]
 
+    def text_length(self, node: str) -> int | None:
+        """The length of ``node``'s product text (``product_text``) when it is in hand (read
+        with the file), None when it is not: nothing is read for it."""
+        text = self._texts.get(self.product(node))
+        return None if text is None else len(text)
+
     def _document(self) -> list[Instance]:
         """The file's instances: kept from the tessellation, or read from the bytes once."""
         if self._instances is None:
