@@ -53,13 +53,13 @@ pair per task. Where every core's process is started with OpenCASCADE loaded (``
 each pair goes to an idle worker as soon as the screen makes it: the pairs whose meshes meet
 within the deflections first (milliseconds each), then those measured to the reach, so a worker
 starts the costliest while this process still screens. A process that has not loaded
-OpenCASCADE (a small file read ahead by a worker that has) leaves them to the workers started,
-and starts the pool's others only when the pairs' measured seconds repay it
-(``_by_started_workers``). OpenCASCADE shapes are not pickled: each
-product travels once per worker as BRep text (``StepSolids.product_text``, a few milliseconds
-to read, where reading the STEP file again costs a fraction of a second), and the solids are
-never modified (non-destructive booleans on copies), so a verdict does not depend on the pairs
-decided before it in the same process.
+OpenCASCADE (a small file read ahead by a worker that has) leaves the pairs to the workers
+started, and starts the pool's others only when the pairs' measured seconds repay it
+(``_by_started_workers``). OpenCASCADE shapes are not pickled: each product travels once per
+worker as BRep text (``StepSolids.product_text``, a few milliseconds to read, where reading the
+STEP file again costs a fraction of a second), and the solids are never modified
+(non-destructive booleans on copies), so a verdict does not depend on the pairs decided before
+it in the same process.
 
 A product whose faces are B-splines lying on planes, cylinders, cones, spheres or tori (as some
 CAD systems export every face) is decided on the same solid rebuilt on those surfaces
@@ -663,10 +663,11 @@ def _decided(run, executor: Executor | None, tasks: list[Task]) -> list:
 
 
 def _streams(executor: Executor | None) -> bool:
-    """Whether the screen's jobs go to ``executor``'s workers as it makes them: every core has
-    its process (the pool grows no further), the workers and this process have OpenCASCADE
-    loaded (``PREPARE``; a process without it leaves the pairs to the workers,
-    ``_left_to_workers``), so a first pair in a worker repays nothing more."""
+    """Whether the screen's jobs go to ``executor``'s workers as it makes them: every core but
+    this process's has its worker (the pool grows no further), the workers and this process
+    have OpenCASCADE loaded (``PREPARE``), so this process screens beside the workers, then
+    takes pairs with them. A process without it (``_left_to_workers``) leaves every core to
+    the workers: screening beside them would only take a core from one."""
     return (
         executor is not None
         and not executor.is_distributed
