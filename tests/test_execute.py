@@ -590,6 +590,17 @@ def test_a_dead_worker_gives_none_and_is_replaced():
         assert pool.map("meshcheck.execute:echo", [Task(("alive",))]) == ["alive"]
 
 
+def test_a_worker_that_dies_while_tasks_are_drawn_gives_none_and_is_replaced():
+    def tasks():
+        yield Task((3,))
+        time.sleep(0.5)  # the worker dies while the next task is made
+        yield Task((4,))
+
+    with LocalPool(1) as pool:
+        assert pool.map("meshcheck.execute:exit_worker", tasks()) == [None, None]
+        assert pool.map("meshcheck.execute:echo", iter([Task(("alive",))])) == ["alive"]
+
+
 def test_a_bug_in_a_task_raises_with_the_workers_traceback():
     with LocalPool(1) as pool, pytest.raises(RuntimeError, match="ZeroDivisionError"):
         pool.map("meshcheck.execute:echo_inverse", [Task((0,))])
