@@ -368,8 +368,15 @@ class _Worker:
         self.task: int | None = None  # index of the task running, None when idle
         #: The tasks sent to run after it (``run_here``), in order: (index, how many messages
         #: it had been sent with that task's).
-        self.queued: deque[tuple[int, int]] = deque()
+        self.queued: deque[tuple[int, int, int]] = deque()
         self.task_sent = 0  # how many messages it had been sent with its task's
+        #: Bytes of the shared values it had been sent with its task's (``bytes_sent``); the
+        #: ones sent since lie in the pipe at most, unread while it runs its task.
+        self.task_bytes = 0
+        self.bytes_sent = 0  # the bytes of the shared values sent to it (``send``)
+        #: How many bytes its pipe holds unread: a message up to that is written in full while
+        #: it runs a task and reads nothing (``_LocalRun.written_to_workers``).
+        self.pipe_bytes = _widened_pipe(send)
         self.withdrawing: int | None = None  # the queued task asked back, until it answers
         self.started = 0.0
         self.is_ready = False
@@ -410,6 +417,10 @@ class _Worker:
         BrokenPipeError
             An earlier message found the worker gone.
         """
+        if message[0] == "put" and isinstance(message[2], bytes | bytearray | memoryview):
+            self.bytes_sent += len(message[2])
+        elif message[0] == "put":
+            self.bytes_sent += self.pipe_bytes  # of a size not known: as if it filled the pipe
         if not self._writer.put(message):
             raise BrokenPipeError("the worker is gone")
 
@@ -458,6 +469,29 @@ class _Worker:
                     self.ready(message)
         except (EOFError, OSError):
             pass
+
+
+#: Bytes asked for each pipe to a worker (``_widened_pipe``): Linux's default upper bound for an
+#: unprivileged process (``/proc/sys/fs/pipe-max-size``), sixteen times the default buffer.
+PIPE_BYTES = 1 << 20
+#: Bytes of a pipe left to the messages' own framing, for the ``put`` values it holds.
+PIPE_SPARE = 1 << 16
+
+
+def _widened_pipe(end: int) -> int:
+    """Widen the buffer of the pipe whose write end is ``end`` to ``PIPE_BYTES`` where the
+    system lets this process (Linux); the bytes it holds now."""
+    import fcntl
+
+    setter, getter = getattr(fcntl, "F_SETPIPE_SZ", None), getattr(fcntl, "F_GETPIPE_SZ", None)
+    if setter is None or getter is None:
+        return 1 << 12  # POSIX guarantees 4 KiB (PIPE_BUF) at least
+    with contextlib.suppress(OSError):
+        fcntl.fcntl(end, setter, PIPE_BYTES)
+    try:
+        return int(fcntl.fcntl(end, getter))
+    except OSError:
+        return 1 << 12
 
 
 @functools.cache
@@ -881,7 +915,7 @@ class _LocalRun:
         one it was sent, which must be the one asked for."""
         if worker.task is None or worker.withdrawing is not None or not self.pending:
             return False
-        return not worker.queued or sum(self.tasks[i].size for i, _ in worker.queued) < task.size
+        return not worker.queued or sum(self.tasks[i].size for i, *_ in worker.queued) < task.size
 
     def written_to_workers(self) -> None:
         """Wait until each ready worker's task is written to it (its shared values too), before
@@ -889,12 +923,23 @@ class _LocalRun:
         which a task inside one long OpenCASCADE call (a mesh, a boolean) does not until the
         call returns, and the worker would wait idle for it (for a product's text, say). A
         worker that is ready reads its messages as they come; one still importing is not
-        waited for, nor any worker past ``WRITE_WAIT`` seconds in all."""
+        waited for, nor any worker past ``WRITE_WAIT`` seconds in all.
+
+        A busy worker's next tasks are waited for too when their shared values fit in its pipe
+        with ``PIPE_SPARE`` bytes to spare (``_Worker.pipe_bytes``): it reads nothing while its
+        own task holds Python's lock, so only what the pipe holds is written meanwhile, and a
+        next task not written in full would keep it waiting once its own is done."""
         deadline = time.monotonic() + self.WRITE_WAIT
         for worker in self.pool.workers:
             if worker.task is not None and worker.is_ready:
+                count = worker.task_sent
+                if (
+                    worker.queued
+                    and worker.bytes_sent - worker.task_bytes <= worker.pipe_bytes - PIPE_SPARE
+                ):
+                    count = worker.sent
                 left = deadline - time.monotonic()
-                if left <= 0.0 or not worker.wait_written(worker.task_sent, left):
+                if left <= 0.0 or not worker.wait_written(count, left):
                     return
 
     def take_back(self) -> None:
@@ -949,7 +994,7 @@ class _LocalRun:
         if worker.task is not None:
             return
         if worker.queued:  # already sent: it runs now (unless it is given back)
-            worker.task, worker.task_sent = worker.queued.popleft()
+            worker.task, worker.task_sent, worker.task_bytes = worker.queued.popleft()
             worker.started = time.monotonic()
         elif self.pending:
             self.start(worker)
@@ -999,9 +1044,10 @@ class _LocalRun:
             self.lost(worker)
             return False
         if queued:
-            worker.queued.append((index, worker.sent))
+            worker.queued.append((index, worker.sent, worker.bytes_sent))
         else:
-            worker.task, worker.started, worker.task_sent = index, time.monotonic(), worker.sent
+            worker.task, worker.started = index, time.monotonic()
+            worker.task_sent, worker.task_bytes = worker.sent, worker.bytes_sent
         return True
 
 

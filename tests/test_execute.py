@@ -11,6 +11,7 @@ import time
 
 import pytest
 
+import meshcheck.execute as execute
 from meshcheck.execute import Executor, LocalPool, Task, resolve
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -294,6 +295,30 @@ def test_a_worker_holding_pythons_lock_does_not_hold_this_process_up():
     assert here == os.getpid() != pid and size == 4 << 20
     assert ended - first > 0.5  # the worker's call held it that long
     assert small - begun < 0.4  # this process ran its task at once, not after that call
+
+
+def test_a_busy_workers_next_task_that_fits_its_pipe_is_written_before_this_process_runs_one():
+    """A busy worker inside one call that holds Python's lock reads nothing until it returns,
+    and this process's writing thread does not run while this process is inside such a call of
+    its own: the next task sent to the worker, with a value larger than a default pipe holds
+    but not than its widened one (``PIPE_BYTES``), is written in full first, so the worker
+    starts it as soon as its own call is done, not once this process's is."""
+    shared = {"a": b"", "b": bytes(512 << 10)}
+    tasks = [
+        Task((40_000_000, "a"), needs=("a",), size=3),  # the worker's: about 0.7 s in one call
+        Task((120_000_000, "a"), needs=("a",), size=2),  # this process's: about 2 s
+        Task((1, "b"), needs=("b",), size=1),  # sent to the worker to run next
+    ]
+    with LocalPool(2) as pool:
+        pool.map("meshcheck.execute:echo", [Task((0,))])  # started and ready
+        assert pool.workers[0].pipe_bytes >= (512 << 10) + execute.PIPE_SPARE
+        (pid, _, _), (here, mine, _), (next_pid, second, size) = pool.map(
+            "meshcheck.execute:hold_then_shared", tasks, shared=shared, here=True
+        )
+        ended = time.time()
+    assert here == os.getpid() != pid == next_pid and size == 512 << 10
+    assert ended - mine > 1.0  # this process's call held it that long
+    assert second < ended - 0.5  # the worker's next task began long before that call ended
 
 
 def test_prepared_workers_import_before_their_first_task():
