@@ -266,14 +266,20 @@ class Writer:
 
         self.connection, self.queue, self.is_broken = connection, queue.Queue(), False
         self.put_count = self.written = 0  # messages queued, and written, so far
+        self.put_bytes = 0  # the pickled bytes of the messages queued so far
         self.condition = threading.Condition()
         self.thread = threading.Thread(target=self._write, daemon=True)
         self.thread.start()
 
     def put(self, message) -> bool:
-        """Queue ``message``; False once the other end is gone (a write failed)."""
+        """Queue ``message``, pickled here (so its size is known: ``put_bytes``); False once the
+        other end is gone (a write failed)."""
+        from multiprocessing.reduction import ForkingPickler
+
+        payload = ForkingPickler.dumps(message)
         self.put_count += 1
-        self.queue.put(message)
+        self.put_bytes += len(payload)
+        self.queue.put(payload)
         return not self.is_broken
 
     def wait_written(self, count: int, timeout: float) -> bool:
@@ -292,7 +298,7 @@ class Writer:
     def _write(self) -> None:
         while (message := self.queue.get()) is not None:
             try:
-                self.connection.send(message)
+                self.connection.send_bytes(message)
             except (BrokenPipeError, OSError):
                 with self.condition:
                     self.is_broken = True
@@ -370,10 +376,9 @@ class _Worker:
         #: it had been sent with that task's).
         self.queued: deque[tuple[int, int, int]] = deque()
         self.task_sent = 0  # how many messages it had been sent with its task's
-        #: Bytes of the shared values it had been sent with its task's (``bytes_sent``); the
-        #: ones sent since lie in the pipe at most, unread while it runs its task.
+        #: How many bytes it had been sent with its task's (``bytes_sent``): the ones sent
+        #: since lie in the pipe at most, unread while it runs its task.
         self.task_bytes = 0
-        self.bytes_sent = 0  # the bytes of the shared values sent to it (``send``)
         #: How many bytes its pipe holds unread: a message up to that is written in full while
         #: it runs a task and reads nothing (``_LocalRun.written_to_workers``).
         self.pipe_bytes = _widened_pipe(send)
@@ -409,6 +414,11 @@ class _Worker:
         """Wait until its first ``count`` messages are written, at most ``timeout`` seconds."""
         return self._writer.wait_written(count, timeout)
 
+    @property
+    def bytes_sent(self) -> int:
+        """How many bytes it has been sent (``send``), pickled, written or not yet."""
+        return self._writer.put_bytes
+
     def send(self, message) -> None:
         """Queue ``message`` for the worker, in order; its writing thread sends it.
 
@@ -417,10 +427,6 @@ class _Worker:
         BrokenPipeError
             An earlier message found the worker gone.
         """
-        if message[0] == "put" and isinstance(message[2], bytes | bytearray | memoryview):
-            self.bytes_sent += len(message[2])
-        elif message[0] == "put":
-            self.bytes_sent += self.pipe_bytes  # of a size not known: as if it filled the pipe
         if not self._writer.put(message):
             raise BrokenPipeError("the worker is gone")
 
@@ -474,8 +480,9 @@ class _Worker:
 #: Bytes asked for each pipe to a worker (``_widened_pipe``): Linux's default upper bound for an
 #: unprivileged process (``/proc/sys/fs/pipe-max-size``), sixteen times the default buffer.
 PIPE_BYTES = 1 << 20
-#: Bytes of a pipe left to the messages' own framing, for the ``put`` values it holds.
-PIPE_SPARE = 1 << 16
+#: Bytes of a pipe left spare by the messages waited for (``_LocalRun.written_to_workers``): each
+#: message's length header, and what ``F_GETPIPE_SZ`` rounds.
+PIPE_SPARE = 1 << 12
 
 
 def _widened_pipe(end: int) -> int:
@@ -925,10 +932,10 @@ class _LocalRun:
         worker that is ready reads its messages as they come; one still importing is not
         waited for, nor any worker past ``WRITE_WAIT`` seconds in all.
 
-        A busy worker's next tasks are waited for too when their shared values fit in its pipe
-        with ``PIPE_SPARE`` bytes to spare (``_Worker.pipe_bytes``): it reads nothing while its
-        own task holds Python's lock, so only what the pipe holds is written meanwhile, and a
-        next task not written in full would keep it waiting once its own is done."""
+        A busy worker's next tasks are waited for too when their messages fit in its pipe with
+        ``PIPE_SPARE`` bytes to spare (``_Worker.pipe_bytes``): it reads nothing while its own
+        task holds Python's lock, so only what the pipe holds is written meanwhile, and a next
+        task not written in full would keep it waiting once its own is done."""
         deadline = time.monotonic() + self.WRITE_WAIT
         for worker in self.pool.workers:
             if worker.task is not None and worker.is_ready:
