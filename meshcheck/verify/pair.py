@@ -139,12 +139,11 @@ def surface_distance(
     >>> surface_distance(a, b, reach=0.2), round(surface_distance(a, b, reach=0.3), 9)
     (inf, 0.25)
     """
-    memo = {} if memo is None else memo
+    meshes = _recentred(a, b, {} if memo is None else memo)
     if not surfaces_apart and enough is not None:
-        found = first_within(a, b, enough, memo=memo)
+        found = _first_within(meshes, enough)
         if found is not None:
             return found
-    meshes = _recentred(a, b, memo)
     distance = math.inf
     if not surfaces_apart:
         near = _near_pairs(meshes, float(reach))
@@ -161,7 +160,11 @@ def first_within(
     """The distance of the first triangle pair of ``a`` and ``b`` found within ``distance``
     (nearest boxes first: ``surface_distance``'s ``enough``), None when none is: the first
     step of ``surface_distance``, milliseconds where the surfaces meet."""
-    meshes = _recentred(a, b, {} if memo is None else memo)
+    return _first_within(_recentred(a, b, {} if memo is None else memo), distance)
+
+
+def _first_within(meshes: _CentredPair, distance: float) -> float | None:
+    """``first_within`` on two meshes already re-centred (``_recentred``)."""
     found, _ = placed_surface_distance(
         meshes.va, meshes.fa, meshes.vb, meshes.fb, np.eye(4), float(distance), settle=True
     )
