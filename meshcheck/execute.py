@@ -373,7 +373,7 @@ class _Worker:
         self.keys: set = set()
         self.task: int | None = None  # index of the task running, None when idle
         #: The tasks sent to run after it (``run_here``), in order: (index, how many messages
-        #: it had been sent with that task's).
+        #: and how many bytes it had been sent with that task's).
         self.queued: deque[tuple[int, int, int]] = deque()
         self.task_sent = 0  # how many messages it had been sent with its task's
         #: How many bytes it had been sent with its task's (``bytes_sent``): the ones sent
@@ -489,16 +489,15 @@ def _widened_pipe(end: int) -> int:
     """Widen the buffer of the pipe whose write end is ``end`` to ``PIPE_BYTES`` where the
     system lets this process (Linux); the bytes it holds now."""
     import fcntl
+    import select
 
     setter, getter = getattr(fcntl, "F_SETPIPE_SZ", None), getattr(fcntl, "F_GETPIPE_SZ", None)
-    if setter is None or getter is None:
-        return 1 << 12  # POSIX guarantees 4 KiB (PIPE_BUF) at least
-    with contextlib.suppress(OSError):
-        fcntl.fcntl(end, setter, PIPE_BYTES)
-    try:
-        return int(fcntl.fcntl(end, getter))
-    except OSError:
-        return 1 << 12
+    if setter is not None and getter is not None:
+        with contextlib.suppress(OSError):
+            fcntl.fcntl(end, setter, PIPE_BYTES)
+        with contextlib.suppress(OSError):
+            return int(fcntl.fcntl(end, getter))
+    return select.PIPE_BUF  # what POSIX guarantees a pipe holds
 
 
 @functools.cache
