@@ -15,15 +15,13 @@ edges and vertices, and its volume (adaptive integration) matches the original's
 
 from __future__ import annotations
 
+from .volumes import volume
+
 #: A B-spline within this fraction of the solid's box diagonal of an analytic surface or curve
 #: is rebuilt on it.
 RELATIVE_TOLERANCE = 1e-7
 #: The rebuilt solid's volume matches the original's within this fraction.
 VOLUME_MATCH = 1e-6
-#: Relative error asked of the adaptive volume integration that compares the two, and that
-#: measures a shared solid's volume: volumes are promised within 1e-6; on threaded screws'
-#: shared solids 1e-8 lands within 2e-8 of the 1e-9 integral in half its time.
-VOLUME_PRECISION = 1e-8
 
 
 def analytic(shape):
@@ -278,8 +276,6 @@ def _edge(edge, tolerance: float, builder):
 def _same_solid(original, rebuilt) -> bool:
     """Whether ``rebuilt`` is valid, closed, of the same topology and volume as ``original``."""
     from OCP.BRepCheck import BRepCheck_Analyzer
-    from OCP.BRepGProp import BRepGProp
-    from OCP.GProp import GProp_GProps
     from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_SOLID, TopAbs_VERTEX
 
     if rebuilt.ShapeType() != original.ShapeType() or not _closed(rebuilt):
@@ -289,12 +285,8 @@ def _same_solid(original, rebuilt) -> bool:
             return False
     if not BRepCheck_Analyzer(rebuilt).IsValid():
         return False
-    volumes = []
-    for solid in (original, rebuilt):
-        props = GProp_GProps()
-        BRepGProp.VolumeProperties_s(solid, props, VOLUME_PRECISION)
-        volumes.append(props.Mass())
-    return abs(volumes[0] - volumes[1]) <= VOLUME_MATCH * max(abs(volumes[0]), abs(volumes[1]))
+    before, after = volume(original), volume(rebuilt)
+    return abs(before - after) <= VOLUME_MATCH * max(abs(before), abs(after))
 
 
 def _closed(shape) -> bool:

@@ -371,12 +371,12 @@ def pair_key(
 
 @functools.cache
 def _code_version() -> str:
-    """Digest of what computes a B-rep verdict: this file, ``solids``, ``analytic`` and
-    OpenCASCADE's version."""
-    from . import analytic, solids
+    """Digest of what computes a B-rep verdict: this file, ``solids``, ``analytic``,
+    ``volumes`` and OpenCASCADE's version."""
+    from . import analytic, solids, volumes
 
     sources = []
-    for module in (__file__, solids.__file__, analytic.__file__):
+    for module in (__file__, solids.__file__, analytic.__file__, volumes.__file__):
         with open(module, "rb") as f:
             sources.append(f.read())
     version = package_version("cadquery-ocp-novtk", missing="?").encode()

@@ -18,6 +18,7 @@ import math
 import numpy as np
 
 from ..results import Location, PairVerdict, Solid, Verdict
+from . import volumes
 
 #: Points of the shared solid's surface a ball is grown from, the largest facets first.
 BALL_SEEDS = 24
@@ -224,11 +225,10 @@ def decide(
     >>> str(v.status), round(v.distance, 9)
     ('clearance', 0.2)
     """
-    meeting, volume, points, props = None, 0.0, None, None
+    meeting, volume, points = None, 0.0, None
     if may_overlap:
         meeting = _Intersection(shape_a, shape_b)
-        props = _mass_properties(meeting.shared)
-        volume = max(float(props.Mass()), 0.0)
+        volume = max(volumes.volume(meeting.shared), 0.0)
     if volume > 0.0:
         distance = 0.0  # they share volume: no distance to compute
     elif meeting is not None and _meets_within(meeting.section, tolerance):
@@ -244,13 +244,12 @@ def decide(
         return BrepVerdict(Verdict.CLEAR, distance, None, 0.0)
     if meeting is None:
         meeting = _Intersection(shape_a, shape_b)
-        props = _mass_properties(meeting.shared)
-        volume = max(float(props.Mass()), 0.0)
+        volume = max(volumes.volume(meeting.shared), 0.0)
     shared = meeting.shared
     if volume > math.pi / 6.0 * tolerance**3:
         depth = _largest_ball(shared)
         if depth > tolerance or _thickness_bound(shared) > tolerance:
-            centroid, lower, upper = _placement_of(shared, props)
+            centroid, lower, upper = _placement_of(shared)
             return BrepVerdict(
                 Verdict.INTERFERENCE,
                 0.0,
@@ -375,29 +374,9 @@ def _has_vertices(shape) -> bool:
     return TopExp_Explorer(shape, TopAbs_VERTEX).More()
 
 
-def _volume(shape) -> float:
-    return float(_mass_properties(shape).Mass())
-
-
-def _mass_properties(shape):
-    """The solid's volume properties, integrated adaptively to ``analytic.VOLUME_PRECISION``:
-    OpenCASCADE's default Gauss rule misreads the volume of a common solid of B-spline faces
-    (0.58 mm³ for a pin-in-hole overlap of 0.377 mm³)."""
-    from OCP.BRepGProp import BRepGProp
-    from OCP.GProp import GProp_GProps
-
-    from .analytic import VOLUME_PRECISION
-
-    props = GProp_GProps()
-    BRepGProp.VolumeProperties_s(shape, props, VOLUME_PRECISION)
-    return props
-
-
-def _placement_of(shape, props=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Centre of mass and bounding box of a solid (``props``: its ``_mass_properties`` when
-    already integrated)."""
-    props = _mass_properties(shape) if props is None else props
-    return (np.array(props.CentreOfMass().Coord()), *_box(shape))
+def _placement_of(shape) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Centre of mass and bounding box of a solid."""
+    return (volumes.centre_of_mass(shape), *_box(shape))
 
 
 def _box(shape) -> tuple[np.ndarray, np.ndarray]:
@@ -670,7 +649,7 @@ def _thickness_bound(shape) -> float:
         box = Bnd_Box()
         BRepBndLib.Add_s(solid, box, False)
         side = min(np.array(box.CornerMax().Coord()) - np.array(box.CornerMin().Coord()))
-        ball = 2.0 * (3.0 * max(_volume(solid), 0.0) / (4.0 * math.pi)) ** (1.0 / 3.0)
+        ball = 2.0 * (3.0 * max(volumes.volume(solid), 0.0) / (4.0 * math.pi)) ** (1.0 / 3.0)
         bound = max(bound, min(side, ball))
     return bound
 
