@@ -508,13 +508,15 @@ def face_arrays(shape) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         tri = BRep_Tool.Triangulation_s(face, location)
         if tri is None or tri.NbTriangles() == 0:
             continue
-        trsf = location.Transformation()
-        nodes = np.array(
-            [tri.Node(i).Transformed(trsf).Coord() for i in range(1, tri.NbNodes() + 1)],
-            dtype=np.float64,
-        )
+        node, triangle = tri.Node, tri.Triangle
+        if location.IsIdentity():  # as a product's faces are: Transformed would copy each node
+            points = [node(i).Coord() for i in range(1, tri.NbNodes() + 1)]
+        else:
+            trsf = location.Transformation()
+            points = [node(i).Transformed(trsf).Coord() for i in range(1, tri.NbNodes() + 1)]
+        nodes = np.array(points, dtype=np.float64)
         triangles = np.array(
-            [tri.Triangle(i).Get() for i in range(1, tri.NbTriangles() + 1)], dtype=np.int64
+            [triangle(i).Get() for i in range(1, tri.NbTriangles() + 1)], dtype=np.int64
         )
         if face.Orientation() == TopAbs_REVERSED:
             triangles = triangles[:, ::-1]
