@@ -1,6 +1,7 @@
 """A solid's volume and centre of mass, integrated over its faces (OpenCASCADE; no I/O).
 
-OpenCASCADE integrates over a solid's faces in two adaptive ways:
+OpenCASCADE's default rule, a fixed Gauss order per face, is far off on B-spline faces (0.58 mm³
+for a pin-in-hole overlap of 0.377 mm³). It integrates over the faces in two adaptive ways:
 
 - ``BRepGProp.VolumeProperties`` with a precision raises the Gauss order on each face until two
   orders agree. On B-spline faces of many knots they agree before they converge, and its
