@@ -177,6 +177,19 @@ def test_volumes_are_the_solids_where_the_integration_stalls_on_a_face(waves, am
     assert volumes.volume(ring) == pytest.approx(exact, rel=1e-7)
 
 
+def test_a_volume_whose_faces_cannot_be_converted_keeps_its_first_integral(monkeypatch):
+    # The conversion raising is injected: no solid at hand makes OpenCASCADE refuse it.
+    import OCP.BRepBuilderAPI
+    from OCP.Standard import Standard_Failure
+
+    def refuse(*args):
+        raise Standard_Failure("BRepBuilderAPI_NurbsConvert")
+
+    ring, exact = wavy_ring(2.0, 3.0, 6.0, amplitude=0.5, waves=24)
+    monkeypatch.setattr(OCP.BRepBuilderAPI, "BRepBuilderAPI_NurbsConvert", refuse)
+    assert volumes.volume(ring) == pytest.approx(exact, rel=1e-5)  # 4.4e-6 off, as integrated
+
+
 def test_an_interference_has_the_shared_solids_volume_where_the_integration_stalls():
     ring, exact = wavy_ring(2.0, 3.0, 6.0, amplitude=0.1, waves=4)
     found = solids.decide(ring, box((-4, -4, -1), (4, 4, 7)), tolerance=1e-4)  # buried in it

@@ -47,8 +47,12 @@ def volume(shape) -> float:
     found, error = _integrated(shape)
     if not 0.0 <= error <= VOLUME_PROMISE:
         from OCP.BRepBuilderAPI import BRepBuilderAPI_NurbsConvert
+        from OCP.Standard import Standard_Failure
 
-        again, error_again = _integrated(BRepBuilderAPI_NurbsConvert(shape, True).Shape())
+        try:
+            again, error_again = _integrated(BRepBuilderAPI_NurbsConvert(shape, True).Shape())
+        except Standard_Failure:  # a face OpenCASCADE cannot convert: the first integral stands
+            return found
         if 0.0 <= error_again and (error < 0.0 or error_again < error):
             found = again
     return found
