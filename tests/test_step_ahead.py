@@ -148,6 +148,58 @@ def test_a_tessellation_in_the_cache_stops_the_worker(tmp_path):
     _same_assembly(here, cached)
 
 
+def test_the_later_step_files_are_read_in_the_pool_as_they_are_read_here(monkeypatch, tmp_path):
+    """The first STEP file is read ahead; the others are read by the pool once the first of
+    them is reached, and give the arrays reading them here gives; a file the pool cannot read
+    is refused here, as without the pool."""
+    from test_load_parallel import assert_same
+
+    from meshcheck.load.files import StepOptions, read_files
+    from meshcheck.load.limits import Budget, Limits
+
+    copy = tmp_path / "box_sides_copy.stp"
+    copy.write_bytes(open(BOX_SIDES, "rb").read())
+    paths, options = [BOX_SIDES, SAMPLE, str(copy)], StepOptions(None, None)
+    here = read_files(paths, Budget(Limits()), options)
+    ahead.start(paths, _settings())
+
+    def not_here(*args):
+        raise AssertionError("a STEP file was read by the load stage in this process")
+
+    monkeypatch.setattr(read, "read_document", not_here)
+    with LocalPool(2) as pool:
+        there = read_files(paths, Budget(Limits()), options, executor=pool)
+    assert_same(here, there)
+    assert ahead._READ == {}  # every file read in the pool was taken
+
+    bad = tmp_path / "bad.step"
+    bad.write_bytes(b"ISO-10303-21;\nHEADER;\nthis is not STEP\n")
+    monkeypatch.undo()
+    with pytest.raises(InputError) as expected:
+        read_files([BOX_SIDES, str(bad)], Budget(Limits()), options)
+    with LocalPool(2) as pool, pytest.raises(InputError) as refused:
+        read_files([BOX_SIDES, str(bad)], Budget(Limits()), options, executor=pool)
+    assert str(refused.value) == str(expected.value)
+
+
+def test_a_later_step_file_in_the_cache_or_with_no_worker_started_is_not_read_in_the_pool(
+    tmp_path,
+):
+    cache = TessellationCache(str(tmp_path / "cache"), secret=b"k" * 32)
+    read_step(SAMPLE, cache=cache)
+    copy = tmp_path / "box_sides_copy.stp"
+    copy.write_bytes(open(BOX_SIDES, "rb").read())
+    paths, defaults = [SAMPLE, str(copy)], [(None, None, None)] * 2
+    with LocalPool(2) as pool:
+        ahead.read_in_pool(paths, defaults, 10**6, pool, cache)
+        assert ahead._READ == {}  # no worker to read them: a fresh one imports OpenCASCADE first
+        pool.map("meshcheck.execute:sleep_then_pid", [Task((0.0,))])  # one started
+        ahead.read_in_pool(paths, defaults, 10**6, pool, cache)
+    assert set(ahead._READ) == {os.path.realpath(copy)}
+    ahead.stop()
+    assert ahead._READ == {}
+
+
 def test_nothing_is_read_ahead_for_one_process_a_cluster_or_no_step_file(monkeypatch, tmp_path):
     key = ahead._key(BOX_SIDES)
     monkeypatch.setattr(ahead, "local_jobs", lambda jobs: 1)
@@ -174,10 +226,13 @@ def test_the_command_reports_the_same_bytes_with_and_without_reading_ahead(tmp_p
     assert json.loads(reports[0])["summary"]["interference"] > 0
 
 
-def test_a_small_file_read_ahead_is_decided_by_its_worker_without_opencascade_here(tmp_path):
+@pytest.mark.parametrize("files", [[BOX_SIDES], [BOX_SIDES, SAMPLE]])
+def test_a_small_file_read_ahead_is_decided_by_its_worker_without_opencascade_here(
+    tmp_path, files
+):
     """The worker that read a small file ahead triangulates it and decides its pairs on the
-    B-rep; the command's process never loads OpenCASCADE, and its report is the one-process
-    report, byte for byte."""
+    B-rep (a later file is read in the pool); the command's process never loads OpenCASCADE,
+    and its report is the one-process report, byte for byte."""
     script = (
         "import sys\n"
         "from meshcheck import cli\n"
@@ -189,7 +244,7 @@ def test_a_small_file_read_ahead_is_decided_by_its_worker_without_opencascade_he
     reports = []
     for jobs in ("1", "2"):
         out = tmp_path / f"j{jobs}.json"
-        command = [sys.executable, "-c", script, BOX_SIDES, "-j", jobs, "--no-cache"]
+        command = [sys.executable, "-c", script, *files, "-j", jobs, "--no-cache"]
         command += ["--format", "json", "-o", str(out)]
         done = subprocess.run(command, capture_output=True, text=True, cwd=tmp_path, timeout=300)
         assert f"OpenCASCADE here: {jobs == '1'}" in done.stderr, done.stderr[-2000:]

@@ -353,14 +353,23 @@ def read_files(
         k for k, p in enumerate(paths) if os.path.splitext(p)[1].lower() in WORKER_EXTENSIONS
     ]
     local = executor is not None and not executor.is_distributed and executor.jobs > 1
+    steps = [k for k, p in enumerate(paths) if os.path.splitext(p)[1].lower() in STEP_EXTENSIONS]
+
+    def read_here(k: int) -> FileRead:
+        if local and len(steps) > 1 and k == steps[1]:
+            # The first STEP file was read ahead in a worker (``load.step.ahead``); the others
+            # are read in the pool now, the first of them reached.
+            _read_steps_in_pool([paths[j] for j in steps[1:]], budget, step, cache, executor)
+        return read(paths[k], budget, step, cache, executor)
+
     if parallel is None and local:
         parallel = parallel_pays([paths[k] for k in in_workers], executor.jobs)
     if not (local and parallel and in_workers):
         out = []
-        for done, path in enumerate(paths, start=1):
-            out.append(read(path, budget, step, cache, executor))
+        for k in range(total):
+            out.append(read_here(k))
             if progress is not None:
-                progress(done, total)
+                progress(k + 1, total)
         return out
 
     from ..execute import Task
@@ -391,11 +400,32 @@ def read_files(
         if k in outcome:
             out.append(_replay(path, budget, outcome[k]))
         else:  # a main-process format, or its worker died: read it here
-            out.append(read(path, budget, step, cache, executor))
+            out.append(read_here(k))
             done = min(done + 1, total)
             if progress is not None:
                 progress(done, total)
     return out
+
+
+def _read_steps_in_pool(
+    paths: list[str], budget: Budget, step: StepOptions, cache, executor
+) -> None:
+    """Have ``executor``'s pool read the STEP files ``paths`` (``step.ahead.read_in_pool``),
+    with the options ``_read_step`` gives ``read_step``; ``read_step`` then takes what it read
+    (the same products), or reads a file here when it did not."""
+    from .step import ahead
+    from .step.tessellate import MAX_STEP_TRIANGLES
+
+    options = [
+        (
+            step.deflection,
+            (step.units or units_.DEFAULT_UNIT) if step.deflection is not None else None,
+            dict(step.given_units).get(path),
+        )
+        for path in paths
+    ]
+    most = min(budget.limits.max_triangles, MAX_STEP_TRIANGLES)  # a file's triangles at most
+    ahead.read_in_pool(paths, options, most, executor, cache)
 
 
 def parallel_pays(paths: Sequence[str], jobs: int) -> bool:

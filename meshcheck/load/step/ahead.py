@@ -25,6 +25,10 @@ the twin import it (``execute.prepare_twin_early``) once its own OpenCASCADE is 
 the worker still reads and the second core would wait, and the twin takes the worker's place
 in the pool.
 
+A run of several STEP files reads the others in the pool once the load stage reaches the
+second (``read_in_pool``, from ``files.read_files``): the worker and its twin are in the pool
+by then, and each file is ``read_task``'s, as the first was; ``take`` gives each its products.
+
 What it cannot change
 ---------------------
 The worker runs the code ``read.read_step`` runs here on the same bytes, so the products, the
@@ -77,6 +81,9 @@ if TYPE_CHECKING:
 
 #: The task of the worker that reads a file ahead.
 READ_TASK = "meshcheck.load.step.ahead:read_task"
+#: Files read in the pool (``read_in_pool``) and not taken yet: real path -> ``read_task``'s
+#: result.
+_READ: dict[str, tuple] = {}
 
 
 def start(paths: list[str], settings: Settings) -> None:
@@ -110,6 +117,48 @@ def start(paths: list[str], settings: Settings) -> None:
             except OSError:  # gone since, or no process or pipe to be had: the load stage
                 pass  # reads it, or says why it cannot
             return
+
+
+def read_in_pool(
+    paths: list[str], options: list[tuple], budget: int, executor: Executor, cache=None
+) -> None:
+    """Read the STEP files ``paths`` in ``executor``'s pool, ``read_task`` each with its
+    ``options`` (as ``start`` makes them), for ``take`` to give their products: the later STEP
+    files of a run, which the load stage would read one after the other here. Only files under
+    ``PREPARE_BYTES`` (a larger file's products are meshed in the pool already) whose
+    tessellation is not in ``cache`` (its entry's file absent) are read, by the workers the
+    pool has started (the one that read the first file and its twin; none started, nothing is
+    read: a fresh worker would import OpenCASCADE first). This process takes none: it would
+    import OpenCASCADE for them, which a run of small files then never does. A file that cannot
+    be read there is read here when its turn comes, and refused then."""
+    from ...cache import tessellation_key
+    from ...execute import Task
+
+    if not getattr(executor, "started", 0):  # a LocalPool's workers, its reserve's too
+        return
+    tasks = []
+    for path, option in zip(paths, options, strict=True):
+        try:
+            size = os.path.getsize(path)
+            if size >= PREPARE_BYTES or os.path.realpath(path) in _READ:
+                continue
+            if cache is not None:
+                data = read_file(path, Limits())
+                _, _, wanted_mm, ratio = mesh_settings(data, *option)
+                key = tessellation_key(
+                    data, wanted_mm, DEFAULT_ANGULAR_DEFLECTION, default_scale=ratio
+                )
+                if os.path.exists(cache.path(key)):
+                    continue
+        except Exception:  # what it is the load stage says when it reads the file
+            continue
+        tasks.append(Task((path, option, budget), size=size))
+    if not tasks:
+        return
+    results = executor.map(READ_TASK, tasks, grow=False)
+    for task, result in zip(tasks, results, strict=True):
+        if result is not None:
+            _READ[os.path.realpath(task.args[0])] = result
 
 
 def read_task(
@@ -152,7 +201,7 @@ def take(path: str, data: bytes, settings: tuple, executor: Executor | None) -> 
     meshed here, loading it then)."""
     key = _key(path)
     if not has_early(key):
-        return None
+        return _checked(_READ.pop(os.path.realpath(path), None), data, settings)
     if len(data) >= PREPARE_BYTES:
         import OCP.TopoDS  # noqa: F401
 
@@ -160,7 +209,11 @@ def take(path: str, data: bytes, settings: tuple, executor: Executor | None) -> 
         # scipy (0.4-0.5 s of CPU to import): the worker's twin imports them now, while the
         # worker reads and this process waits, and takes the worker's place in the pool.
         prepare_twin_early(key, PREPARE_WELDING)
-    result = take_early(key, executor)
+    return _checked(take_early(key, executor), data, settings)
+
+
+def _checked(result: tuple | None, data: bytes, settings: tuple) -> Products | None:
+    """The products of ``read_task``'s ``result`` when it read ``data`` with ``settings``."""
     if result is None:
         return None
     digest, made_with, read = result
@@ -171,11 +224,14 @@ def take(path: str, data: bytes, settings: tuple, executor: Executor | None) -> 
 
 def drop(path: str) -> None:
     """Stop the worker reading ``path`` ahead, if any: the load stage needs nothing read."""
+    _READ.pop(os.path.realpath(path), None)
     stop_early(_key(path))
 
 
 def stop() -> None:
-    """Stop every worker still reading ahead (the run is over, or failed before taking it)."""
+    """Stop every worker still reading ahead (the run is over, or failed before taking it),
+    and forget the files read in the pool that were not taken."""
+    _READ.clear()
     stop_early()
 
 
