@@ -369,21 +369,24 @@ def main(**options):
       meshcheck assembly/ --clearance 0.2
       meshcheck gearbox.step --report html:clashes.html --report junit:meshcheck.xml
     """
-    try:
-        _run(click.get_current_context(), **options)
-    except KeyboardInterrupt:
-        _interrupted()
-    except click.exceptions.ClickException:
-        raise
-    except MeshcheckError as exc:
-        _fail(exc)
-    except Exception as exc:
-        if _is_interrupt(exc):  # Ctrl-C inside an extension's initialisation: an ImportError
+    with _interrupts_noted() as pressed:
+        try:
+            _run(click.get_current_context(), **options)
+        except KeyboardInterrupt:
             _interrupted()
-        exhausted = resource_error(exc)
-        if exhausted is None:
-            _internal_error(exc)
-        _fail(exhausted)
+        except click.exceptions.ClickException:
+            raise
+        except MeshcheckError as exc:
+            _fail(exc)
+        except Exception as exc:
+            # Ctrl-C inside an extension's initialisation (an ImportError), or swallowed where
+            # it was met (a library's optional import) and the half-made module failing since
+            if pressed or _is_interrupt(exc):
+                _interrupted()
+            exhausted = resource_error(exc)
+            if exhausted is None:
+                _internal_error(exc)
+            _fail(exhausted)
 
 
 def _run(
@@ -736,6 +739,35 @@ def _is_interrupt(exc: BaseException) -> bool:
         seen.add(id(exc))
         exc = exc.__cause__ or exc.__context__
     return False
+
+
+@contextlib.contextmanager
+def _interrupts_noted():
+    """Note each Ctrl-C (SIGINT) the run gets in a list, and raise it as Python does. trimesh
+    imports its optional modules under ``except BaseException``: a Ctrl-C met there is
+    swallowed, and the half-made module fails later ("no graph engines available!"); that
+    error is the interrupt's, not a bug. Outside the main thread, or where SIGINT has another
+    handler than Python's, nothing is noted."""
+    import signal
+    import threading
+
+    pressed: list[bool] = []
+    if (
+        threading.current_thread() is not threading.main_thread()
+        or signal.getsignal(signal.SIGINT) is not signal.default_int_handler
+    ):
+        yield pressed
+        return
+
+    def note(signum, frame):
+        pressed.append(True)
+        signal.default_int_handler(signum, frame)
+
+    signal.signal(signal.SIGINT, note)
+    try:
+        yield pressed
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 @contextlib.contextmanager

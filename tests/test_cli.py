@@ -397,6 +397,28 @@ def test_a_ctrl_c_during_an_import_that_catches_everything_still_ends_the_run():
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
 
 
+@pytest.mark.posix_only  # os.kill(SIGINT) ends a process on Windows
+def test_an_error_after_a_ctrl_c_a_library_swallowed_is_an_interruption(monkeypatch):
+    """A Ctrl-C met in an import under ``except BaseException`` (trimesh's optional modules)
+    is swallowed there, and the half-made module fails later: exit 130, not a bug."""
+    import signal
+
+    from meshcheck import pipeline
+
+    def check(files, settings):
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.05)  # the handler runs between two bytecodes
+        except BaseException:  # an optional import's guard
+            pass
+        raise ImportError("no graph engines available!")
+
+    monkeypatch.setattr(pipeline, "check", check)
+    result = run([PLATE])
+    assert (result.exit_code, result.stderr) == (130, "error: interrupted\n")
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
 def test_an_error_a_ctrl_c_caused_is_an_interruption_not_a_bug():
     from meshcheck.cli import _is_interrupt
 
