@@ -182,8 +182,8 @@ def test_the_later_step_files_are_read_in_the_pool_as_they_are_read_here(monkeyp
     assert str(refused.value) == str(expected.value)
 
 
-def test_a_later_step_file_in_the_cache_or_with_no_worker_started_is_not_read_in_the_pool(
-    tmp_path,
+def test_a_later_step_file_cached_past_the_bytes_or_with_no_worker_is_not_read_in_the_pool(
+    tmp_path, monkeypatch
 ):
     cache = TessellationCache(str(tmp_path / "cache"), secret=b"k" * 32)
     read_step(SAMPLE, cache=cache)
@@ -195,9 +195,12 @@ def test_a_later_step_file_in_the_cache_or_with_no_worker_started_is_not_read_in
         assert ahead._READ == {}  # no worker to read them: a fresh one imports OpenCASCADE first
         pool.map("meshcheck.execute:sleep_then_pid", [Task((0.0,))])  # one started
         ahead.read_in_pool(paths, defaults, 10**6, pool, cache)
-    assert set(ahead._READ) == {os.path.realpath(copy)}
-    ahead.stop()
-    assert ahead._READ == {}
+        assert set(ahead._READ) == {os.path.realpath(copy)}
+        ahead.stop()  # the run is over: what was not taken is forgotten
+        assert ahead._READ == {}
+        monkeypatch.setattr(ahead, "POOL_READ_BYTES", os.path.getsize(copy) - 1)
+        ahead.read_in_pool(paths, defaults, 10**6, pool, cache)  # past the bytes read at once
+        assert ahead._READ == {}
 
 
 def test_nothing_is_read_ahead_for_one_process_a_cluster_or_no_step_file(monkeypatch, tmp_path):

@@ -84,6 +84,10 @@ READ_TASK = "meshcheck.load.step.ahead:read_task"
 #: Files read in the pool (``read_in_pool``) and not taken yet: real path -> ``read_task``'s
 #: result.
 _READ: dict[str, tuple] = {}
+#: Bytes of STEP files read in the pool at once: their products wait in this process until the
+#: load stage takes them (a few times their size, triangles included); the files past it are
+#: read here, as before.
+POOL_READ_BYTES = 32 << 20
 
 
 def start(paths: list[str], settings: Settings) -> None:
@@ -126,7 +130,8 @@ def read_in_pool(
     ``options`` (as ``start`` makes them), for ``take`` to give their products: the later STEP
     files of a run, which the load stage would read one after the other here. Only files under
     ``PREPARE_BYTES`` (a larger file's products are meshed in the pool already) whose
-    tessellation is not in ``cache`` (its entry's file absent) are read, by the workers the
+    tessellation is not in ``cache`` (its entry's file absent), up to ``POOL_READ_BYTES`` in
+    all, are read, by the workers the
     pool has started (the one that read the first file and its twin; none started, nothing is
     read: a fresh worker would import OpenCASCADE first). This process takes none: it would
     import OpenCASCADE for them, which a run of small files then never does. A file that cannot
@@ -136,12 +141,14 @@ def read_in_pool(
 
     if not getattr(executor, "started", 0):  # a LocalPool's workers, its reserve's too
         return
-    tasks = []
+    tasks, total = [], 0
     for path, option in zip(paths, options, strict=True):
         try:
             size = os.path.getsize(path)
             if size >= PREPARE_BYTES or os.path.realpath(path) in _READ:
                 continue
+            if total + size > POOL_READ_BYTES:
+                break
             if cache is not None:
                 data = read_file(path, Limits())
                 _, _, wanted_mm, ratio = mesh_settings(data, *option)
@@ -153,6 +160,7 @@ def read_in_pool(
         except Exception:  # what it is the load stage says when it reads the file
             continue
         tasks.append(Task((path, option, budget), size=size))
+        total += size
     if not tasks:
         return
     results = executor.map(READ_TASK, tasks, grow=False)
