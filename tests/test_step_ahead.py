@@ -230,9 +230,7 @@ def test_the_command_reports_the_same_bytes_with_and_without_reading_ahead(tmp_p
 
 
 @pytest.mark.parametrize("files", [[BOX_SIDES], [BOX_SIDES, SAMPLE]])
-def test_a_small_file_read_ahead_is_decided_by_its_worker_without_opencascade_here(
-    tmp_path, files
-):
+def test_a_small_file_read_ahead_is_decided_by_its_worker_without_opencascade_here(tmp_path, files):
     """The worker that read a small file ahead triangulates it and decides its pairs on the
     B-rep (a later file is read in the pool); the command's process never loads OpenCASCADE,
     and its report is the one-process report, byte for byte."""
