@@ -73,6 +73,12 @@ class StepOptions:
     #: (path, unit) of the files whose unit the user gave (``--units FILE=UNIT``), sorted
     given_units: tuple[tuple[str, str], ...] = ()
 
+    def for_file(self, path: str) -> tuple[float | None, str | None, str | None]:
+        """(deflection, its unit, the unit the user gave ``path``) as ``read_step`` takes
+        them (``deflection``, ``deflection_unit``, ``unit``)."""
+        unit = (self.units or units_.DEFAULT_UNIT) if self.deflection is not None else None
+        return self.deflection, unit, dict(self.given_units).get(path)
+
 
 @dataclass(frozen=True)
 class FileRead:
@@ -293,15 +299,14 @@ def _read_step(
     """(items, declared unit, deflection in that unit, exact solids) of a STEP file."""
     from .step import read_step
 
+    deflection, deflection_unit, unit = options.for_file(path)
     try:
         assembly = read_step(
             path,
             data=data,
-            deflection=options.deflection,
-            deflection_unit=(options.units or units_.DEFAULT_UNIT)
-            if options.deflection is not None
-            else None,
-            unit=dict(options.given_units).get(path),
+            deflection=deflection,
+            deflection_unit=deflection_unit,
+            unit=unit,
             cache=cache,
             max_triangles=budget.limits.max_triangles - budget.triangles,
             executor=executor,
@@ -416,14 +421,7 @@ def _read_steps_in_pool(
     from .step import ahead
     from .step.tessellate import MAX_STEP_TRIANGLES
 
-    options = [
-        (
-            step.deflection,
-            (step.units or units_.DEFAULT_UNIT) if step.deflection is not None else None,
-            dict(step.given_units).get(path),
-        )
-        for path in paths
-    ]
+    options = [step.for_file(path) for path in paths]
     most = min(budget.limits.max_triangles, MAX_STEP_TRIANGLES)  # a file's triangles at most
     ahead.read_in_pool(paths, options, most, executor, cache)
 
