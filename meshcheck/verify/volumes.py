@@ -1,25 +1,22 @@
 """A solid's volume and centre of mass, integrated over its faces (OpenCASCADE; no I/O).
 
-OpenCASCADE's default rule, a fixed Gauss order per face, is far off on B-spline faces (0.58 mm³
-for a pin-in-hole overlap of 0.377 mm³). It integrates over the faces in two adaptive ways:
+OpenCASCADE's default rule, a fixed Gauss order per face, is far off on B-spline faces. It
+integrates over the faces in two adaptive ways:
 
 - ``BRepGProp.VolumeProperties`` with a precision raises the Gauss order on each face until two
   orders agree. On B-spline faces of many knots they agree before they converge, and its
-  estimate does not show it: a real export's shared solid of a screw in a knurled insert came
-  out 2.0e-6 below its volume with an estimate of 6e-10, a ring revolved from a 58-knot
-  B-spline 6.3e-6 off with an estimate of 6e-8.
+  estimate does not show it (the tests' ring revolved from a 58-knot B-spline: 6.3e-6 off, its
+  estimate 6e-8).
 - ``BRepGProp.VolumePropertiesGK`` integrates each face by Gauss-Kronrod over its B-spline
-  spans. On the shared solids of three real exports its estimate stayed above its error
-  (1e-7 at most, for errors up to 8e-8); where it stalls on a face as written (that ring with
-  24 waves: 4.4e-6 off), its estimate says so (3e-5).
+  spans, and where it stalls on a face as written (the ring with 24 waves: 4.4e-6 off), its
+  estimate says so (3e-5).
 
 ``volume`` is the second, volume only; where its estimate is past ``VOLUME_PROMISE``, it
 integrates again with every face converted to a B-spline surface (the ring: 2.4e-9), and keeps
-the result of the smaller estimate. It is the faster too: on the three exports' shared solids
-0.08 s against 0.56 s, 1.5 s against 1.9 s and 0.9 s against 1.9 s. Asked for the centre of
-mass as well, Gauss-Kronrod converges slowly where a face's moment is near zero (59 s against
-1.9 s), so ``centre_of_mass`` is the first method at ``CENTRE_PRECISION``: it locates an
-interference, which a report prints to its tolerance's decimal place.
+the result of the smaller estimate. Asked for the centre of mass as well, Gauss-Kronrod
+converges slowly where a face's moment is near zero, so ``centre_of_mass`` is the first method
+at ``CENTRE_PRECISION``: it locates an interference, which a report prints to its tolerance's
+decimal place.
 """
 
 from __future__ import annotations
