@@ -4,7 +4,7 @@ CollisionManager, and against the exact check a CAD user would script with OpenC
 Run from the repository root (needs the ``dev`` extra; ``pip install cascadio`` for the
 CollisionManager peer)::
 
-    python bench/step.py [FOLDER ...] [--jobs N] [--repeat N]
+    python bench/step.py [FOLDER ...] [--jobs N] [--repeat N] [--parts NAME ...]
 
 The assemblies: ``tests/data/step/*.STEP`` (real exports kept in the repository), two written here
 by OpenCASCADE (a plate with three bolts line to line in their holes and a nut under each; 2,000
@@ -12,6 +12,10 @@ instances of one bolt at one placement), and every ``.step``/``.stp`` file in th
 (real exports fetched by hand, e.g. ``as1-oc-214.stp``, the AP214 assembly of
 ``tpaviot/pythonocc-demos``' ``assets/models``: plate, brackets, rod, bolts and nuts in nested
 sub-assemblies).
+
+``--parts NAME`` (repeatable) adds the file ``NAME`` of the folders written one solid per STEP
+file, each where the assembly places it (``part_files``): parts exported one by one, checked
+together as ``meshcheck part000.step part001.step ...``, the peers reading the same files.
 
 For each, in this run, each a fresh process (imports included), alternated, best of ``--repeat``:
 
@@ -27,8 +31,8 @@ For each, in this run, each a fresh process (imports included), alternated, best
 
 Prints wall seconds and the ratios cold/CM, warm/CM, cold/OCP, then the same ratios of CPU
 seconds (each process and the workers it waited for: less moved by other jobs on a shared
-machine), with the load averages before and after. ``--peer cm FILE`` and ``--peer ocp FILE``
-run one peer (what the table times).
+machine), with the load averages before and after. ``--peer cm FILE ...`` and
+``--peer ocp FILE ...`` run one peer (what the table times).
 
 ``--phases`` prints instead where a cold run's CPU seconds go, for each assembly: one process
 at ``-j 1`` without a cache, its imports (meshcheck with click and numpy; trimesh with scipy;
@@ -58,29 +62,31 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.join(HERE, "..")
 
 
-def peer_cm(path: str) -> str:
-    """trimesh + cascadio + CollisionManager on one STEP file: the pairs it calls colliding."""
+def peer_cm(paths: list[str]) -> str:
+    """trimesh + cascadio + CollisionManager on STEP files: the pairs it calls colliding."""
     import cascadio
     import trimesh
 
-    with tempfile.TemporaryDirectory() as tmp:
-        glb = os.path.join(tmp, "model.glb")
-        cascadio.step_to_glb(path, glb)
-        scene = trimesh.load(glb, force="scene")
     manager = trimesh.collision.CollisionManager()
     solids = 0
-    for node in scene.graph.nodes_geometry:
-        transform, geometry = scene.graph[node]
-        if isinstance(scene.geometry[geometry], trimesh.Trimesh):  # not the curves it may hold
-            manager.add_object(node, scene.geometry[geometry], transform=transform)
-            solids += 1
+    for k, path in enumerate(paths):
+        with tempfile.TemporaryDirectory() as tmp:
+            glb = os.path.join(tmp, "model.glb")
+            cascadio.step_to_glb(path, glb)
+            scene = trimesh.load(glb, force="scene")
+        for node in scene.graph.nodes_geometry:
+            transform, geometry = scene.graph[node]
+            if isinstance(scene.geometry[geometry], trimesh.Trimesh):  # not its curves
+                manager.add_object(f"{k}/{node}", scene.geometry[geometry], transform=transform)
+                solids += 1
     _, names = manager.in_collision_internal(return_names=True)
     return f"{solids} solids, {len(names)} colliding pairs"
 
 
-def peer_ocp(path: str, max_pairs: int = 500) -> str:
-    """The scripted exact check: every box-overlapping pair of solids, boolean and distance
-    (past ``max_pairs`` pairs, the rest is estimated at the rate of the first ones)."""
+def peer_ocp(paths: list[str], max_pairs: int = 500) -> str:
+    """The scripted exact check on the solids of STEP files: every box-overlapping pair of
+    solids, boolean and distance (past ``max_pairs`` pairs, the rest is estimated at the rate
+    of the first ones)."""
     import math
 
     from OCP.Bnd import Bnd_Box
@@ -93,13 +99,15 @@ def peer_ocp(path: str, max_pairs: int = 500) -> str:
     from OCP.TopAbs import TopAbs_SOLID
     from OCP.TopExp import TopExp_Explorer
 
-    reader = STEPControl_Reader()
-    reader.ReadFile(path)
-    reader.TransferRoots()
-    solids, explorer = [], TopExp_Explorer(reader.OneShape(), TopAbs_SOLID)
-    while explorer.More():
-        solids.append(explorer.Current())
-        explorer.Next()
+    solids = []
+    for path in paths:
+        reader = STEPControl_Reader()
+        reader.ReadFile(path)
+        reader.TransferRoots()
+        explorer = TopExp_Explorer(reader.OneShape(), TopAbs_SOLID)
+        while explorer.More():
+            solids.append(explorer.Current())
+            explorer.Next()
     boxes = []
     for solid in solids:
         box = Bnd_Box()
@@ -265,6 +273,29 @@ def written_assemblies(folder: str) -> list[str]:
     return [str(p) for p in out]
 
 
+def part_files(path: str, folder: str) -> list[str]:
+    """``path``'s solids written one per STEP file, each where the assembly places it (a part
+    exported on its own, in the assembly's frame): the files a user checks together."""
+    from OCP.STEPControl import STEPControl_AsIs, STEPControl_Reader, STEPControl_Writer
+    from OCP.TopAbs import TopAbs_SOLID
+    from OCP.TopExp import TopExp_Explorer
+
+    reader = STEPControl_Reader()
+    reader.ReadFile(path)
+    reader.TransferRoots()
+    out = os.path.join(folder, os.path.basename(path) + ".parts")
+    os.makedirs(out)
+    explorer, paths = TopExp_Explorer(reader.OneShape(), TopAbs_SOLID), []
+    with quiet():
+        while explorer.More():
+            writer = STEPControl_Writer()
+            writer.Transfer(explorer.Current(), STEPControl_AsIs)
+            paths.append(os.path.join(out, f"part{len(paths):03d}.step"))
+            writer.Write(paths[-1])
+            explorer.Next()
+    return paths
+
+
 class quiet:
     """OpenCASCADE's writer messages on file descriptor 1 sent to /dev/null."""
 
@@ -292,25 +323,26 @@ def timed(command: list[str], env: dict) -> tuple[float, float, subprocess.Compl
     return wall, cpu, done
 
 
-def bench_one(path: str, jobs: int, repeat: int, has_cascadio: bool) -> dict:
-    """Seconds of each column for one file, best of ``repeat``, and what each found."""
+def bench_one(paths: list[str], jobs: int, repeat: int, has_cascadio: bool) -> dict:
+    """Seconds of each column for one assembly (its files), best of ``repeat``, and what each
+    found."""
     best: dict[str, float] = {}
     cpu: dict[str, float] = {}
     found: dict[str, str] = {}
     for attempt in range(repeat):
         with tempfile.TemporaryDirectory() as cache:
             env = dict(os.environ, MESHCHECK_CACHE_SECRET=f"bench-{os.getpid()}-{attempt}")
-            command = [sys.executable, "-m", "meshcheck", path, "-j", str(jobs)]
+            command = [sys.executable, "-m", "meshcheck", *paths, "-j", str(jobs)]
             command += ["--format", "json", "--cache-dir", cache]
             runs = {"cold": command, "warm": command}
             if has_cascadio:
-                runs["CM"] = [sys.executable, __file__, "--peer", "cm", path]
-            runs["OCP"] = [sys.executable, __file__, "--peer", "ocp", path]
+                runs["CM"] = [sys.executable, __file__, "--peer", "cm", *paths]
+            runs["OCP"] = [sys.executable, __file__, "--peer", "ocp", *paths]
             reports = []
             for name, cmd in runs.items():
                 seconds, cpu_seconds, done = timed(cmd, env)
                 if done.returncode not in ((0, 1) if name in ("cold", "warm") else (0,)):
-                    raise SystemExit(f"{name} failed on {path}:\n{done.stderr[-2000:]}")
+                    raise SystemExit(f"{name} failed on {paths[0]}:\n{done.stderr[-2000:]}")
                 if name not in ("cold", "warm"):  # the peer's pairs past the ones it made
                     _, _, estimated = done.stdout.strip().partition("\nestimated ")
                     seconds += float(estimated or 0.0)  # at its rate
@@ -331,7 +363,7 @@ def bench_one(path: str, jobs: int, repeat: int, has_cascadio: bool) -> dict:
                 else:
                     found[name] = done.stdout.strip().partition("\nestimated ")[0]
             if reports[0] != reports[1]:
-                raise SystemExit(f"{path}: the warm report differs from the cold one")
+                raise SystemExit(f"{paths[0]}: the warm report differs from the cold one")
     return {"seconds": best, "cpu": cpu, "found": found}
 
 
@@ -342,9 +374,17 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=1)
     parser.add_argument("--peer", choices=("cm", "ocp", "phases"))
     parser.add_argument("--phases", action="store_true", help="cold CPU seconds by phase")
+    parser.add_argument(
+        "--parts",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="also time the file NAME of the folders written one solid per file",
+    )
     args = parser.parse_args()
     if args.peer:
-        print({"cm": peer_cm, "ocp": peer_ocp, "phases": phases}[args.peer](args.folders[0]))
+        peer = {"cm": peer_cm, "ocp": peer_ocp, "phases": lambda paths: phases(paths[0])}
+        print(peer[args.peer](args.folders))
         return
     compile_meshcheck()
     try:
@@ -367,27 +407,34 @@ def main() -> None:
         if args.phases:
             print_phases(paths, args.repeat)
             return
+        cases = [(os.path.basename(p), [p]) for p in paths]
+        for name in args.parts:
+            found = [p for p in paths if os.path.basename(p) == name]
+            if not found:
+                raise SystemExit(f"--parts {name}: no such file in the folders")
+            files = part_files(found[0], folder)
+            cases.append((f"{len(files)} part files of {name}", files))
         head = f"{'assembly':30} {'cold':>7} {'warm':>7} {'CM':>7} {'OCP':>7}"
         print(
             head
             + f" {'cold/CM':>8} {'warm/CM':>8} {'cold/OCP':>9}  CPU: {'cold/CM':>7} {'cold/OCP':>8}"
         )
         rows = []
-        for path in paths:
-            result = bench_one(path, args.jobs, args.repeat, has_cascadio)
+        for label, files in cases:
+            result = bench_one(files, args.jobs, args.repeat, has_cascadio)
             s, c = result["seconds"], result["cpu"]
             cm, cm_cpu = s.get("CM", float("nan")), c.get("CM", float("nan"))
             print(
-                f"{os.path.basename(path)[:30]:30} {s['cold']:>6.2f}s {s['warm']:>6.2f}s "
+                f"{label[:30]:30} {s['cold']:>6.2f}s {s['warm']:>6.2f}s "
                 f"{cm:>6.2f}s {s['OCP']:>6.2f}s {s['cold'] / cm:>7.2f}x {s['warm'] / cm:>7.2f}x "
                 f"{s['cold'] / s['OCP']:>8.2f}x  CPU: {c['cold'] / cm_cpu:>6.2f}x "
                 f"{c['cold'] / c['OCP']:>7.2f}x",
                 flush=True,
             )
-            rows.append((path, result["found"]))
+            rows.append((label, result["found"]))
     print("found:")
-    for path, found in rows:
-        print(f"  {os.path.basename(path)}")
+    for label, found in rows:
+        print(f"  {label}")
         for name, text in found.items():
             print(f"    {name:5} {text}")
     print(f"load average {os.getloadavg()[0]:.1f} at the end; {os.cpu_count()} cores")
