@@ -48,11 +48,13 @@ def main() -> None:
     os.dup2(2, 1)
     sys.stdout = sys.stderr
 
+    from meshcheck._process import imports_uncollected  # and the command's process settings
     from meshcheck.execute import Writer, call, resolve
 
     if len(sys.argv) > 1:  # the parent's prepare function (Executor.prepare): imports
         try:
-            resolve(sys.argv[1])()
+            with imports_uncollected():
+                resolve(sys.argv[1])()
         except Exception:  # no traceback on the user's terminal: the parent starts a worker
             _leave(1)  # without it, and meets the failure itself if a task needs that import
     if len(sys.argv) > 2:  # the twin's pipes: fork it now, while this is the only thread

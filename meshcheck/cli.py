@@ -542,6 +542,7 @@ def _baseline(path):
 
 def _check(files, settings, baseline, export_path):
     """Run the check (and the export); print its warnings; exit on an error, after them."""
+    from ._process import imports_uncollected
     from .execute import RUN_ADDRESS_SPACE, address_space_left, stop_spare
     from .progress import Progress
 
@@ -556,8 +557,8 @@ def _check(files, settings, baseline, export_path):
     stop_spare()  # a worker the command started for a read it does not make (``__main__``)
     error = None
     try:
-        with Progress("starting", 0), _interrupts_held():  # numba, trimesh, scipy: seconds
-            from .pipeline import check  # on a cold disk
+        with Progress("starting", 0), _interrupts_held(), imports_uncollected():
+            from .pipeline import check  # numba, trimesh, scipy: seconds on a cold disk
 
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", MeshcheckWarning)

@@ -239,6 +239,13 @@ def spin_then_cpu(store: dict, seconds: float) -> tuple[int, float]:
     return os.getpid(), time.process_time()
 
 
+def collector_threshold(store: dict) -> tuple[int, ...]:
+    """A task that returns its process's garbage collector thresholds (for tests)."""
+    import gc
+
+    return gc.get_threshold()
+
+
 def is_imported(store: dict, module: str) -> bool:
     """A task that says whether its process has imported ``module`` (for tests)."""
     return module in sys.modules
@@ -793,7 +800,9 @@ def prepare_twin_early(key, function: str) -> bool:
 def call_prepare(store: dict, function: str) -> None:
     """A task that calls a prepare function (``prepare_twin_early``); a failure is the later
     task's to meet, as a worker's failed prepare is (``_worker.main``)."""
-    with contextlib.suppress(Exception):
+    from ._process import imports_uncollected
+
+    with contextlib.suppress(Exception), imports_uncollected():
         resolve(function)()
 
 

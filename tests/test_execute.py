@@ -321,6 +321,57 @@ def test_a_busy_workers_next_task_that_fits_its_pipe_is_written_before_this_proc
     assert second < ended - 0.5  # the worker's next task began long before that call ended
 
 
+def test_the_command_and_its_workers_collect_garbage_less_often_than_a_library_user():
+    """The command's process and its workers pass over the collector's
+    youngest generation every ``COLLECTOR_THRESHOLD`` allocations (the imports of OpenCASCADE,
+    numpy and trimesh allocate hundreds of thousands of lasting objects); a program that
+    imports meshcheck as a library keeps Python's default."""
+    from meshcheck._process import COLLECTOR_THRESHOLD
+
+    def threshold(code: str) -> int:
+        done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+        assert done.returncode == 0, done.stderr
+        return int(done.stdout)
+
+    show = "import gc; print(gc.get_threshold()[0])"
+    assert threshold(f"import meshcheck.__main__; {show}") == COLLECTOR_THRESHOLD
+    assert threshold(f"import meshcheck, meshcheck.execute; {show}") == 700
+    with LocalPool(3) as pool:  # tasks in the workers only (``here`` is False)
+        found = pool.map("meshcheck.execute:collector_threshold", [Task(())] * 4)
+    assert {t[0] for t in found} == {COLLECTOR_THRESHOLD}
+    execute.start_early("collector", "meshcheck.execute:collector_threshold", ())
+    assert execute.take_early("collector")[0] == COLLECTOR_THRESHOLD
+
+
+def test_imports_run_uncollected_then_what_they_made_is_frozen():
+    """``imports_uncollected``: no collection inside the block; after it, every object made so
+    far is frozen, and the collector is as it was (on, or off), after an error too."""
+    import gc
+
+    from meshcheck._process import imports_uncollected
+
+    was_enabled = gc.isenabled()
+    try:
+        gc.enable()
+        before = gc.get_freeze_count()
+        with imports_uncollected():
+            assert not gc.isenabled()
+            made = [[] for _ in range(1000)]  # lists: objects the collector tracks
+        assert gc.isenabled()
+        assert gc.get_freeze_count() >= before + len(made)
+        with pytest.raises(ValueError), imports_uncollected():
+            raise ValueError
+        assert gc.isenabled()
+        gc.disable()
+        with imports_uncollected():
+            pass
+        assert not gc.isenabled()  # off stays off
+    finally:
+        gc.unfreeze()
+        if was_enabled:
+            gc.enable()
+
+
 def test_prepared_workers_import_before_their_first_task():
     """``prepare`` starts the workers a map with this process helping wants (jobs - 1), each
     calling the function before it is ready; a worker started by a map calls none."""

@@ -23,6 +23,7 @@ STAGES = [
     (
         "base",
         [
+            "_process",  # the process-wide settings of the command and its workers
             "errors",
             "_lazy",
             "units",
@@ -48,7 +49,7 @@ STAGES = [
     ("reports", ["reports"]),
     (
         "command line",
-        ["cli", "__main__", "_process", ""],
+        ["cli", "__main__", ""],
     ),  # "": the package itself (its lazy names)
 ]
 RANK = {top: k for k, (_, tops) in enumerate(STAGES) for top in tops}
