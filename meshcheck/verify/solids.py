@@ -579,6 +579,8 @@ def _tessellation(shape) -> tuple[np.ndarray, np.ndarray]:
     from OCP.TopLoc import TopLoc_Location
     from OCP.TopoDS import TopoDS
 
+    from ..load.step.tessellate import triangulation_arrays
+
     shape = _meshed(shape, max(SOLID_DEFLECTION * _diagonal(shape), 1e-9))
     vertices, faces, offset = [np.zeros((0, 3))], [np.zeros((0, 3), dtype=np.int64)], 0
     explorer = TopExp_Explorer(shape, TopAbs_FACE)
@@ -589,14 +591,10 @@ def _tessellation(shape) -> tuple[np.ndarray, np.ndarray]:
         tri = BRep_Tool.Triangulation_s(face, location)
         if tri is None:
             continue
-        trsf = location.Transformation()
-        nodes = [tri.Node(i).Transformed(trsf).Coord() for i in range(1, tri.NbNodes() + 1)]
-        triangles = np.array(
-            [tri.Triangle(i).Get() for i in range(1, tri.NbTriangles() + 1)], dtype=np.int64
-        ).reshape(-1, 3)
+        nodes, triangles = triangulation_arrays(tri, location)
         if face.Orientation() == TopAbs_REVERSED:
             triangles = triangles[:, ::-1]
-        vertices.append(np.array(nodes, dtype=np.float64).reshape(-1, 3))
+        vertices.append(nodes)
         faces.append(triangles - 1 + offset)
         offset += len(nodes)
     return np.concatenate(vertices), np.concatenate(faces)

@@ -475,6 +475,23 @@ def _triangle_count(shape) -> int:
     return n
 
 
+def triangulation_arrays(tri, location) -> tuple[np.ndarray, np.ndarray]:
+    """A face's triangulation ``tri`` as arrays: its nodes placed by ``location`` ((n, 3)
+    float64) and its triangles as OpenCASCADE numbers them, from 1 ((m, 3) int64), not wound by
+    the face's orientation."""
+    node, triangle = tri.Node, tri.Triangle
+    if location.IsIdentity():  # as a product's faces are: Transformed would copy each node
+        points = [node(i).Coord() for i in range(1, tri.NbNodes() + 1)]
+    else:
+        trsf = location.Transformation()
+        points = [node(i).Transformed(trsf).Coord() for i in range(1, tri.NbNodes() + 1)]
+    triangles = [triangle(i).Get() for i in range(1, tri.NbTriangles() + 1)]
+    return (
+        np.array(points, dtype=np.float64).reshape(-1, 3),
+        np.array(triangles, dtype=np.int64).reshape(-1, 3),
+    )
+
+
 def face_arrays(shape) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The triangles of a meshed shape, one copy of the vertices per face, wound by each face's
     orientation (outward for a solid), and which copies the topology says are one point.
@@ -508,16 +525,7 @@ def face_arrays(shape) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         tri = BRep_Tool.Triangulation_s(face, location)
         if tri is None or tri.NbTriangles() == 0:
             continue
-        node, triangle = tri.Node, tri.Triangle
-        if location.IsIdentity():  # as a product's faces are: Transformed would copy each node
-            points = [node(i).Coord() for i in range(1, tri.NbNodes() + 1)]
-        else:
-            trsf = location.Transformation()
-            points = [node(i).Transformed(trsf).Coord() for i in range(1, tri.NbNodes() + 1)]
-        nodes = np.array(points, dtype=np.float64)
-        triangles = np.array(
-            [triangle(i).Get() for i in range(1, tri.NbTriangles() + 1)], dtype=np.int64
-        )
+        nodes, triangles = triangulation_arrays(tri, location)
         if face.Orientation() == TopAbs_REVERSED:
             triangles = triangles[:, ::-1]
         edge_explorer = TopExp_Explorer(face, TopAbs_EDGE)
