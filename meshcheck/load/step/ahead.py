@@ -131,11 +131,11 @@ def read_in_pool(
     files of a run, which the load stage would read one after the other here. Only files under
     ``PREPARE_BYTES`` (a larger file's products are meshed in the pool already) whose
     tessellation is not in ``cache`` (its entry's file absent), up to ``POOL_READ_BYTES`` in
-    all, are read, by the workers the
-    pool has started (the one that read the first file and its twin; none started, nothing is
-    read: a fresh worker would import OpenCASCADE first). This process takes none: it would
-    import OpenCASCADE for them, which a run of small files then never does. A file that cannot
-    be read there is read here when its turn comes, and refused then."""
+    all, are read, by the workers the pool has started (the one that read the first file and
+    its twin; none started, nothing is read: a fresh worker would import OpenCASCADE first).
+    This process takes none: it would import OpenCASCADE for them, which a run of small files
+    then never does. A file that cannot be read there is read here when its turn comes, and
+    refused then."""
     from ...cache import tessellation_key
     from ...execute import Task
 
